@@ -1,0 +1,1 @@
+"""Shipped data (URDF, meshes, textures, calibration), installed as the ``ihrcf_env.assets`` package."""

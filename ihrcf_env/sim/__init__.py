@@ -1,0 +1,1 @@
+"""PyBullet simulation layer: one explicit physics client per world."""
