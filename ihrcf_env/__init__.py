@@ -2,7 +2,19 @@
 
 Layers: pure geometry/estimation modules (``frames``, ``rig``, ``geometry``, ``calibration``,
 ``estimators``; numpy/scipy/cv2 only), the PyBullet simulation layer (``ihrcf_env.sim``), the
-Gymnasium env (``ihrcf_env.envs``) and wrappers on top.
+Gymnasium env (``ihrcf_env.envs``) and wrappers on top. Importing this package registers
+``ihrcf_env/DeckLanding-v0`` without importing PyBullet.
 """
 
+from gymnasium.envs.registration import register, registry
+
 __version__ = "0.1.0"
+
+ENV_ID = "ihrcf_env/DeckLanding-v0"
+
+if ENV_ID not in registry:
+    register(
+        id=ENV_ID,
+        entry_point="ihrcf_env.envs.deck_landing:DeckLandingEnv",
+        max_episode_steps=600,
+    )

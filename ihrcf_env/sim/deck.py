@@ -1,0 +1,282 @@
+"""The Stewart-platform deck in PyBullet: a heavy dynamic plate driven along a trajectory by velocity.
+
+The plate is a dynamic rigid body (hundreds of kg, isotropic inertia, no damping). Before every
+physics step its linear and angular velocity are set so that one step of Bullet's semi-implicit
+Euler integration lands it on the next pose of the trajectory (the linear velocity is
+pre-compensated for one step of gravity). The deck therefore has a real velocity, and a drone
+resting on it is carried along by friction. The tag and the six legs are visual-only bodies placed
+where the plate and the inverse kinematics say, before every camera render.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pybullet as p
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from ihrcf_env.frames import matrix_from_quat
+from ihrcf_env.sim.assets import asset_path, tag_texture
+from ihrcf_env.sim.profiles import MotionProfile
+from ihrcf_env.sim.stewart import StewartGeometry
+
+GRAVITY = 9.81
+
+
+@dataclass(frozen=True)
+class DeckConfig:
+    """Deck plate and tag. Metres, kilograms."""
+
+    size: float = 0.8  # square plate edge
+    thickness: float = 0.04
+    mass: float = 400.0
+    tag_id: int = 0
+    tag_size: float = 0.4  # edge of the tag's black square
+    friction: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("size", "thickness", "mass", "tag_size"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"deck {name} must be positive, got {v!r}")
+        if self.tag_size * 10 / 8 > self.size:
+            raise ValueError(
+                f"tag_size {self.tag_size} m (plus its white quiet zone) does not fit on the {self.size} m deck"
+            )
+
+
+class DeckTrajectory:
+    """Deck poses sampled at every physics tick: ``position[k]``, ``quaternion[k]`` (x, y, z, w) at
+    time ``k * dt``, world frame (deck frame origin = tag centre on the top surface)."""
+
+    def __init__(self, profile: MotionProfile, geometry: StewartGeometry, dt: float, n_ticks: int) -> None:
+        t = np.arange(n_ticks + 1) * dt
+        offset, rpy = profile.sample(t)
+        rot = Rotation.from_euler("ZYX", rpy[:, ::-1])
+        self.times = t
+        self.position = geometry.home_position + offset
+        self.quaternion = rot.as_quat()
+        matrices = rot.as_matrix()
+        self.z_axis = matrices[:, :, 2]
+        self.legs = geometry.leg_lengths(self.position, matrices)
+        geometry.check_stroke(t, self.legs)
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+
+def _quat_mul(a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, float, float, float]:
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    )
+
+
+def angular_velocity_between(
+    q_from: tuple[float, ...], q_to: tuple[float, ...], dt: float
+) -> tuple[float, ...]:
+    """World-frame angular velocity (rad/s) that rotates ``q_from`` into ``q_to`` in ``dt`` seconds."""
+    x, y, z, w = _quat_mul(q_to, (-q_from[0], -q_from[1], -q_from[2], q_from[3]))
+    if w < 0:
+        x, y, z, w = -x, -y, -z, -w
+    s = math.sqrt(x * x + y * y + z * z)
+    if s < 1e-12:
+        return (2 * x / dt, 2 * y / dt, 2 * z / dt)
+    k = 2.0 * math.atan2(s, w) / (s * dt)
+    return (x * k, y * k, z * k)
+
+
+class Deck:
+    """Plate, tag, legs and base of the Stewart platform in one PyBullet client."""
+
+    def __init__(self, client: int, geometry: StewartGeometry, config: DeckConfig, texture_dir: Path) -> None:
+        self.client = client
+        self.geometry = geometry
+        self.config = config
+        cid = client
+        half = config.thickness / 2
+        # Plate: collision top = deck frame origin; the visual top sits 1 mm lower so the tag quad,
+        # exactly on the collision surface, never z-fights with it.
+        col = p.createCollisionShape(
+            p.GEOM_BOX, halfExtents=[config.size / 2, config.size / 2, half], physicsClientId=cid
+        )
+        vis = p.createVisualShape(
+            p.GEOM_BOX,
+            halfExtents=[config.size / 2, config.size / 2, half - 0.0005],
+            visualFramePosition=[0, 0, -0.0005],
+            rgbaColor=[0.72, 0.74, 0.76, 1],
+            physicsClientId=cid,
+        )
+        self.body = p.createMultiBody(
+            baseMass=config.mass,
+            baseCollisionShapeIndex=col,
+            baseVisualShapeIndex=vis,
+            basePosition=[0, 0, geometry.home_height - half],
+            useMaximalCoordinates=True,
+            physicsClientId=cid,
+        )
+        i_iso = config.mass * (config.size**2) / 6.0
+        p.changeDynamics(
+            self.body,
+            -1,
+            mass=config.mass,
+            localInertiaDiagonal=[i_iso, i_iso, i_iso],
+            linearDamping=0.0,
+            angularDamping=0.0,
+            lateralFriction=config.friction,
+            physicsClientId=cid,
+        )
+        self._half = half
+
+        # Tag: textured quad (visual only).
+        tex_file = texture_dir / f"tag36h11_{config.tag_id}.png"
+        cv2.imwrite(str(tex_file), tag_texture(config.tag_id))
+        quad_edge = config.tag_size * 10 / 8
+        tag_vis = p.createVisualShape(
+            p.GEOM_MESH,
+            fileName=str(asset_path("tag_quad.obj")),
+            meshScale=[quad_edge, quad_edge, 1.0],
+            physicsClientId=cid,
+        )
+        self.tag_body = p.createMultiBody(baseMass=0, baseVisualShapeIndex=tag_vis, physicsClientId=cid)
+        tex = p.loadTexture(str(tex_file), physicsClientId=cid)
+        p.changeVisualShape(
+            self.tag_body, -1, textureUniqueId=tex, rgbaColor=[1, 1, 1, 1], physicsClientId=cid
+        )
+
+        # Legs: a housing from the base joint and a rod from the top joint (telescoping look).
+        self._leg_part = 0.45
+        housing = p.createVisualShape(
+            p.GEOM_CYLINDER,
+            radius=0.022,
+            length=self._leg_part,
+            rgbaColor=[0.25, 0.27, 0.3, 1],
+            physicsClientId=cid,
+        )
+        rod = p.createVisualShape(
+            p.GEOM_CYLINDER,
+            radius=0.012,
+            length=self._leg_part,
+            rgbaColor=[0.8, 0.8, 0.82, 1],
+            physicsClientId=cid,
+        )
+        self.leg_bodies = [
+            (
+                p.createMultiBody(baseMass=0, baseVisualShapeIndex=housing, physicsClientId=cid),
+                p.createMultiBody(baseMass=0, baseVisualShapeIndex=rod, physicsClientId=cid),
+            )
+            for _ in range(6)
+        ]
+        # Base: a static disc on the ground carrying the base joints.
+        r_base = geometry.base_radius + 0.06
+        base_col = p.createCollisionShape(
+            p.GEOM_CYLINDER, radius=r_base, height=geometry.base_height, physicsClientId=cid
+        )
+        base_vis = p.createVisualShape(
+            p.GEOM_CYLINDER,
+            radius=r_base,
+            length=geometry.base_height,
+            rgbaColor=[0.3, 0.32, 0.36, 1],
+            physicsClientId=cid,
+        )
+        self.base_body = p.createMultiBody(
+            baseMass=0,
+            baseCollisionShapeIndex=base_col,
+            baseVisualShapeIndex=base_vis,
+            basePosition=[0, 0, geometry.base_height / 2],
+            physicsClientId=cid,
+        )
+        self.trajectory: DeckTrajectory | None = None
+
+    # -- driving ---------------------------------------------------------------------------
+    def set_trajectory(self, trajectory: DeckTrajectory) -> None:
+        """Use ``trajectory`` and place the plate at its first pose with its velocity."""
+        self.trajectory = trajectory
+        self._tick = 0
+        pos, quat = trajectory.position[0], trajectory.quaternion[0]
+        body_pos = pos + matrix_from_quat(quat)[:, 2] * -self._half
+        p.resetBasePositionAndOrientation(
+            self.body, body_pos.tolist(), quat.tolist(), physicsClientId=self.client
+        )
+        self.drive(0)
+
+    def drive(self, tick: int) -> None:
+        """Set the plate velocity so the next physics step ends on trajectory pose ``tick + 1``.
+
+        Past the trajectory's end the deck holds its last pose.
+        """
+        traj = self.trajectory
+        assert traj is not None
+        dt = traj.times[1] - traj.times[0]
+        k = min(tick + 1, len(traj) - 1)
+        pos_now, q_now = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
+        q_t = traj.quaternion[k]
+        target = traj.position[k] - traj.z_axis[k] * self._half
+        v = (
+            (target[0] - pos_now[0]) / dt,
+            (target[1] - pos_now[1]) / dt,
+            (target[2] - pos_now[2]) / dt + GRAVITY * dt,
+        )
+        w = angular_velocity_between(q_now, tuple(q_t), dt)
+        p.resetBaseVelocity(self.body, v, w, physicsClientId=self.client)
+
+    # -- state -----------------------------------------------------------------------------
+    def pose(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """World pose of the deck frame: (position (3,), rotation (3, 3))."""
+        pos, quat = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
+        R = matrix_from_quat(quat)
+        return np.asarray(pos) + R[:, 2] * self._half, R
+
+    def velocity(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """World linear velocity of the plate's centre of mass and angular velocity (m/s, rad/s)."""
+        v, w = p.getBaseVelocity(self.body, physicsClientId=self.client)
+        return np.asarray(v), np.asarray(w)
+
+    def point_velocity(self, point_world: NDArray[np.float64]) -> NDArray[np.float64]:
+        """World velocity (m/s) of the deck's material point at ``point_world``."""
+        pos, _ = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
+        v, w = self.velocity()
+        return v + np.cross(w, np.asarray(point_world) - np.asarray(pos))
+
+    def leg_lengths(self) -> NDArray[np.float64]:
+        """Current leg lengths (m) from the inverse kinematics of the plate's actual pose."""
+        pos, R = self.pose()
+        return self.geometry.leg_lengths(pos, R)
+
+    def update_visuals(self) -> None:
+        """Place the tag and legs at the plate's current pose (call before rendering)."""
+        cid = self.client
+        pos, R = self.pose()
+        quat = Rotation.from_matrix(R).as_quat()
+        p.resetBasePositionAndOrientation(self.tag_body, pos.tolist(), quat.tolist(), physicsClientId=cid)
+        tops = self.geometry.top_joints_world(pos, R)
+        bases = self.geometry.base_joints
+        for (housing, rod), b, t in zip(self.leg_bodies, bases, tops, strict=True):
+            d = t - b
+            length = float(np.linalg.norm(d))
+            u = d / length
+            # rotation taking +z to u
+            axis = np.cross([0.0, 0.0, 1.0], u)
+            s = float(np.linalg.norm(axis))
+            angle = math.atan2(s, u[2])
+            q = (
+                [0.0, 0.0, 0.0, 1.0]
+                if s < 1e-12
+                else [*(axis / s * math.sin(angle / 2)), math.cos(angle / 2)]
+            )
+            half_part = self._leg_part / 2
+            p.resetBasePositionAndOrientation(housing, (b + u * half_part).tolist(), q, physicsClientId=cid)
+            p.resetBasePositionAndOrientation(rod, (t - u * half_part).tolist(), q, physicsClientId=cid)
+
+    @property
+    def top_half_extent(self) -> float:
+        return self.config.size / 2

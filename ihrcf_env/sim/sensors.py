@@ -1,0 +1,174 @@
+"""Drone sensors: the downward TinyRenderer camera and the four ray-cast ToF range sensors."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pybullet as p
+from numpy.typing import NDArray
+
+from ihrcf_env.frames import R_BODY_CAM
+from ihrcf_env.rig import SensorRig, intrinsics_from_fov
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """Downward camera. ``fov`` is the vertical field of view (rad); square pixels.
+
+    ``light_direction`` (world, pointing from the scene to the light) and the ambient/diffuse
+    coefficients set TinyRenderer's single light.
+    """
+
+    width: int = 512
+    height: int = 512
+    fov: float = math.radians(60.0)
+    near: float = 0.01
+    far: float = 10.0
+    light_direction: tuple[float, float, float] = (0.3, 0.2, 1.0)
+    ambient: float = 0.6
+    diffuse: float = 0.35
+    specular: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.width, int | np.integer) and self.width > 0):
+            raise ValueError(f"camera width must be a positive integer, got {self.width!r}")
+        if not (isinstance(self.height, int | np.integer) and self.height > 0):
+            raise ValueError(f"camera height must be a positive integer, got {self.height!r}")
+        if not (math.isfinite(self.fov) and 0.0 < self.fov < math.radians(170.0)):
+            raise ValueError(f"camera fov must be in (0, 170 deg) in radians, got {self.fov!r}")
+        if not (0.0 < self.near < self.far):
+            raise ValueError(f"camera near/far must satisfy 0 < near < far, got {self.near}, {self.far}")
+
+    @property
+    def intrinsics(self) -> NDArray[np.float64]:
+        """True pinhole K of the rendered image (OpenCV convention). Estimators must not read this:
+        ATDA uses the chessboard calibration, IHRCF the range-to-pixel table."""
+        return intrinsics_from_fov(self.width, self.height, self.fov)
+
+
+class DownCamera:
+    """Renders what the drone's downward camera sees with ``ER_TINY_RENDERER``."""
+
+    def __init__(self, client: int, config: CameraConfig, rig: SensorRig) -> None:
+        self.client = client
+        self.config = config
+        self._cam_offset = np.asarray(rig.camera_position, dtype=np.float64)
+        self._proj = p.computeProjectionMatrixFOV(
+            fov=math.degrees(config.fov),
+            aspect=config.width / config.height,
+            nearVal=config.near,
+            farVal=config.far,
+            physicsClientId=client,
+        )
+
+    def pose(
+        self, pos: NDArray[np.float64], R_wb: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """World pose (optical centre, R_world_cam) of the camera for a body pose."""
+        return pos + R_wb @ self._cam_offset, R_wb @ R_BODY_CAM
+
+    def render(self, pos: NDArray[np.float64], R_wb: NDArray[np.float64]) -> NDArray[np.uint8]:
+        """RGB image (H, W, 3) uint8 for the body pose (world position ``pos``, rotation ``R_wb``)."""
+        eye, R_wc = self.pose(pos, R_wb)
+        view = p.computeViewMatrix(
+            cameraEyePosition=eye.tolist(),
+            cameraTargetPosition=(eye + R_wc[:, 2]).tolist(),
+            cameraUpVector=(-R_wc[:, 1]).tolist(),
+            physicsClientId=self.client,
+        )
+        return render_rgb(self.client, self.config, view, self._proj)
+
+
+def render_rgb(client: int, config: CameraConfig, view: object, proj: object) -> NDArray[np.uint8]:
+    """One TinyRenderer frame as an (H, W, 3) uint8 array."""
+    c = config
+    _, _, rgba, _, _ = p.getCameraImage(
+        c.width,
+        c.height,
+        viewMatrix=view,
+        projectionMatrix=proj,
+        shadow=0,
+        lightDirection=list(c.light_direction),
+        lightAmbientCoeff=c.ambient,
+        lightDiffuseCoeff=c.diffuse,
+        lightSpecularCoeff=c.specular,
+        renderer=p.ER_TINY_RENDERER,
+        flags=p.ER_NO_SEGMENTATION_MASK,
+        physicsClientId=client,
+    )
+    img = np.asarray(rgba, dtype=np.uint8).reshape(c.height, c.width, 4)
+    return np.ascontiguousarray(img[:, :, :3])
+
+
+#: ToF noise presets: Gaussian sigma (m), dropout probability per reading, minimum range (m).
+TOF_PRESETS: dict[str, dict[str, float]] = {
+    "ideal": {"sigma": 0.0, "dropout": 0.0, "min_range": 0.0},
+    # VL53L1X-like: +-20 mm ranging error taken as 2 sigma, 1 % dropouts, 4 cm minimum range.
+    "realistic": {"sigma": 0.01, "dropout": 0.01, "min_range": 0.04},
+}
+
+
+@dataclass(frozen=True)
+class ToFConfig:
+    """Four ToF beams parallel to the optical axis. ``noise`` is a key of :data:`TOF_PRESETS`."""
+
+    max_range: float = 4.0
+    noise: str = "ideal"
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.max_range) and self.max_range > 0):
+            raise ValueError(f"tof max_range must be positive (m), got {self.max_range!r}")
+        if self.noise not in TOF_PRESETS:
+            raise ValueError(f"tof_noise must be one of {sorted(TOF_PRESETS)}, got {self.noise!r}")
+
+    @property
+    def preset(self) -> dict[str, float]:
+        return TOF_PRESETS[self.noise]
+
+
+class ToFArray:
+    """Ray-cast range sensors ps1..ps4 (see :mod:`ihrcf_env.rig`)."""
+
+    def __init__(self, client: int, config: ToFConfig, rig: SensorRig) -> None:
+        self.client = client
+        self.config = config
+        self._pos_body = rig.sensor_positions_body
+        preset = config.preset
+        self._sigma = preset["sigma"]
+        self._dropout = preset["dropout"]
+        self._min = preset["min_range"]
+
+    def true_ranges(
+        self, pos: NDArray[np.float64], R_wb: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """Noise-free ranges (m) along body -z and hit flags. Misses read ``max_range``."""
+        starts = self._pos_body @ R_wb.T + pos
+        ends = starts - R_wb[:, 2] * self.config.max_range
+        hits = p.rayTestBatch(starts.tolist(), ends.tolist(), physicsClientId=self.client)
+        ranges = np.empty(4)
+        hit = np.empty(4, dtype=bool)
+        for i, h in enumerate(hits):
+            hit[i] = h[0] >= 0
+            ranges[i] = h[2] * self.config.max_range if hit[i] else self.config.max_range
+        return ranges, hit
+
+    def read(
+        self, pos: NDArray[np.float64], R_wb: NDArray[np.float64], rng: np.random.Generator
+    ) -> tuple[NDArray[np.float32], NDArray[np.int8]]:
+        """Measured ranges (m, float32 in [0, max_range]) and validity flags (int8 0/1).
+
+        Invalid readings (miss, dropout, outside [min_range, max_range]) read ``max_range``.
+        Randomness comes only from ``rng``; the ideal preset draws nothing.
+        """
+        ranges, hit = self.true_ranges(pos, R_wb)
+        valid = hit.copy()
+        if self._sigma > 0.0 or self._dropout > 0.0:
+            noise = rng.normal(0.0, self._sigma, 4) if self._sigma > 0 else np.zeros(4)
+            drop = rng.random(4) < self._dropout
+            ranges = ranges + noise
+            valid &= ~drop
+        valid &= (ranges >= self._min) & (ranges <= self.config.max_range)
+        ranges = np.where(valid, ranges, self.config.max_range)
+        return ranges.astype(np.float32), valid.astype(np.int8)

@@ -1,0 +1,240 @@
+"""The simulated world: one PyBullet client holding the ground, the Stewart deck and the quadrotor.
+
+Used without Gymnasium by tests and tools (calibration); the Gymnasium env wraps it. Every
+PyBullet call passes this world's ``physicsClientId``; several worlds in one process are
+independent.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pybullet as p
+from numpy.typing import NDArray
+
+from ihrcf_env.frames import matrix_from_quat, relative_pose
+from ihrcf_env.rig import SensorRig
+from ihrcf_env.sim.deck import Deck, DeckConfig, DeckTrajectory
+from ihrcf_env.sim.drone import GRAVITY, QuadParams, Quadrotor, VelocityController, VelocityGains
+from ihrcf_env.sim.profiles import MotionProfile
+from ihrcf_env.sim.sensors import CameraConfig, DownCamera, ToFArray, ToFConfig
+from ihrcf_env.sim.stewart import StewartGeometry
+
+ACTION_MODES: tuple[str, ...] = ("velocity", "motors")
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    """Everything that defines the simulated world. SI units."""
+
+    physics_hz: int = 240
+    control_hz: int = 20
+    camera: CameraConfig | None = field(default_factory=CameraConfig)  # None: no camera rendering
+    tof: ToFConfig = field(default_factory=ToFConfig)
+    deck: DeckConfig = field(default_factory=DeckConfig)
+    stewart: StewartGeometry = field(default_factory=StewartGeometry)
+    quad: QuadParams = field(default_factory=QuadParams)
+    gains: VelocityGains = field(default_factory=VelocityGains)
+    rig: SensorRig = field(default_factory=SensorRig)
+    action_mode: str = "velocity"
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.physics_hz, int | np.integer) and self.physics_hz > 0):
+            raise ValueError(f"physics_hz must be a positive integer, got {self.physics_hz!r}")
+        if not (isinstance(self.control_hz, int | np.integer) and self.control_hz > 0):
+            raise ValueError(f"control_hz must be a positive integer, got {self.control_hz!r}")
+        if self.physics_hz % self.control_hz != 0:
+            raise ValueError(
+                f"control_hz ({self.control_hz}) must divide physics_hz ({self.physics_hz}) evenly"
+            )
+        if self.action_mode not in ACTION_MODES:
+            raise ValueError(f"action_mode must be one of {ACTION_MODES}, got {self.action_mode!r}")
+
+    @property
+    def substeps(self) -> int:
+        return self.physics_hz // self.control_hz
+
+
+@dataclass
+class Touchdown:
+    """First contact of the drone with something during a control step."""
+
+    body: str  # "deck", "ground" or "base"
+    time: float  # s
+    relative_vertical_speed: float  # m/s, drone minus deck point, along the deck normal (negative = closing)
+    relative_tilt: float  # rad, angle between drone z and deck z
+    on_deck: bool  # drone centre projects inside the deck's top surface
+
+
+class World:
+    """Ground + Stewart deck + quadrotor with camera and ToF in one explicit PyBullet client."""
+
+    def __init__(self, config: WorldConfig | None = None, gui: bool = False) -> None:
+        self.config = config if config is not None else WorldConfig()
+        cfg = self.config
+        self.client = p.connect(p.GUI if gui else p.DIRECT)
+        self._closed = False
+        self._tmp = tempfile.TemporaryDirectory(prefix="ihrcf_env_")
+        cid = self.client
+        self.dt = 1.0 / cfg.physics_hz
+        p.resetSimulation(physicsClientId=cid)
+        p.setGravity(0, 0, -GRAVITY, physicsClientId=cid)
+        p.setTimeStep(self.dt, physicsClientId=cid)
+        if gui:
+            p.configureDebugVisualizer(p.COV_ENABLE_GUI, 0, physicsClientId=cid)
+        # Ground: collision only (no visual), so it costs the renderer nothing.
+        # (A body without a visual shape would be drawn from its collision shape; a tiny hidden
+        # sphere 50 m underground stands in as its visual.)
+        plane = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid)
+        hidden = p.createVisualShape(
+            p.GEOM_SPHERE, radius=0.001, visualFramePosition=[0, 0, -50], physicsClientId=cid
+        )
+        self.ground = p.createMultiBody(
+            baseMass=0, baseCollisionShapeIndex=plane, baseVisualShapeIndex=hidden, physicsClientId=cid
+        )
+        self.deck = Deck(cid, cfg.stewart, cfg.deck, Path(self._tmp.name))
+        self.quad = Quadrotor(cid, cfg.quad)
+        self.controller = VelocityController(self.quad, cfg.gains)
+        self.camera = DownCamera(cid, cfg.camera, cfg.rig) if cfg.camera is not None else None
+        self.tof = ToFArray(cid, cfg.tof, cfg.rig)
+        self.tick = 0
+        self._motor_cmd = np.zeros(4)
+        self._prev_vel = np.zeros(3)
+        self._acc_world = np.zeros(3)
+        self._setpoint = np.zeros(4)
+        self._mode_velocity = cfg.action_mode == "velocity"
+
+    # -- lifecycle -------------------------------------------------------------------------
+    def reset(
+        self,
+        profile: MotionProfile,
+        horizon_s: float,
+        altitude: float = 1.0,
+        offset_xy: tuple[float, float] = (0.0, 0.0),
+        yaw: float = 0.0,
+    ) -> None:
+        """Start a new episode: deck on ``profile`` (validated over ``horizon_s`` seconds), drone
+        hovering ``altitude`` m above the deck frame origin, shifted by ``offset_xy`` (world, m)."""
+        n_ticks = int(math.ceil(horizon_s * self.config.physics_hz)) + 1
+        traj = DeckTrajectory(profile, self.config.stewart, self.dt, n_ticks)
+        self.tick = 0
+        self.deck.set_trajectory(traj)
+        deck_pos, _ = self.deck.pose()
+        start = np.array([deck_pos[0] + offset_xy[0], deck_pos[1] + offset_xy[1], deck_pos[2] + altitude])
+        self.quad.reset(start, yaw, hover=True)
+        self.controller.reset(start, yaw)
+        self._motor_cmd = self.quad.rotor_speed.copy()
+        self._setpoint = np.zeros(4)
+        self._prev_vel = np.zeros(3)
+        self._acc_world = np.zeros(3)
+        self.deck.update_visuals()
+
+    def close(self) -> None:
+        """Disconnect the client and remove temporary files; safe to call twice."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            p.disconnect(physicsClientId=self.client)
+        except p.error:
+            pass
+        self._tmp.cleanup()
+
+    @property
+    def time(self) -> float:
+        return self.tick * self.dt
+
+    # -- stepping --------------------------------------------------------------------------
+    def set_velocity_setpoint(self, setpoint: NDArray[np.float64]) -> None:
+        """(vx, vy, vz, yaw_rate) in m/s and rad/s, see :class:`VelocityController`."""
+        self._setpoint = np.asarray(setpoint, dtype=np.float64)
+        self._mode_velocity = True
+
+    def set_motor_thrusts(self, fractions: NDArray[np.float64]) -> None:
+        """Per-motor thrust as a fraction of the maximum, clipped to [0, 1]."""
+        f = np.clip(np.asarray(fractions, dtype=np.float64), 0.0, 1.0) * self.config.quad.max_thrust
+        self._motor_cmd = self.quad.thrusts_to_speeds(f)
+        self._mode_velocity = False
+
+    def step(self) -> Touchdown | None:
+        """Advance one control period (``substeps`` physics steps); return the first contact, if any."""
+        cid = self.client
+        quad, ctrl, deck = self.quad, self.controller, self.deck
+        dt = self.dt
+        first: Touchdown | None = None
+        vel_mode = self._mode_velocity
+        for _ in range(self.config.substeps):
+            deck.drive(self.tick)
+            pos, quat, vel, omega = quad.state()
+            cmd = ctrl.compute(self._setpoint, dt, pos, quat, vel, omega) if vel_mode else self._motor_cmd
+            quad.apply(cmd, dt, quat, vel)
+            self._prev_vel = vel
+            p.stepSimulation(physicsClientId=cid)
+            self.tick += 1
+            if first is None:
+                first = self._check_contact()
+        v_now = p.getBaseVelocity(quad.body, physicsClientId=cid)[0]
+        self._acc_world = (np.asarray(v_now) - np.asarray(self._prev_vel)) / dt
+        self.deck.update_visuals()
+        return first
+
+    def _check_contact(self) -> Touchdown | None:
+        contacts = p.getContactPoints(bodyA=self.quad.body, physicsClientId=self.client)
+        if not contacts:
+            return None
+        ids = {c[2] for c in contacts}
+        body = "deck" if self.deck.body in ids else ("ground" if self.ground in ids else "base")
+        pos, quat, vel, _ = self.quad.state()
+        R_wb = matrix_from_quat(quat)
+        deck_pos, R_wd = self.deck.pose()
+        v_rel = np.asarray(vel) - self.deck.point_velocity(np.asarray(pos))
+        tilt = math.acos(max(-1.0, min(1.0, float(R_wb[:, 2] @ R_wd[:, 2]))))
+        local = R_wd.T @ (np.asarray(pos) - deck_pos)
+        half = self.deck.top_half_extent
+        return Touchdown(
+            body=body,
+            time=self.time,
+            relative_vertical_speed=float(v_rel @ R_wd[:, 2]),
+            relative_tilt=tilt,
+            on_deck=bool(abs(local[0]) <= half and abs(local[1]) <= half),
+        )
+
+    # -- sensing and ground truth ----------------------------------------------------------
+    def drone_pose(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """World position (m) and rotation matrix of the drone body frame."""
+        pos, quat = p.getBasePositionAndOrientation(self.quad.body, physicsClientId=self.client)
+        return np.asarray(pos), matrix_from_quat(quat)
+
+    def render_camera(self) -> NDArray[np.uint8]:
+        """The downward camera's RGB image (H, W, 3) uint8."""
+        if self.camera is None:
+            raise RuntimeError("this world has no camera (camera=None in WorldConfig)")
+        pos, R = self.drone_pose()
+        return self.camera.render(pos, R)
+
+    def read_tof(self, rng: np.random.Generator) -> tuple[NDArray[np.float32], NDArray[np.int8]]:
+        pos, R = self.drone_pose()
+        return self.tof.read(pos, R, rng)
+
+    def imu(self) -> dict[str, NDArray[np.float64]]:
+        """Ideal IMU: attitude quaternion (x, y, z, w, world from body), body rates (rad/s, body
+        frame) and specific force (m/s^2, body frame; reads +9.81 on z when hovering)."""
+        pos, quat, vel, omega = self.quad.state()
+        R = matrix_from_quat(quat)
+        f = self._acc_world + np.array([0.0, 0.0, GRAVITY])
+        return {
+            "quaternion": np.asarray(quat),
+            "angular_velocity": R.T @ np.asarray(omega),
+            "acceleration": R.T @ f,
+        }
+
+    def deck_in_body(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Ground-truth deck pose in the drone body frame: (position (3,) m, rotation R_body_deck)."""
+        pos, R = self.drone_pose()
+        deck_pos, R_wd = self.deck.pose()
+        R_bd, p_bd = relative_pose(R, pos, R_wd, deck_pos)
+        return p_bd, R_bd
