@@ -44,8 +44,16 @@ class CameraConfig:
     @property
     def intrinsics(self) -> NDArray[np.float64]:
         """True pinhole K of the rendered image (OpenCV convention). Estimators must not read this:
-        ATDA uses the chessboard calibration, IHRCF the range-to-pixel table."""
-        return intrinsics_from_fov(self.width, self.height, self.fov)
+        ATDA uses the chessboard calibration, IHRCF the range-to-pixel table.
+
+        TinyRenderer samples pixel (column i, row j) at screen point (i, H - 1 - j) of its
+        viewport, so in OpenCV's pixel-centre convention the principal point is (W/2, H/2 - 1),
+        not the image centre ((W - 1)/2, (H - 1)/2); checked against rendered tag corners.
+        """
+        K = intrinsics_from_fov(self.width, self.height, self.fov)
+        K[0, 2] = self.width / 2.0
+        K[1, 2] = self.height / 2.0 - 1.0
+        return K
 
 
 class DownCamera:

@@ -1,0 +1,187 @@
+"""Plane, homography and rigid-fit geometry for the IHRCF estimator (pure numpy, no simulator).
+
+Frames are whatever the caller passes in; :mod:`ihrcf_env.estimators` uses the camera frame
+(OpenCV: x right, y down, z along the optical axis, metres) for 3-D points and OpenCV pixel
+coordinates (pixel centres at integers) for image points.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ihrcf_env.frames import as_array
+
+#: Relative singular-value threshold below which a linear system is treated as rank deficient.
+_RANK_TOL = 1e-10
+
+
+def _points(x: ArrayLike, dim: int, name: str, min_n: int) -> NDArray[np.float64]:
+    """Return ``x`` as a finite (N, dim) float64 array with N >= min_n; ValueError otherwise."""
+    a = np.asarray(x, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] != dim:
+        raise ValueError(f"{name} must have shape (N, {dim}), got {a.shape}")
+    if a.shape[0] < min_n:
+        raise ValueError(f"{name} needs at least {min_n} points, got shape {a.shape}")
+    return as_array(a, a.shape, name)
+
+
+def _normalising_transform(p: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Hartley normalisation: 3x3 similarity moving the centroid to 0 and the mean distance to sqrt(2)."""
+    c = p.mean(axis=0)
+    mean_dist = float(np.mean(np.linalg.norm(p - c, axis=1)))
+    if mean_dist <= 0.0:
+        raise ValueError("points are all coincident")
+    s = np.sqrt(2.0) / mean_dist
+    return np.array([[s, 0.0, -s * c[0]], [0.0, s, -s * c[1]], [0.0, 0.0, 1.0]])
+
+
+def homography_from_points(src: ArrayLike, dst: ArrayLike) -> NDArray[np.float64]:
+    """Homography ``H`` (3, 3) with ``dst ~ H [src, 1]``, by normalised DLT; ``H[2, 2] = 1``.
+
+    ``src`` and ``dst`` are (N, 2) corresponding points, N >= 4, row i of ``src`` mapping to row i
+    of ``dst`` (eq. 13-16 of the paper). With N == 4 the fit is exact. Raises ValueError for
+    degenerate configurations (rank-deficient DLT system, e.g. three of four points collinear) or
+    when ``H[2, 2]`` is 0 and the matrix cannot be normalised. Note that this rank test only
+    catches exact degeneracy; use :func:`quad_is_degenerate` for a tolerance-based check.
+    """
+    src = _points(src, 2, "src", 4)
+    dst = _points(dst, 2, "dst", 4)
+    if src.shape != dst.shape:
+        raise ValueError(f"src and dst must have the same shape, got {src.shape} and {dst.shape}")
+    T_s = _normalising_transform(src)
+    T_d = _normalising_transform(dst)
+    n = src.shape[0]
+    s = np.column_stack([src, np.ones(n)]) @ T_s.T
+    d = np.column_stack([dst, np.ones(n)]) @ T_d.T
+    A = np.zeros((2 * n, 9))
+    A[0::2, 0:3] = s
+    A[0::2, 6:9] = -d[:, 0:1] * s
+    A[1::2, 3:6] = s
+    A[1::2, 6:9] = -d[:, 1:2] * s
+    _, sv, vt = np.linalg.svd(A)
+    # A has 9 columns; a unique solution needs rank 8 (singular value #8 clearly non-zero).
+    if sv[7] <= _RANK_TOL * sv[0]:
+        raise ValueError("degenerate point configuration: homography is not unique")
+    Hn = vt[-1].reshape(3, 3)
+    H = np.linalg.inv(T_d) @ Hn @ T_s
+    if abs(H[2, 2]) <= _RANK_TOL * np.abs(H).max():
+        raise ValueError("homography has H[2, 2] = 0 and cannot be normalised")
+    return H / H[2, 2]
+
+
+def apply_homography(H: ArrayLike, pts: ArrayLike) -> NDArray[np.float64]:
+    """Map (N, 2) points through ``H`` (3, 3): ``[x', y'] = (H [x, y, 1])[:2] / (H [x, y, 1])[2]``.
+
+    Points mapped to infinity (zero homogeneous coordinate) come out as inf/NaN.
+    """
+    H = as_array(H, (3, 3), "H")
+    pts = _points(pts, 2, "pts", 1)
+    h = np.column_stack([pts, np.ones(pts.shape[0])]) @ H.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return h[:, :2] / h[:, 2:3]
+
+
+def collinear(pts: ArrayLike, tol: float = 1e-3) -> bool:
+    """True if any three of the (N, 2) points (N >= 3) are collinear within ``tol`` (scale-invariant).
+
+    For each triple the measure is ``2 * area / longest_side**2`` (the triangle's height over its
+    longest side, divided by that side): 0 for collinear or coincident points, sqrt(3)/2 ~ 0.87 for
+    an equilateral triangle. The triple is collinear when this is <= ``tol``.
+    """
+    pts = _points(pts, 2, "pts", 3)
+    if not (np.isfinite(tol) and tol >= 0):
+        raise ValueError(f"tol must be a non-negative number, got {tol!r}")
+    for i, j, k in itertools.combinations(range(pts.shape[0]), 3):
+        a, b, c = pts[i], pts[j], pts[k]
+        u, v = b - a, c - a
+        area2 = abs(u[0] * v[1] - u[1] * v[0])
+        longest2 = max(float(u @ u), float(v @ v), float((c - b) @ (c - b)))
+        if longest2 == 0.0 or area2 <= tol * longest2:
+            return True
+    return False
+
+
+def quad_is_degenerate(pts: ArrayLike, rel_tol: float = 1e-3) -> bool:
+    """True if the quadrilateral (4, 2) has three (nearly) collinear corners; see :func:`collinear`."""
+    return collinear(as_array(pts, (4, 2), "pts"), rel_tol)
+
+
+def fit_plane(points: ArrayLike) -> tuple[NDArray[np.float64], float]:
+    """Plane ``n . x = d`` through (N, 3) points: unit normal ``n`` (3,) and offset ``d`` (m).
+
+    N >= 4: total least squares (SVD of the centred points: the normal is the direction of least
+    spread). N == 3: the paper's eq. (20), ``n = (p1 - p2) x (p2 - p3)``, normalised.
+
+    Sign convention: the normal has a non-negative z component (in the camera frame, it points
+    along the optical axis, away from the camera, i.e. *into* the deck); for a vertical plane
+    (n_z == 0) the first non-zero component is made positive. With this convention ``d`` is the
+    plane's depth along +z scaled by n_z, positive for a plane in front of the camera.
+
+    Raises ValueError for fewer than 3 points or (nearly) collinear / coincident points.
+    """
+    points = _points(points, 3, "points", 3)
+    centroid = points.mean(axis=0)
+    centred = points - centroid
+    scale = float(np.max(np.linalg.norm(centred, axis=1)))
+    if scale == 0.0:
+        raise ValueError("points are all coincident: plane undefined")
+    if points.shape[0] == 3:
+        p1, p2, p3 = points
+        n = np.cross(p1 - p2, p2 - p3)
+        norm = float(np.linalg.norm(n))
+        if norm <= 1e-9 * scale * scale:
+            raise ValueError("points are collinear: plane undefined")
+    else:
+        _, sv, vt = np.linalg.svd(centred / scale)
+        if sv[1] <= 1e-9 * sv[0]:
+            raise ValueError("points are collinear: plane undefined")
+        n = vt[2]
+        norm = float(np.linalg.norm(n))
+    n = n / norm
+    if n[2] < 0 or (n[2] == 0 and n[np.flatnonzero(n)[0]] < 0):
+        n = -n
+    return n, float(n @ centroid)
+
+
+def plane_z(normal: ArrayLike, d: float, xy: ArrayLike) -> NDArray[np.float64]:
+    """Z (N,) of the plane ``n . x = d`` above (N, 2) points ``xy``: eq. (22), ``(d - n1 x - n2 y) / n3``.
+
+    Raises ValueError if the plane is (nearly) parallel to z (|n3| < 1e-9 |n|).
+    """
+    n = as_array(normal, (3,), "normal")
+    xy = _points(xy, 2, "xy", 1)
+    if not np.isfinite(d):
+        raise ValueError(f"d must be finite, got {d!r}")
+    if abs(n[2]) < 1e-9 * float(np.linalg.norm(n)) or not np.any(n):
+        raise ValueError("plane is parallel to the z axis: z is undefined")
+    return (d - n[0] * xy[:, 0] - n[1] * xy[:, 1]) / n[2]
+
+
+def rigid_fit(P: ArrayLike, Q: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """Least-squares rigid transform ``Q ~ R P + t`` (Kabsch / Umeyama without scale).
+
+    ``P`` and ``Q`` are (N, 3) corresponding points (N >= 3, ``P`` not collinear). Returns
+    ``R`` (3, 3) with det +1 (a reflection is never returned: the SVD is corrected with
+    ``diag(1, 1, sign(det))``, which also handles coplanar points), ``t`` (3,) and the RMS of the
+    residuals ``|R p_i + t - q_i|`` in the units of the points (m).
+    """
+    P = _points(P, 3, "P", 3)
+    Q = _points(Q, 3, "Q", 3)
+    if P.shape != Q.shape:
+        raise ValueError(f"P and Q must have the same shape, got {P.shape} and {Q.shape}")
+    cp, cq = P.mean(axis=0), Q.mean(axis=0)
+    Pc, Qc = P - cp, Q - cq
+    sp = np.linalg.svd(Pc, compute_uv=False)
+    if sp[1] <= 1e-9 * max(sp[0], 1e-300):
+        raise ValueError("P is collinear or coincident: rotation undefined")
+    C = Qc.T @ Pc  # cross-covariance, maps P directions to Q directions
+    U, _, Vt = np.linalg.svd(C)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt)) or 1.0])
+    R = U @ D @ Vt
+    t = cq - R @ cp
+    res = P @ R.T + t - Q
+    rms = float(np.sqrt(np.mean(np.sum(res * res, axis=1))))
+    return R, t, rms
