@@ -15,7 +15,6 @@ has its centre at ``(u, v) = (c, r)``.
 
 from __future__ import annotations
 
-import importlib.resources
 import json
 import math
 import os
@@ -32,6 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import PchipInterpolator
 
 from ihrcf_env import __version__
+from ihrcf_env.paths import assets_dir
 from ihrcf_env.rig import PAD_COLOURS, SensorRig
 
 #: Range-sensor names in rig order; sensor i is centred on pad ``PAD_COLOURS[i]``.
@@ -452,9 +452,9 @@ class CalibrationError(ValueError):
     """A calibration file is missing, unreadable, malformed, or made for another camera/rig."""
 
 
-def default_calibration_path() -> Traversable:
-    """The calibration file shipped with the package (``ihrcf_env/assets/calibration_default.json``)."""
-    return importlib.resources.files("ihrcf_env.assets") / "calibration_default.json"
+def default_calibration_path() -> Path:
+    """The calibration file shipped with the package (``assets/calibration_default.json``)."""
+    return assets_dir() / "calibration_default.json"
 
 
 def _json_default(o: Any) -> Any:

@@ -45,7 +45,7 @@ from ihrcf_env.rig import SensorRig
 from ihrcf_env.sim.deck import DeckConfig
 from ihrcf_env.sim.profiles import MotionProfile, make_profile
 from ihrcf_env.sim.sensors import CameraConfig, ToFConfig
-from ihrcf_env.sim.world import ACTION_MODES, Touchdown, World, WorldConfig
+from ihrcf_env.sim.world import ACTION_MODES, Snapshot, Touchdown, World, WorldConfig
 
 SUCCESS_SPEED = 0.5  # m/s
 SUCCESS_TILT = math.radians(10.0)
@@ -216,7 +216,7 @@ class DeckLandingEnv(gym.Env):
         self._done = False
         self._last_touchdown: Touchdown | None = None
         obs = self._get_obs()
-        info = self._get_info()
+        info = self._get_info(self.world.snapshot())
         if self.render_mode == "human":
             self._update_gui_camera()
         return obs, info
@@ -238,11 +238,12 @@ class DeckLandingEnv(gym.Env):
         self._steps += 1
         if touchdown is not None and self._last_touchdown is None:
             self._last_touchdown = touchdown
-        outcome, reason = self._outcome(touchdown)
+        snap = self.world.snapshot()
+        outcome, reason = self._outcome(touchdown, snap)
         terminated = outcome != "flying"
         obs = self._get_obs()
-        reward, terms = self._get_rew(a, outcome)
-        info = self._get_info()
+        reward, terms = self._get_rew(a, outcome, snap)
+        info = self._get_info(snap)
         info.update(terms)
         info["outcome"] = outcome
         info["crash_reason"] = reason
@@ -292,16 +293,7 @@ class DeckLandingEnv(gym.Env):
         }
         return obs
 
-    def _relative_state(self) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
-        w = self.world
-        pos, R = w.drone_pose()
-        deck_pos, R_wd = w.deck.pose()
-        v = np.asarray(w.quad.state()[2])
-        v_rel = v - w.deck.point_velocity(pos)
-        tilt = math.acos(max(-1.0, min(1.0, float(R[:, 2] @ R_wd[:, 2]))))
-        return pos - deck_pos, v_rel, tilt
-
-    def _outcome(self, touchdown: Touchdown | None) -> tuple[str, str]:
+    def _outcome(self, touchdown: Touchdown | None, s: Snapshot) -> tuple[str, str]:
         """("flying" | "success" | "crash", reason)."""
         if touchdown is not None:
             if touchdown.body != "deck":
@@ -316,7 +308,7 @@ class DeckLandingEnv(gym.Env):
             if touchdown.relative_tilt >= SUCCESS_TILT:
                 return "crash", f"tilt {math.degrees(touchdown.relative_tilt):.1f} deg at touchdown"
             return "success", ""
-        pos, R = self.world.drone_pose()
+        pos, R = s.drone_position, s.drone_rotation
         if math.acos(max(-1.0, min(1.0, R[2, 2]))) > CRASH_TILT:
             return "crash", "tilt over 60 deg"
         if (
@@ -327,33 +319,32 @@ class DeckLandingEnv(gym.Env):
             return "crash", "left the arena"
         return "flying", ""
 
-    def _get_rew(self, action: NDArray[np.float64], outcome: str) -> tuple[float, dict[str, float]]:
-        e, v_rel, tilt = self._relative_state()
+    def _get_rew(
+        self, action: NDArray[np.float64], outcome: str, s: Snapshot
+    ) -> tuple[float, dict[str, float]]:
+        e = s.drone_position - s.deck_position
         terms = {
-            "reward_position": -float(np.hypot(e[0], e[1])) - 0.2 * max(float(e[2]), 0.0),
-            "reward_velocity": -0.1 * float(np.linalg.norm(v_rel)),
-            "reward_attitude": -0.1 * tilt,
+            "reward_position": -math.hypot(e[0], e[1]) - 0.2 * max(float(e[2]), 0.0),
+            "reward_velocity": -0.1 * float(np.linalg.norm(s.relative_velocity)),
+            "reward_attitude": -0.1 * s.relative_tilt,
             "reward_action": -0.01 * float(action @ action),
             "reward_terminal": 100.0 if outcome == "success" else (-100.0 if outcome == "crash" else 0.0),
         }
         return float(sum(terms.values())), terms
 
-    def _get_info(self) -> dict[str, Any]:
+    def _get_info(self, s: Snapshot) -> dict[str, Any]:
         w = self.world
-        p_bd, R_bd = w.deck_in_body()
-        pos, R = w.drone_pose()
-        deck_pos, R_wd = w.deck.pose()
-        contacts = {c[2] for c in p.getContactPoints(bodyA=w.quad.body, physicsClientId=w.client)}
+        contacts = w.contact_bodies()
         return {
             "time": w.time,
-            "deck_position_body": p_bd,
-            "deck_euler_body": euler_from_matrix(R_bd),
-            "deck_rotation_body": R_bd,
-            "drone_position_world": pos,
-            "drone_quaternion_world": quat_from_matrix(R),
-            "deck_position_world": deck_pos,
-            "deck_quaternion_world": quat_from_matrix(R_wd),
-            "leg_lengths": w.deck.leg_lengths(),
+            "deck_position_body": s.deck_position_body,
+            "deck_euler_body": euler_from_matrix(s.deck_rotation_body),
+            "deck_rotation_body": s.deck_rotation_body,
+            "drone_position_world": s.drone_position,
+            "drone_quaternion_world": s.drone_quaternion,
+            "deck_position_world": s.deck_position,
+            "deck_quaternion_world": quat_from_matrix(s.deck_rotation),
+            "leg_lengths": w.deck.geometry.leg_lengths(s.deck_position, s.deck_rotation),
             "contact_deck": w.deck.body in contacts,
             "contact_ground": w.ground in contacts or w.deck.base_body in contacts,
         }
@@ -363,6 +354,7 @@ class DeckLandingEnv(gym.Env):
         from ihrcf_env.sim.sensors import render_rgb
 
         w = self.world
+        w.deck.update_visuals()
         pos, R = w.drone_pose()
         deck_pos, _ = w.deck.pose()
         target = 0.5 * (pos + deck_pos)
@@ -378,6 +370,7 @@ class DeckLandingEnv(gym.Env):
         return render_rgb(cid, cfg, view, proj)
 
     def _update_gui_camera(self) -> None:
+        self.world.deck.update_visuals()
         pos, _ = self.world.drone_pose()
         p.resetDebugVisualizerCamera(2.5, 30.0, -25.0, pos.tolist(), physicsClientId=self.world.client)
 
@@ -392,5 +385,5 @@ class DeckLandingEnv(gym.Env):
 
     def deck_pose_body(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Ground-truth deck (position m, euler rad) in the body frame."""
-        p_bd, R_bd = self.world.deck_in_body()
-        return p_bd, euler_from_matrix(R_bd)
+        s = self.world.snapshot()
+        return s.deck_position_body, euler_from_matrix(s.deck_rotation_body)

@@ -2,20 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.resources
-from pathlib import Path
-
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from ihrcf_env.paths import asset_path
 
-def asset_path(name: str) -> Path:
-    """Absolute path of a file shipped in ``assets/`` (works from a non-editable install)."""
-    p = Path(str(importlib.resources.files("ihrcf_env.assets") / name))
-    if not p.is_file():
-        raise FileNotFoundError(f"asset {name!r} not found at {p}; is the package installed completely?")
-    return p
+__all__ = ["asset_path", "tag_texture"]
 
 
 def tag_texture(tag_id: int, cell_px: int = 16) -> NDArray[np.uint8]:

@@ -20,12 +20,16 @@ import pybullet as p
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from ihrcf_env.frames import matrix_from_quat
 from ihrcf_env.sim.assets import asset_path, tag_texture
 from ihrcf_env.sim.profiles import MotionProfile
 from ihrcf_env.sim.stewart import StewartGeometry
 
 GRAVITY = 9.81
+
+
+def rotation_matrix(quat: tuple[float, ...] | NDArray[np.float64]) -> NDArray[np.float64]:
+    """(3, 3) rotation matrix of a PyBullet quaternion (x, y, z, w) (fast path for the sim loop)."""
+    return np.array(p.getMatrixFromQuaternion(quat)).reshape(3, 3)
 
 
 @dataclass(frozen=True)
@@ -46,7 +50,8 @@ class DeckConfig:
                 raise ValueError(f"deck {name} must be positive, got {v!r}")
         if self.tag_size * 10 / 8 > self.size:
             raise ValueError(
-                f"tag_size {self.tag_size} m (plus its white quiet zone) does not fit on the {self.size} m deck"
+                f"tag_size {self.tag_size} m (plus its white quiet zone) does not fit on the "
+                f"{self.size} m deck"
             )
 
 
@@ -54,7 +59,14 @@ class DeckTrajectory:
     """Deck poses sampled at every physics tick: ``position[k]``, ``quaternion[k]`` (x, y, z, w) at
     time ``k * dt``, world frame (deck frame origin = tag centre on the top surface)."""
 
-    def __init__(self, profile: MotionProfile, geometry: StewartGeometry, dt: float, n_ticks: int) -> None:
+    def __init__(
+        self,
+        profile: MotionProfile,
+        geometry: StewartGeometry,
+        dt: float,
+        n_ticks: int,
+        plate_half_thickness: float = 0.0,
+    ) -> None:
         t = np.arange(n_ticks + 1) * dt
         offset, rpy = profile.sample(t)
         rot = Rotation.from_euler("ZYX", rpy[:, ::-1])
@@ -63,6 +75,11 @@ class DeckTrajectory:
         self.quaternion = rot.as_quat()
         matrices = rot.as_matrix()
         self.z_axis = matrices[:, :, 2]
+        self.dt = dt
+        # plain-Python copies for the per-physics-step driver
+        # (plate centre = deck origin - half thickness * z)
+        self.quaternion_list = self.quaternion.tolist()
+        self.body_position_list = (self.position - self.z_axis * plate_half_thickness).tolist()
         self.legs = geometry.leg_lengths(self.position, matrices)
         geometry.check_stroke(t, self.legs)
 
@@ -199,11 +216,12 @@ class Deck:
 
     # -- driving ---------------------------------------------------------------------------
     def set_trajectory(self, trajectory: DeckTrajectory) -> None:
-        """Use ``trajectory`` and place the plate at its first pose with its velocity."""
+        """Use ``trajectory`` (built with ``plate_half_thickness = config.thickness / 2``) and place
+        the plate at its first pose with its velocity."""
         self.trajectory = trajectory
         self._tick = 0
         pos, quat = trajectory.position[0], trajectory.quaternion[0]
-        body_pos = pos + matrix_from_quat(quat)[:, 2] * -self._half
+        body_pos = pos + rotation_matrix(quat)[:, 2] * -self._half
         p.resetBasePositionAndOrientation(
             self.body, body_pos.tolist(), quat.tolist(), physicsClientId=self.client
         )
@@ -216,25 +234,25 @@ class Deck:
         """
         traj = self.trajectory
         assert traj is not None
-        dt = traj.times[1] - traj.times[0]
+        dt = traj.dt
         k = min(tick + 1, len(traj) - 1)
         pos_now, q_now = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
-        q_t = traj.quaternion[k]
-        target = traj.position[k] - traj.z_axis[k] * self._half
+        q_t = traj.quaternion_list[k]
+        target = traj.body_position_list[k]
         v = (
             (target[0] - pos_now[0]) / dt,
             (target[1] - pos_now[1]) / dt,
             (target[2] - pos_now[2]) / dt + GRAVITY * dt,
         )
-        w = angular_velocity_between(q_now, tuple(q_t), dt)
+        w = angular_velocity_between(q_now, q_t, dt)
         p.resetBaseVelocity(self.body, v, w, physicsClientId=self.client)
 
     # -- state -----------------------------------------------------------------------------
     def pose(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """World pose of the deck frame: (position (3,), rotation (3, 3))."""
         pos, quat = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
-        R = matrix_from_quat(quat)
-        return np.asarray(pos) + R[:, 2] * self._half, R
+        R = rotation_matrix(quat)
+        return np.array(pos) + R[:, 2] * self._half, R
 
     def velocity(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """World linear velocity of the plate's centre of mass and angular velocity (m/s, rad/s)."""

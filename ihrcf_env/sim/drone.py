@@ -80,6 +80,8 @@ class Quadrotor:
             self.body, -1, linearDamping=0.0, angularDamping=0.0, lateralFriction=1.0, physicsClientId=client
         )
         self._mixer_inv = np.linalg.inv(params.mixer)
+        self._mixer_rows = [tuple(r) for r in self._mixer_inv.tolist()]
+        self._fmax = params.max_thrust
         self.rotor_speed = np.zeros(4)
         self._kf = params.kf
         self._km = params.km
@@ -111,45 +113,61 @@ class Quadrotor:
     def wrench_to_speeds(self, thrust: float, torque: NDArray[np.float64]) -> NDArray[np.float64]:
         """Rotor speeds realising a collective thrust (N) and body torque (N m) as well as the limits allow.
 
-        When saturated, roll/pitch are kept and yaw is sacrificed first, then the thrust is shifted.
+        When saturated, yaw is given up first, then roll/pitch authority is scaled down and the
+        thrust shifted to fit the motor range. Scalar maths (runs at the physics rate).
         """
-        f = self._mixer_inv @ np.array([thrust, torque[0], torque[1], torque[2]])
-        fmax = self.params.max_thrust
-        if f.min() < 0.0 or f.max() > fmax:
-            f = self._mixer_inv @ np.array([thrust, torque[0], torque[1], 0.0])
-            if f.max() - f.min() > fmax:
-                f = f * (fmax / (f.max() - f.min()))
-            if f.min() < 0.0:
-                f = f - f.min()
-            if f.max() > fmax:
-                f = f - (f.max() - fmax)
-        return self.thrusts_to_speeds(f)
+        tx, ty, tz = float(torque[0]), float(torque[1]), float(torque[2])
+        M = self._mixer_rows
+        f = [r[0] * thrust + r[1] * tx + r[2] * ty + r[3] * tz for r in M]
+        fmax = self._fmax
+        if min(f) < 0.0 or max(f) > fmax:
+            f = [r[0] * thrust + r[1] * tx + r[2] * ty for r in M]
+            spread = max(f) - min(f)
+            if spread > fmax:
+                f = [fi * fmax / spread for fi in f]
+            lo = min(f)
+            if lo < 0.0:
+                f = [fi - lo for fi in f]
+            hi = max(f)
+            if hi > fmax:
+                f = [fi - (hi - fmax) for fi in f]
+        kf = self._kf
+        return np.array([math.sqrt(min(max(fi, 0.0), fmax) / kf) for fi in f])
 
     def apply(
-        self, speed_cmd: NDArray[np.float64], dt: float, quat: tuple[float, ...], vel: tuple[float, ...]
+        self,
+        speed_cmd: NDArray[np.float64],
+        dt: float,
+        pos: tuple[float, ...],
+        quat: tuple[float, ...],
+        vel: tuple[float, ...],
     ) -> None:
-        """Advance the rotor lag by ``dt`` and apply this physics step's rotor forces and drag."""
+        """Advance the rotor lag by ``dt`` and apply this physics step's rotor forces and drag
+        (scalar maths: this runs at the physics rate)."""
         a = min(1.0, dt / self.params.motor_tau) if self.params.motor_tau > 0 else 1.0
-        self.rotor_speed += a * (speed_cmd - self.rotor_speed)
-        w2 = self.rotor_speed * self.rotor_speed
-        f = self._kf * w2
-        thrust = float(f.sum())
-        tx = float(f @ self._xy[:, 1])
-        ty = float(-(f @ self._xy[:, 0]))
-        tz = float(-(self._km * w2) @ self._spin)
+        w = [wi + a * (ci - wi) for wi, ci in zip(self.rotor_speed.tolist(), speed_cmd.tolist(), strict=True)]
+        self.rotor_speed = np.array(w)
+        kf, km = self._kf, self._km
+        f = [kf * wi * wi for wi in w]
+        (x0, y0), (x1, y1), (x2, y2), (x3, y3) = self._xy.tolist()
+        s0, s1, s2, s3 = self._spin.tolist()
+        thrust = f[0] + f[1] + f[2] + f[3]
+        tx = f[0] * y0 + f[1] * y1 + f[2] * y2 + f[3] * y3
+        ty = -(f[0] * x0 + f[1] * x1 + f[2] * x2 + f[3] * x3)
+        tz = -(km / kf) * (s0 * f[0] + s1 * f[1] + s2 * f[2] + s3 * f[3])
         R = p.getMatrixFromQuaternion(quat)
+        drag = self.params.drag
         # body z axis and torque in world coordinates
         force = (
-            R[2] * thrust - self.params.drag * vel[0],
-            R[5] * thrust - self.params.drag * vel[1],
-            R[8] * thrust - self.params.drag * vel[2],
+            R[2] * thrust - drag * vel[0],
+            R[5] * thrust - drag * vel[1],
+            R[8] * thrust - drag * vel[2],
         )
         torque = (
             R[0] * tx + R[1] * ty + R[2] * tz,
             R[3] * tx + R[4] * ty + R[5] * tz,
             R[6] * tx + R[7] * ty + R[8] * tz,
         )
-        pos, _ = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
         p.applyExternalForce(self.body, -1, force, pos, p.WORLD_FRAME, physicsClientId=self.client)
         p.applyExternalTorque(self.body, -1, torque, p.WORLD_FRAME, physicsClientId=self.client)
 
@@ -186,9 +204,9 @@ class VelocityController:
         self.reset(np.zeros(3), 0.0)
 
     def reset(self, position: NDArray[np.float64], yaw: float) -> None:
-        self.p_ref = np.array(position, dtype=np.float64)
+        self.p_ref = [float(x) for x in position]
         self.yaw_ref = float(yaw)
-        self.integral = np.zeros(3)
+        self.integral = [0.0, 0.0, 0.0]
 
     def compute(
         self,
@@ -199,59 +217,67 @@ class VelocityController:
         vel: tuple[float, ...],
         omega: tuple[float, ...],
     ) -> NDArray[np.float64]:
-        """Rotor speed commands (rad/s) for ``setpoint = (vx, vy, vz, yaw_rate)`` (m/s, rad/s)."""
+        """Rotor speed commands (rad/s) for ``setpoint = (vx, vy, vz, yaw_rate)`` (m/s, rad/s).
+
+        Written with scalar maths: it runs at the physics rate and numpy's per-call overhead on
+        3-vectors would dominate the simulation's cost.
+        """
         g = self.gains
         m = self.quad.params.mass
-        R = np.array(p.getMatrixFromQuaternion(quat)).reshape(3, 3)
-        yaw = math.atan2(R[1, 0], R[0, 0])
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = p.getMatrixFromQuaternion(quat)
+        yaw = math.atan2(r10, r00)
         cy, sy = math.cos(yaw), math.sin(yaw)
-        v_cmd = np.array(
-            [cy * setpoint[0] - sy * setpoint[1], sy * setpoint[0] + cy * setpoint[1], setpoint[2]]
-        )
-        self.p_ref += v_cmd * dt
-        pos_a = np.asarray(pos)
-        err = self.p_ref - pos_a
-        n = float(np.linalg.norm(err))
+        sp_x, sp_y, sp_z, sp_r = (float(v) for v in setpoint)
+        vc = (cy * sp_x - sy * sp_y, sy * sp_x + cy * sp_y, sp_z)
+        pr = self.p_ref
+        e = [0.0, 0.0, 0.0]
+        for k in range(3):
+            pr[k] += vc[k] * dt
+            e[k] = pr[k] - pos[k]
+        n = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
         if n > g.leash:
-            err *= g.leash / n
-            self.p_ref = pos_a + err
-        self.integral = np.clip(self.integral + err * dt, -g.i_limit, g.i_limit)
-        kp = np.array([g.kp_pos, g.kp_pos, g.kp_z])
-        kd = np.array([g.kd_vel, g.kd_vel, g.kd_z])
-        ki = np.array([g.ki_pos, g.ki_pos, g.ki_z])
-        acc = kp * err + kd * (v_cmd - np.asarray(vel)) + ki * self.integral
+            for k in range(3):
+                e[k] *= g.leash / n
+                pr[k] = pos[k] + e[k]
+        acc = [0.0, 0.0, 0.0]
+        kp = (g.kp_pos, g.kp_pos, g.kp_z)
+        kd = (g.kd_vel, g.kd_vel, g.kd_z)
+        ki = (g.ki_pos, g.ki_pos, g.ki_z)
+        integ = self.integral
+        for k in range(3):
+            integ[k] = min(g.i_limit, max(-g.i_limit, integ[k] + e[k] * dt))
+            acc[k] = kp[k] * e[k] + kd[k] * (vc[k] - vel[k]) + ki[k] * integ[k]
         # thrust vector with tilt limit
         fz = max(acc[2] + GRAVITY, 0.2 * GRAVITY)
-        fxy = acc[:2]
         lim = fz * math.tan(g.max_tilt)
-        nxy = float(np.linalg.norm(fxy))
+        nxy = math.hypot(acc[0], acc[1])
+        fx, fy = acc[0], acc[1]
         if nxy > lim:
-            fxy = fxy * (lim / nxy)
-        F = m * np.array([fxy[0], fxy[1], fz])
-        self.yaw_ref = math.remainder(self.yaw_ref + setpoint[3] * dt, 2 * math.pi)
-        z_d = F / np.linalg.norm(F)
-        x_c = np.array([math.cos(self.yaw_ref), math.sin(self.yaw_ref), 0.0])
-        y_d = np.cross(z_d, x_c)
-        y_d /= np.linalg.norm(y_d)
-        x_d = np.cross(y_d, z_d)
-        R_d = np.column_stack([x_d, y_d, z_d])
-        thrust = float(F @ R[:, 2])
-        return self._attitude(R, R_d, np.array([0.0, 0.0, setpoint[3]]), thrust, omega)
+            fx, fy = fx * lim / nxy, fy * lim / nxy
+        F = (m * fx, m * fy, m * fz)
+        self.yaw_ref = math.remainder(self.yaw_ref + sp_r * dt, 2 * math.pi)
+        nF = math.sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2])
+        zd = (F[0] / nF, F[1] / nF, F[2] / nF)
+        xc = (math.cos(self.yaw_ref), math.sin(self.yaw_ref))
+        yd = (-zd[2] * xc[1], zd[2] * xc[0], zd[0] * xc[1] - zd[1] * xc[0])
+        ny = math.sqrt(yd[0] * yd[0] + yd[1] * yd[1] + yd[2] * yd[2])
+        yd = (yd[0] / ny, yd[1] / ny, yd[2] / ny)
+        xd = (yd[1] * zd[2] - yd[2] * zd[1], yd[2] * zd[0] - yd[0] * zd[2], yd[0] * zd[1] - yd[1] * zd[0])
+        thrust = F[0] * r02 + F[1] * r12 + F[2] * r22
 
-    def _attitude(
-        self,
-        R: NDArray[np.float64],
-        R_d: NDArray[np.float64],
-        rate_ff_world: NDArray[np.float64],
-        thrust: float,
-        omega: tuple[float, ...],
-    ) -> NDArray[np.float64]:
-        """Geometric (SO(3)) attitude controller -> rotor speeds."""
-        g = self.gains
-        E = R_d.T @ R - R.T @ R_d
-        e_R = 0.5 * np.array([E[2, 1], E[0, 2], E[1, 0]])
-        w_body = R.T @ np.asarray(omega)
-        e_w = w_body - R.T @ rate_ff_world
-        J = np.asarray(self.quad.params.inertia)
-        torque = -np.asarray(g.k_att) * e_R - np.asarray(g.k_rate) * e_w + np.cross(w_body, J * w_body)
+        # Geometric SO(3) attitude control: e_R = vee(Rd^T R - R^T Rd) / 2.
+        cols = ((r00, r10, r20), (r01, r11, r21), (r02, r12, r22))  # body axes in world
+        rows_d = (xd, yd, zd)  # rows of Rd^T
+
+        def dot(a: tuple[float, ...], b: tuple[float, ...]) -> float:
+            return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+        M = [[dot(rows_d[i], cols[j]) for j in range(3)] for i in range(3)]
+        e_R = (0.5 * (M[2][1] - M[1][2]), 0.5 * (M[0][2] - M[2][0]), 0.5 * (M[1][0] - M[0][1]))
+        wb = (dot(cols[0], omega), dot(cols[1], omega), dot(cols[2], omega))
+        ff = (sp_r * r20, sp_r * r21, sp_r * r22)  # world yaw rate in body axes
+        J = self.quad.params.inertia
+        Jw = (J[0] * wb[0], J[1] * wb[1], J[2] * wb[2])
+        gyro = (wb[1] * Jw[2] - wb[2] * Jw[1], wb[2] * Jw[0] - wb[0] * Jw[2], wb[0] * Jw[1] - wb[1] * Jw[0])
+        torque = np.array([-g.k_att[k] * e_R[k] - g.k_rate[k] * (wb[k] - ff[k]) + gyro[k] for k in range(3)])
         return self.quad.wrench_to_speeds(thrust, torque)

@@ -16,9 +16,8 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
-from ihrcf_env.frames import matrix_from_quat, relative_pose
 from ihrcf_env.rig import SensorRig
-from ihrcf_env.sim.deck import Deck, DeckConfig, DeckTrajectory
+from ihrcf_env.sim.deck import Deck, DeckConfig, DeckTrajectory, rotation_matrix
 from ihrcf_env.sim.drone import GRAVITY, QuadParams, Quadrotor, VelocityController, VelocityGains
 from ihrcf_env.sim.profiles import MotionProfile
 from ihrcf_env.sim.sensors import CameraConfig, DownCamera, ToFArray, ToFConfig
@@ -68,6 +67,31 @@ class Touchdown:
     relative_vertical_speed: float  # m/s, drone minus deck point, along the deck normal (negative = closing)
     relative_tilt: float  # rad, angle between drone z and deck z
     on_deck: bool  # drone centre projects inside the deck's top surface
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """Ground truth at one instant. World frame unless the name says body (drone FLU frame)."""
+
+    drone_position: NDArray[np.float64]
+    drone_rotation: NDArray[np.float64]
+    drone_quaternion: NDArray[np.float64]  # x, y, z, w
+    drone_velocity: NDArray[np.float64]
+    deck_position: NDArray[np.float64]  # deck frame origin (tag centre on the top surface)
+    deck_rotation: NDArray[np.float64]
+    deck_point_velocity: NDArray[np.float64]  # velocity of the deck's material point at the drone
+    deck_position_body: NDArray[np.float64]
+    deck_rotation_body: NDArray[np.float64]
+
+    @property
+    def relative_velocity(self) -> NDArray[np.float64]:
+        return self.drone_velocity - self.deck_point_velocity
+
+    @property
+    def relative_tilt(self) -> float:
+        """Angle (rad) between the drone's z axis and the deck normal."""
+        c = float(self.drone_rotation[:, 2] @ self.deck_rotation[:, 2])
+        return math.acos(max(-1.0, min(1.0, c)))
 
 
 class World:
@@ -120,7 +144,13 @@ class World:
         """Start a new episode: deck on ``profile`` (validated over ``horizon_s`` seconds), drone
         hovering ``altitude`` m above the deck frame origin, shifted by ``offset_xy`` (world, m)."""
         n_ticks = int(math.ceil(horizon_s * self.config.physics_hz)) + 1
-        traj = DeckTrajectory(profile, self.config.stewart, self.dt, n_ticks)
+        traj = DeckTrajectory(
+            profile,
+            self.config.stewart,
+            self.dt,
+            n_ticks,
+            plate_half_thickness=self.config.deck.thickness / 2,
+        )
         self.tick = 0
         self.deck.set_trajectory(traj)
         deck_pos, _ = self.deck.pose()
@@ -171,48 +201,54 @@ class World:
             deck.drive(self.tick)
             pos, quat, vel, omega = quad.state()
             cmd = ctrl.compute(self._setpoint, dt, pos, quat, vel, omega) if vel_mode else self._motor_cmd
-            quad.apply(cmd, dt, quat, vel)
+            quad.apply(cmd, dt, pos, quat, vel)
             self._prev_vel = vel
             p.stepSimulation(physicsClientId=cid)
             self.tick += 1
             if first is None:
-                first = self._check_contact()
+                first = self._check_contact(approach_velocity=vel)
         v_now = p.getBaseVelocity(quad.body, physicsClientId=cid)[0]
         self._acc_world = (np.asarray(v_now) - np.asarray(self._prev_vel)) / dt
-        self.deck.update_visuals()
         return first
 
-    def _check_contact(self) -> Touchdown | None:
+    def _check_contact(self, approach_velocity: tuple[float, ...]) -> Touchdown | None:
+        """Touchdown record if the drone touches anything after this physics step.
+
+        The relative speed is taken from the drone's velocity *before* the step (the contact
+        solver has already changed it after), against the deck point's velocity.
+        """
         contacts = p.getContactPoints(bodyA=self.quad.body, physicsClientId=self.client)
         if not contacts:
             return None
         ids = {c[2] for c in contacts}
         body = "deck" if self.deck.body in ids else ("ground" if self.ground in ids else "base")
-        pos, quat, vel, _ = self.quad.state()
-        R_wb = matrix_from_quat(quat)
-        deck_pos, R_wd = self.deck.pose()
-        v_rel = np.asarray(vel) - self.deck.point_velocity(np.asarray(pos))
-        tilt = math.acos(max(-1.0, min(1.0, float(R_wb[:, 2] @ R_wd[:, 2]))))
-        local = R_wd.T @ (np.asarray(pos) - deck_pos)
+        s = self.snapshot()
+        local = s.deck_rotation.T @ (s.drone_position - s.deck_position)
         half = self.deck.top_half_extent
+        v_rel = np.asarray(approach_velocity) - s.deck_point_velocity
         return Touchdown(
             body=body,
             time=self.time,
-            relative_vertical_speed=float(v_rel @ R_wd[:, 2]),
-            relative_tilt=tilt,
+            relative_vertical_speed=float(v_rel @ s.deck_rotation[:, 2]),
+            relative_tilt=s.relative_tilt,
             on_deck=bool(abs(local[0]) <= half and abs(local[1]) <= half),
         )
+
+    def contact_bodies(self) -> set[int]:
+        """Ids of the bodies the drone touches now."""
+        return {c[2] for c in p.getContactPoints(bodyA=self.quad.body, physicsClientId=self.client)}
 
     # -- sensing and ground truth ----------------------------------------------------------
     def drone_pose(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """World position (m) and rotation matrix of the drone body frame."""
         pos, quat = p.getBasePositionAndOrientation(self.quad.body, physicsClientId=self.client)
-        return np.asarray(pos), matrix_from_quat(quat)
+        return np.asarray(pos), rotation_matrix(quat)
 
     def render_camera(self) -> NDArray[np.uint8]:
         """The downward camera's RGB image (H, W, 3) uint8."""
         if self.camera is None:
             raise RuntimeError("this world has no camera (camera=None in WorldConfig)")
+        self.deck.update_visuals()
         pos, R = self.drone_pose()
         return self.camera.render(pos, R)
 
@@ -224,7 +260,7 @@ class World:
         """Ideal IMU: attitude quaternion (x, y, z, w, world from body), body rates (rad/s, body
         frame) and specific force (m/s^2, body frame; reads +9.81 on z when hovering)."""
         pos, quat, vel, omega = self.quad.state()
-        R = matrix_from_quat(quat)
+        R = rotation_matrix(quat)
         f = self._acc_world + np.array([0.0, 0.0, GRAVITY])
         return {
             "quaternion": np.asarray(quat),
@@ -234,7 +270,26 @@ class World:
 
     def deck_in_body(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Ground-truth deck pose in the drone body frame: (position (3,) m, rotation R_body_deck)."""
-        pos, R = self.drone_pose()
+        s = self.snapshot()
+        return s.deck_position_body, s.deck_rotation_body
+
+    def snapshot(self) -> Snapshot:
+        """Ground-truth state of drone and deck now (one read of the simulator)."""
+        pos, quat, vel, omega = self.quad.state()
+        R = rotation_matrix(quat)
+        pos_a = np.array(pos)
         deck_pos, R_wd = self.deck.pose()
-        R_bd, p_bd = relative_pose(R, pos, R_wd, deck_pos)
-        return p_bd, R_bd
+        v_deck, w_deck = self.deck.velocity()
+        com, _ = p.getBasePositionAndOrientation(self.deck.body, physicsClientId=self.client)
+        deck_point_vel = v_deck + np.cross(w_deck, pos_a - np.array(com))
+        return Snapshot(
+            drone_position=pos_a,
+            drone_rotation=R,
+            drone_quaternion=np.array(quat),
+            drone_velocity=np.array(vel),
+            deck_position=deck_pos,
+            deck_rotation=R_wd,
+            deck_point_velocity=deck_point_vel,
+            deck_position_body=R.T @ (deck_pos - pos_a),
+            deck_rotation_body=R.T @ R_wd,
+        )
