@@ -3,18 +3,17 @@
 Layers: pure geometry/estimation modules (``frames``, ``rig``, ``geometry``, ``calibration``,
 ``estimators``; numpy/scipy/cv2 only), the PyBullet simulation layer (``ihrcf_env.sim``), the
 Gymnasium env (``ihrcf_env.envs``) and wrappers on top. Importing this package registers
-``ihrcf_env/DeckLanding-v0`` without importing PyBullet.
+``ihrcf_env/DeckLanding-v0`` (wrapped) and ``ihrcf_env/DeckLandingRaw-v0`` without importing PyBullet.
 """
 
 from gymnasium.envs.registration import register, registry
 
 __version__ = "0.1.0"
 
-ENV_ID = "ihrcf_env/DeckLanding-v0"
+ENV_ID = "ihrcf_env/DeckLanding-v0"  # wrapped with the IHRCF/ATDA/ground-truth observation (raw=True: raw)
+RAW_ENV_ID = "ihrcf_env/DeckLandingRaw-v0"  # the raw DeckLandingEnv
 
 if ENV_ID not in registry:
-    register(
-        id=ENV_ID,
-        entry_point="ihrcf_env.envs.deck_landing:DeckLandingEnv",
-        max_episode_steps=600,
-    )
+    register(id=ENV_ID, entry_point="ihrcf_env.wrappers:make_deck_landing", max_episode_steps=600)
+if RAW_ENV_ID not in registry:
+    register(id=RAW_ENV_ID, entry_point="ihrcf_env.envs.deck_landing:DeckLandingEnv", max_episode_steps=600)

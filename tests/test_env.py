@@ -12,7 +12,7 @@ from gymnasium.utils.env_checker import check_env
 import ihrcf_env  # noqa: F401  (registers the env)
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
 
-ENV_ID = "ihrcf_env/DeckLanding-v0"
+ENV_ID = "ihrcf_env/DeckLandingRaw-v0"  # the raw env; the wrapped id is tested in test_wrapper.py
 SMALL = {"camera_width": 96, "camera_height": 96}
 
 
@@ -39,7 +39,7 @@ def test_check_env_motor_mode_without_camera():
 
 def test_make_in_fresh_interpreter():
     code = (
-        "import gymnasium as gym, ihrcf_env; e = gym.make('ihrcf_env/DeckLanding-v0', camera=False); "
+        "import gymnasium as gym, ihrcf_env; e = gym.make('ihrcf_env/DeckLandingRaw-v0', camera=False); "
         "o, i = e.reset(seed=0); print(sorted(o)); e.close()"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)

@@ -357,11 +357,11 @@ class DeckLandingEnv(gym.Env):
         w.deck.update_visuals()
         pos, R = w.drone_pose()
         deck_pos, _ = w.deck.pose()
-        target = 0.5 * (pos + deck_pos)
+        target = 0.5 * (pos + deck_pos) - np.array([0.0, 0.0, 0.35])
         yaw = math.atan2(R[1, 0], R[0, 0])
-        eye = (
-            target + np.array([-2.2 * math.cos(yaw), -2.2 * math.sin(yaw), 1.0]) + np.array([0.6, -0.6, 0.0])
-        )
+        back = np.array([-math.cos(yaw), -math.sin(yaw), 0.0])
+        side = np.array([math.sin(yaw), -math.cos(yaw), 0.0])
+        eye = target + 2.5 * back + 0.8 * side + np.array([0.0, 0.0, 1.0])
         cid = w.client
         view = p.computeViewMatrix(eye.tolist(), target.tolist(), [0, 0, 1], physicsClientId=cid)
         width, height = self.chase_size
