@@ -14,6 +14,7 @@ subject of this simulator.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -82,11 +83,11 @@ class Quadrotor:
         self._mixer_inv = np.linalg.inv(params.mixer)
         self._mixer_rows = [tuple(r) for r in self._mixer_inv.tolist()]
         self._fmax = params.max_thrust
-        self.rotor_speed = np.zeros(4)
+        self.rotor_speed: list[float] = [0.0] * 4  # rad/s
         self._kf = params.kf
         self._km = params.km
-        self._xy = params.motor_xy
-        self._spin = params.spin
+        self._xy_list = params.motor_xy.tolist()
+        self._spin_list = params.spin.tolist()
 
     def reset(self, position: NDArray[np.float64], yaw: float, hover: bool = True) -> None:
         """Place the drone level at ``position`` (world, m) with heading ``yaw`` (rad), at rest;
@@ -97,7 +98,7 @@ class Quadrotor:
         )
         p.resetBaseVelocity(self.body, [0, 0, 0], [0, 0, 0], physicsClientId=self.client)
         w_hover = math.sqrt(self.params.mass * GRAVITY / 4 / self.params.kf)
-        self.rotor_speed = np.full(4, w_hover if hover else 0.0)
+        self.rotor_speed = [w_hover if hover else 0.0] * 4
 
     def state(self) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
         """World position, quaternion (x, y, z, w), linear velocity, angular velocity."""
@@ -105,18 +106,18 @@ class Quadrotor:
         v, w = p.getBaseVelocity(self.body, physicsClientId=self.client)
         return pos, quat, v, w
 
-    def thrusts_to_speeds(self, thrusts: NDArray[np.float64]) -> NDArray[np.float64]:
+    def thrusts_to_speeds(self, thrusts: Sequence[float]) -> list[float]:
         """Rotor speeds (rad/s) for per-motor thrusts (N), clipped to the motor limits."""
-        f = np.clip(thrusts, 0.0, self.params.max_thrust)
-        return np.sqrt(f / self._kf)
+        fmax, kf = self._fmax, self._kf
+        return [math.sqrt(min(max(float(f), 0.0), fmax) / kf) for f in thrusts]
 
-    def wrench_to_speeds(self, thrust: float, torque: NDArray[np.float64]) -> NDArray[np.float64]:
+    def wrench_to_speeds(self, thrust: float, torque: Sequence[float]) -> list[float]:
         """Rotor speeds realising a collective thrust (N) and body torque (N m) as well as the limits allow.
 
         When saturated, yaw is given up first, then roll/pitch authority is scaled down and the
         thrust shifted to fit the motor range. Scalar maths (runs at the physics rate).
         """
-        tx, ty, tz = float(torque[0]), float(torque[1]), float(torque[2])
+        tx, ty, tz = torque
         M = self._mixer_rows
         f = [r[0] * thrust + r[1] * tx + r[2] * ty + r[3] * tz for r in M]
         fmax = self._fmax
@@ -132,11 +133,11 @@ class Quadrotor:
             if hi > fmax:
                 f = [fi - (hi - fmax) for fi in f]
         kf = self._kf
-        return np.array([math.sqrt(min(max(fi, 0.0), fmax) / kf) for fi in f])
+        return [math.sqrt(min(max(fi, 0.0), fmax) / kf) for fi in f]
 
     def apply(
         self,
-        speed_cmd: NDArray[np.float64],
+        speed_cmd: Sequence[float],
         dt: float,
         pos: tuple[float, ...],
         quat: tuple[float, ...],
@@ -145,12 +146,12 @@ class Quadrotor:
         """Advance the rotor lag by ``dt`` and apply this physics step's rotor forces and drag
         (scalar maths: this runs at the physics rate)."""
         a = min(1.0, dt / self.params.motor_tau) if self.params.motor_tau > 0 else 1.0
-        w = [wi + a * (ci - wi) for wi, ci in zip(self.rotor_speed.tolist(), speed_cmd.tolist(), strict=True)]
-        self.rotor_speed = np.array(w)
+        w = [wi + a * (ci - wi) for wi, ci in zip(self.rotor_speed, speed_cmd, strict=True)]
+        self.rotor_speed = w
         kf, km = self._kf, self._km
         f = [kf * wi * wi for wi in w]
-        (x0, y0), (x1, y1), (x2, y2), (x3, y3) = self._xy.tolist()
-        s0, s1, s2, s3 = self._spin.tolist()
+        (x0, y0), (x1, y1), (x2, y2), (x3, y3) = self._xy_list
+        s0, s1, s2, s3 = self._spin_list
         thrust = f[0] + f[1] + f[2] + f[3]
         tx = f[0] * y0 + f[1] * y1 + f[2] * y2 + f[3] * y3
         ty = -(f[0] * x0 + f[1] * x1 + f[2] * x2 + f[3] * x3)
@@ -210,7 +211,7 @@ class VelocityController:
 
     def compute(
         self,
-        setpoint: NDArray[np.float64],
+        setpoint: tuple[float, float, float, float],
         dt: float,
         pos: tuple[float, ...],
         quat: tuple[float, ...],
@@ -227,7 +228,7 @@ class VelocityController:
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = p.getMatrixFromQuaternion(quat)
         yaw = math.atan2(r10, r00)
         cy, sy = math.cos(yaw), math.sin(yaw)
-        sp_x, sp_y, sp_z, sp_r = (float(v) for v in setpoint)
+        sp_x, sp_y, sp_z, sp_r = setpoint
         vc = (cy * sp_x - sy * sp_y, sy * sp_x + cy * sp_y, sp_z)
         pr = self.p_ref
         e = [0.0, 0.0, 0.0]
@@ -265,19 +266,27 @@ class VelocityController:
         xd = (yd[1] * zd[2] - yd[2] * zd[1], yd[2] * zd[0] - yd[0] * zd[2], yd[0] * zd[1] - yd[1] * zd[0])
         thrust = F[0] * r02 + F[1] * r12 + F[2] * r22
 
-        # Geometric SO(3) attitude control: e_R = vee(Rd^T R - R^T Rd) / 2.
-        cols = ((r00, r10, r20), (r01, r11, r21), (r02, r12, r22))  # body axes in world
-        rows_d = (xd, yd, zd)  # rows of Rd^T
+        # Geometric SO(3) attitude control: e_R = vee(Rd^T R - R^T Rd) / 2, with M = Rd^T R,
+        # M[i][j] = (row i of Rd^T) . (column j of R); only the off-diagonal terms are needed.
+        c0, c1, c2 = (r00, r10, r20), (r01, r11, r21), (r02, r12, r22)  # body axes in world
 
         def dot(a: tuple[float, ...], b: tuple[float, ...]) -> float:
             return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
-        M = [[dot(rows_d[i], cols[j]) for j in range(3)] for i in range(3)]
-        e_R = (0.5 * (M[2][1] - M[1][2]), 0.5 * (M[0][2] - M[2][0]), 0.5 * (M[1][0] - M[0][1]))
-        wb = (dot(cols[0], omega), dot(cols[1], omega), dot(cols[2], omega))
+        e_R = (
+            0.5 * (dot(zd, c1) - dot(yd, c2)),
+            0.5 * (dot(xd, c2) - dot(zd, c0)),
+            0.5 * (dot(yd, c0) - dot(xd, c1)),
+        )
+        wb = (dot(c0, omega), dot(c1, omega), dot(c2, omega))
         ff = (sp_r * r20, sp_r * r21, sp_r * r22)  # world yaw rate in body axes
         J = self.quad.params.inertia
         Jw = (J[0] * wb[0], J[1] * wb[1], J[2] * wb[2])
         gyro = (wb[1] * Jw[2] - wb[2] * Jw[1], wb[2] * Jw[0] - wb[0] * Jw[2], wb[0] * Jw[1] - wb[1] * Jw[0])
-        torque = np.array([-g.k_att[k] * e_R[k] - g.k_rate[k] * (wb[k] - ff[k]) + gyro[k] for k in range(3)])
+        ka, kr = g.k_att, g.k_rate
+        torque = (
+            -ka[0] * e_R[0] - kr[0] * (wb[0] - ff[0]) + gyro[0],
+            -ka[1] * e_R[1] - kr[1] * (wb[1] - ff[1]) + gyro[1],
+            -ka[2] * e_R[2] - kr[2] * (wb[2] - ff[2]) + gyro[2],
+        )
         return self.quad.wrench_to_speeds(thrust, torque)

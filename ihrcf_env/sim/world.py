@@ -126,10 +126,10 @@ class World:
         self.camera = DownCamera(cid, cfg.camera, cfg.rig) if cfg.camera is not None else None
         self.tof = ToFArray(cid, cfg.tof, cfg.rig)
         self.tick = 0
-        self._motor_cmd = np.zeros(4)
+        self._motor_cmd = [0.0] * 4
         self._prev_vel = np.zeros(3)
         self._acc_world = np.zeros(3)
-        self._setpoint = np.zeros(4)
+        self._setpoint = (0.0, 0.0, 0.0, 0.0)
         self._mode_velocity = cfg.action_mode == "velocity"
 
     # -- lifecycle -------------------------------------------------------------------------
@@ -157,8 +157,8 @@ class World:
         start = np.array([deck_pos[0] + offset_xy[0], deck_pos[1] + offset_xy[1], deck_pos[2] + altitude])
         self.quad.reset(start, yaw, hover=True)
         self.controller.reset(start, yaw)
-        self._motor_cmd = self.quad.rotor_speed.copy()
-        self._setpoint = np.zeros(4)
+        self._motor_cmd = list(self.quad.rotor_speed)
+        self._setpoint = (0.0, 0.0, 0.0, 0.0)
         self._prev_vel = np.zeros(3)
         self._acc_world = np.zeros(3)
         self.deck.update_visuals()
@@ -181,7 +181,10 @@ class World:
     # -- stepping --------------------------------------------------------------------------
     def set_velocity_setpoint(self, setpoint: NDArray[np.float64]) -> None:
         """(vx, vy, vz, yaw_rate) in m/s and rad/s, see :class:`VelocityController`."""
-        self._setpoint = np.asarray(setpoint, dtype=np.float64)
+        sp = np.asarray(setpoint, dtype=np.float64)
+        if sp.shape != (4,) or not np.all(np.isfinite(sp)):
+            raise ValueError(f"velocity setpoint must be 4 finite numbers, got {setpoint!r}")
+        self._setpoint = tuple(sp.tolist())
         self._mode_velocity = True
 
     def set_motor_thrusts(self, fractions: NDArray[np.float64]) -> None:
