@@ -217,3 +217,29 @@ def test_level_deck_reads_zero_angles_and_negative_height(world):
     np.testing.assert_allclose(p_bd, [0.0, 0.0, -1.2], atol=1e-9)
     np.testing.assert_allclose(R_bd, np.eye(3), atol=1e-9)
     _ = matrix_from_euler  # frames helpers exercised elsewhere
+
+
+def test_lens_distortion_moves_corners_as_brown_conrady():
+    import cv2
+
+    w = World(WorldConfig(camera=CameraConfig(distortion=(-0.15, 0.02))))
+    try:
+        w.reset(StaticProfile(), horizon_s=0.1, altitude=0.8, yaw=0.3)
+        img = w.render_camera()
+        p_bd, R_bd = w.deck_in_body()
+        R_cd, t_cd = body_pose_to_cam(R_bd, p_bd, w.config.rig.camera_position)
+        X = tag_corners_deck(w.config.deck.tag_size) @ R_cd.T + t_cd
+        cam = w.config.camera
+        distorted, _ = cv2.projectPoints(
+            X, np.zeros(3), np.zeros(3), cam.intrinsics, cam.distortion_coefficients
+        )
+        ideal, _ = cv2.projectPoints(X, np.zeros(3), np.zeros(3), cam.intrinsics, np.zeros(5))
+        prm = cv2.aruco.DetectorParameters()
+        prm.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+        det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11), prm)
+        corners, ids, _ = det.detectMarkers(cv2.cvtColor(img, cv2.COLOR_RGB2GRAY))
+        found = corners[0].reshape(4, 2)
+        assert np.abs(found - distorted.reshape(4, 2)).max() < 0.5
+        assert np.abs(found - ideal.reshape(4, 2)).max() > 3.0  # the distortion is really there
+    finally:
+        w.close()

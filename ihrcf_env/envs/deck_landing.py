@@ -74,6 +74,7 @@ class DeckLandingEnv(gym.Env):
         camera_width: int = 512,
         camera_height: int = 512,
         camera_fov: float = math.radians(60.0),
+        camera_distortion: tuple[float, float] = (0.0, 0.0),
         tof_noise: str = "ideal",
         tof_max_range: float = 4.0,
         tag_id: int = 0,
@@ -124,7 +125,17 @@ class DeckLandingEnv(gym.Env):
         if horizon_s is not None and not (math.isfinite(horizon_s) and horizon_s > 0):
             raise ValueError(f"horizon_s must be positive (s), got {horizon_s!r}")
 
-        cam_cfg = CameraConfig(width=camera_width, height=camera_height, fov=camera_fov) if camera else None
+        cam_cfg = None
+        if camera:
+            k = np.asarray(camera_distortion, dtype=np.float64)
+            if k.shape != (2,):
+                raise ValueError(f"camera_distortion must be (k1, k2), got {camera_distortion!r}")
+            cam_cfg = CameraConfig(
+                width=camera_width,
+                height=camera_height,
+                fov=camera_fov,
+                distortion=(float(k[0]), float(k[1])),
+            )
         self.config = WorldConfig(
             control_hz=control_hz,
             camera=cam_cfg,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
@@ -18,7 +19,8 @@ class CameraConfig:
     """Downward camera. ``fov`` is the vertical field of view (rad); square pixels.
 
     ``light_direction`` (world, pointing from the scene to the light) and the ambient/diffuse
-    coefficients set TinyRenderer's single light.
+    coefficients set TinyRenderer's single light. ``distortion = (k1, k2)`` applies Brown-Conrady
+    radial lens distortion to the rendered image (0, 0: an ideal pinhole camera).
     """
 
     width: int = 512
@@ -30,6 +32,7 @@ class CameraConfig:
     ambient: float = 0.6
     diffuse: float = 0.35
     specular: float = 0.0
+    distortion: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self) -> None:
         if not (isinstance(self.width, int | np.integer) and self.width > 0):
@@ -40,6 +43,16 @@ class CameraConfig:
             raise ValueError(f"camera fov must be in (0, 170 deg) in radians, got {self.fov!r}")
         if not (0.0 < self.near < self.far):
             raise ValueError(f"camera near/far must satisfy 0 < near < far, got {self.near}, {self.far}")
+        k = np.asarray(self.distortion, dtype=np.float64)
+        if k.shape != (2,) or not np.all(np.isfinite(k)) or np.any(np.abs(k) > 1.0):
+            raise ValueError(
+                f"camera distortion must be two finite numbers (k1, k2) in [-1, 1], got {self.distortion!r}"
+            )
+
+    @property
+    def distortion_coefficients(self) -> NDArray[np.float64]:
+        """True OpenCV distortion vector (k1, k2, p1, p2, k3) of the image."""
+        return np.array([self.distortion[0], self.distortion[1], 0.0, 0.0, 0.0])
 
     @property
     def intrinsics(self) -> NDArray[np.float64]:
@@ -70,6 +83,7 @@ class DownCamera:
             farVal=config.far,
             physicsClientId=client,
         )
+        self._maps = _distortion_maps(config) if any(config.distortion) else None
 
     def pose(
         self, pos: NDArray[np.float64], R_wb: NDArray[np.float64]
@@ -86,7 +100,34 @@ class DownCamera:
             cameraUpVector=(-R_wc[:, 1]).tolist(),
             physicsClientId=self.client,
         )
-        return render_rgb(self.client, self.config, view, self._proj)
+        img = render_rgb(self.client, self.config, view, self._proj)
+        if self._maps is not None:
+            img = cv2.remap(
+                img, self._maps[0], self._maps[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+            )
+        return img
+
+
+def _distortion_maps(config: CameraConfig) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """For every pixel of the distorted image, where to sample the ideal (pinhole) render.
+
+    A distorted pixel with normalised coordinates x_d shows the ray whose ideal normalised
+    coordinates x satisfy ``x_d = x (1 + k1 r^2 + k2 r^4)``, r = |x| (solved by fixed-point
+    iteration). Pixels whose ray falls outside the render repeat its border (negligible for mild
+    distortion).
+    """
+    K = config.intrinsics
+    k1, k2 = config.distortion
+    u, v = np.meshgrid(np.arange(config.width, dtype=np.float64), np.arange(config.height, dtype=np.float64))
+    xd, yd = (u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1]
+    x, y = xd.copy(), yd.copy()
+    for _ in range(30):
+        r2 = x * x + y * y
+        s = 1.0 + k1 * r2 + k2 * r2 * r2
+        x, y = xd / s, yd / s
+    mx = (x * K[0, 0] + K[0, 2]).astype(np.float32)
+    my = (y * K[1, 1] + K[1, 2]).astype(np.float32)
+    return mx, my
 
 
 def render_rgb(client: int, config: CameraConfig, view: object, proj: object) -> NDArray[np.uint8]:
