@@ -1,12 +1,19 @@
-"""Benchmarks that print figures: simulation speed and per-frame estimation cost.
+"""Benchmarks that print figures: simulation speed, per-frame estimation cost, estimator accuracy.
 
-    python -m ihrcf_env.benchmark                 # speed table (pinned to one core)
-    python -m ihrcf_env.benchmark --steps 400 --sizes 0 128 256 512
+    python -m ihrcf_env.benchmark                 # speed + accuracy tables (pinned to one core)
+    python -m ihrcf_env.benchmark --steps 400 --sizes 0 128 256 512 --no-accuracy
+    python -m ihrcf_env.benchmark --accuracy-frames 600 --markdown out/benchmark.md
 
 Speed: env steps per second and real-time factor (simulated seconds per wall-clock second) of the
 raw env with zero velocity actions over the "paper" deck profile, without a camera and with the
 camera at each size (rendered once per control step). Estimation: tag detection + IHRCF + ATDA per
 512x512 frame with the shipped calibration.
+
+Accuracy: the paper's experiment. A motionless hovering drone 1 m above the deck on the "paper"
+profile (the drone holds its world position; the deck moves beneath it), mean absolute error of
+the IHRCF and ATDA deck poses (body frame) against ground truth over valid frames, for ideal and
+realistic ToF sensors, with and without a mild radial lens distortion (k1 = -0.05) that the shipped
+calibration does not model.
 """
 
 from __future__ import annotations
@@ -15,6 +22,7 @@ import argparse
 import os
 import sys
 import time
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -67,6 +75,74 @@ def estimation_ms(frames: int) -> float | None:
     return 1e3 * float(np.mean(samples))
 
 
+PAPER_TABLE2 = {
+    "ATDA": np.array([0.0162, 0.0134, 0.0697, 2.9843, 1.657, 1.7743]),
+    "IHRCF": np.array([0.0035, 0.0039, 0.0041, 0.98, 1.3731, 1.180]),
+}
+MILD_DISTORTION = (-0.05, 0.0)
+
+
+def accuracy(
+    frames: int, tof_noise: str = "ideal", distortion: tuple[float, float] = (0.0, 0.0), seed: int = 0
+) -> dict[str, dict[str, np.ndarray | int]]:
+    """Per estimator: ``mae`` and ``peak`` (6,) = x, y, z (m), roll, pitch, yaw (deg), and ``invalid``."""
+    env = gym.make(
+        "ihrcf_env/DeckLanding-v0",
+        keep_image=False,
+        tof_noise=tof_noise,
+        camera_distortion=distortion,
+        max_episode_steps=None,
+        horizon_s=frames / 20 + 2,
+    )
+    errs: dict[str, list[np.ndarray]] = {"IHRCF": [], "ATDA": []}
+    invalid = {"IHRCF": 0, "ATDA": 0}
+    try:
+        env.reset(seed=seed, options={"altitude": 1.0, "offset": (0.0, 0.0), "yaw": 0.0})
+        a = np.zeros(4, dtype=np.float32)
+        for _ in range(frames):
+            obs, *_ = env.step(a)
+            gt = obs["ground_truth"]
+            for name, key in (("IHRCF", "ihrcf"), ("ATDA", "atda")):
+                e = obs[key]
+                if not e["valid"]:
+                    invalid[name] += 1
+                    continue
+                d_ang = (e["euler"].astype(np.float64) - gt["euler"] + np.pi) % (2 * np.pi) - np.pi
+                errs[name].append(np.r_[e["position"] - gt["position"], np.degrees(d_ang)])
+    finally:
+        env.close()
+    out: dict[str, dict[str, np.ndarray | int]] = {}
+    for name, rows in errs.items():
+        a_err = np.abs(np.array(rows)) if rows else np.full((1, 6), np.nan)
+        out[name] = {"mae": a_err.mean(axis=0), "peak": a_err.max(axis=0), "invalid": invalid[name]}
+    return out
+
+
+def table2(result: dict[str, dict[str, np.ndarray | int]], title: str, frames: int) -> str:
+    """Markdown table in the layout of the paper's Table 2 (plus peaks and the paper's values)."""
+    lines = [
+        f"**{title}** ({frames} frames, mean absolute error; peak in brackets)",
+        "",
+        "| | ATDA | | | IHRCF | | | paper ATDA | | | paper IHRCF | | |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for label, sl, fmt in (
+        ("Translations (m) X/Y/Z", slice(0, 3), "{:.4f}"),
+        ("Angles (deg) roll/pitch/yaw", slice(3, 6), "{:.3f}"),
+    ):
+        cells = []
+        for name in ("ATDA", "IHRCF"):
+            mae, peak = result[name]["mae"][sl], result[name]["peak"][sl]
+            cells += [f"{fmt.format(m)} ({fmt.format(p)})" for m, p in zip(mae, peak, strict=True)]
+        for name in ("ATDA", "IHRCF"):
+            cells += [fmt.format(v) for v in PAPER_TABLE2[name][sl]]
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    lines.append(
+        f"| invalid frames | {result['ATDA']['invalid']} | | | {result['IHRCF']['invalid']} | | | | | | | | |"
+    )
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--steps", type=int, default=300, help="timed env steps per configuration")
@@ -75,22 +151,47 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--frames", type=int, default=100, help="frames for the estimation timing")
     ap.add_argument("--all-cores", action="store_true", help="do not pin the process to one core")
+    ap.add_argument("--no-speed", action="store_true", help="skip the speed table")
+    ap.add_argument("--no-accuracy", action="store_true", help="skip the accuracy tables")
+    ap.add_argument("--accuracy-frames", type=int, default=600, help="frames per accuracy run (20 Hz)")
+    ap.add_argument("--markdown", type=str, default=None, help="also write the tables to this file")
     args = ap.parse_args(argv)
+    report: list[str] = []
     if not args.all_cores and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
     print(
         f"ihrcf_env {ihrcf_env.__version__}, Python {sys.version.split()[0]}, control 20 Hz, physics 240 Hz"
     )
-    print(f"{'camera':>10} {'steps/s':>10} {'real-time factor':>18}")
-    for size in args.sizes:
-        sps, rtf = speed(size, args.steps)
-        label = "none" if size == 0 else f"{size}x{size}"
-        print(f"{label:>10} {sps:10.1f} {rtf:17.2f}x", flush=True)
-    ms = estimation_ms(args.frames)
-    if ms is None:
-        print("estimation: no shipped calibration file; run python -m ihrcf_env.calibrate")
-    else:
-        print(f"estimation (detection + IHRCF + ATDA, 512x512): {ms:.2f} ms per frame")
+    if not args.no_speed:
+        report += ["| camera | env steps/s | real-time factor |", "|---|---|---|"]
+        print(f"{'camera':>10} {'steps/s':>10} {'real-time factor':>18}")
+        for size in args.sizes:
+            sps, rtf = speed(size, args.steps)
+            label = "none" if size == 0 else f"{size}x{size}"
+            print(f"{label:>10} {sps:10.1f} {rtf:17.2f}x", flush=True)
+            report.append(f"| {label} | {sps:.1f} | {rtf:.2f}x |")
+        ms = estimation_ms(args.frames)
+        if ms is None:
+            print("estimation: no shipped calibration file; run python -m ihrcf_env.calibrate")
+        else:
+            print(f"estimation (detection + IHRCF + ATDA, 512x512): {ms:.2f} ms per frame")
+            report += ["", f"Estimation (detection + IHRCF + ATDA, 512x512): {ms:.2f} ms per frame."]
+    if not args.no_accuracy:
+        for noise in ("ideal", "realistic"):
+            for dist in ((0.0, 0.0), MILD_DISTORTION):
+                t0 = time.perf_counter()
+                res = accuracy(args.accuracy_frames, noise, dist)
+                kind = "no distortion" if dist == (0.0, 0.0) else f"distortion k1 = {dist[0]}"
+                text = table2(res, f"ToF {noise}, {kind}", args.accuracy_frames)
+                print()
+                print(text)
+                print(f"({time.perf_counter() - t0:.0f} s)", flush=True)
+                report += ["", text]
+    if args.markdown:
+        path = Path(args.markdown)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("\n".join(report) + "\n")
+        print(f"wrote {path}")
     return 0
 
 
