@@ -243,3 +243,17 @@ def test_lens_distortion_moves_corners_as_brown_conrady():
         assert np.abs(found - ideal.reshape(4, 2)).max() > 1.5  # distortion really there (~2.8 px)
     finally:
         w.close()
+
+
+def test_motion_beyond_the_checked_horizon_stalls_instead_of_crashing(world):
+    prof = CallableProfile(
+        lambda t: (np.array([0.0, 0.0, 0.1 * t]), np.zeros(3))
+    )  # leaves the stroke at ~1.5 s
+    world.reset(prof, horizon_s=1.0)
+    for _ in range(80):  # 4 s
+        world.step()
+    traj = world.deck.trajectory
+    assert traj.stalled_at is not None and 1.0 < traj.stalled_at < 2.0
+    legs = world.deck.leg_lengths()
+    geo = world.config.stewart
+    assert np.all(legs <= geo.max_leg + 1e-4)

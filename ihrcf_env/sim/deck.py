@@ -56,32 +56,75 @@ class DeckConfig:
 
 
 class DeckTrajectory:
-    """Deck poses sampled at every physics tick: ``position[k]``, ``quaternion[k]`` (x, y, z, w) at
-    time ``k * dt``, world frame (deck frame origin = tag centre on the top surface)."""
+    """Deck poses at every physics tick: ``position[k]``, ``quaternion[k]`` (x, y, z, w) at time
+    ``k * dt``, world frame (deck frame origin = tag centre on the top surface).
+
+    The profile is checked against the legs' stroke on a 20 Hz grid over ``check_horizon_s`` when
+    the trajectory is made (ValueError naming the time and the leg). Physics-rate poses are
+    computed in chunks of ``chunk_s`` seconds as the simulation reaches them; should a chunk
+    beyond the checked horizon leave the stroke, the deck stops at its last reachable pose
+    (``stalled_at`` gives the time) instead of failing mid-episode.
+    """
+
+    CHECK_DT = 0.05
 
     def __init__(
         self,
         profile: MotionProfile,
         geometry: StewartGeometry,
         dt: float,
-        n_ticks: int,
+        check_horizon_s: float,
         plate_half_thickness: float = 0.0,
+        chunk_s: float = 30.0,
     ) -> None:
-        t = np.arange(n_ticks + 1) * dt
-        offset, rpy = profile.sample(t)
-        rot = Rotation.from_euler("ZYX", rpy[:, ::-1])
-        self.times = t
-        self.position = geometry.home_position + offset
-        self.quaternion = rot.as_quat()
-        matrices = rot.as_matrix()
-        self.z_axis = matrices[:, :, 2]
+        if not (math.isfinite(check_horizon_s) and check_horizon_s > 0):
+            raise ValueError(f"check_horizon_s must be positive (s), got {check_horizon_s!r}")
+        self.profile = profile
+        self.geometry = geometry
         self.dt = dt
+        self._half = plate_half_thickness
+        self._chunk = max(1, int(round(chunk_s / dt)))
+        t = np.arange(0.0, check_horizon_s + self.CHECK_DT, self.CHECK_DT)
+        offset, rpy = profile.sample(t)
+        R = Rotation.from_euler("ZYX", rpy[:, ::-1]).as_matrix()
+        geometry.check_stroke(t, geometry.leg_lengths(geometry.home_position + offset, R))
+        self.stalled_at: float | None = None
+        self.times = np.zeros(0)
+        self.position = np.zeros((0, 3))
+        self.quaternion = np.zeros((0, 4))
         # plain-Python copies for the per-physics-step driver
         # (plate centre = deck origin - half thickness * z)
-        self.quaternion_list = self.quaternion.tolist()
-        self.body_position_list = (self.position - self.z_axis * plate_half_thickness).tolist()
-        self.legs = geometry.leg_lengths(self.position, matrices)
-        geometry.check_stroke(t, self.legs)
+        self.quaternion_list: list[list[float]] = []
+        self.body_position_list: list[list[float]] = []
+        self.ensure(0)
+
+    def ensure(self, tick: int) -> None:
+        """Make sure poses up to physics tick ``tick`` exist (extends by whole chunks)."""
+        while tick >= len(self.times) and self.stalled_at is None:
+            k0 = len(self.times)
+            t = (k0 + np.arange(self._chunk)) * self.dt
+            offset, rpy = self.profile.sample(t)
+            rot = Rotation.from_euler("ZYX", rpy[:, ::-1])
+            position = self.geometry.home_position + offset
+            matrices = rot.as_matrix()
+            legs = self.geometry.leg_lengths(position, matrices)
+            bad = np.flatnonzero(
+                np.any(
+                    (legs < self.geometry.min_leg) | (legs > self.geometry.max_leg) | ~np.isfinite(legs),
+                    axis=1,
+                )
+            )
+            n = len(t) if bad.size == 0 else int(bad[0])
+            if bad.size:
+                self.stalled_at = float(t[n])
+                if k0 + n == 0:  # cannot even start: let check_stroke name the leg
+                    self.geometry.check_stroke(t, legs)
+            quat = rot.as_quat()[:n]
+            self.times = np.concatenate([self.times, t[:n]])
+            self.position = np.concatenate([self.position, position[:n]])
+            self.quaternion = np.concatenate([self.quaternion, quat])
+            self.quaternion_list += quat.tolist()
+            self.body_position_list += (position[:n] - matrices[:n, :, 2] * self._half).tolist()
 
     def __len__(self) -> int:
         return len(self.times)
@@ -235,6 +278,7 @@ class Deck:
         traj = self.trajectory
         assert traj is not None
         dt = traj.dt
+        traj.ensure(tick + 1)
         k = min(tick + 1, len(traj) - 1)
         pos_now, q_now = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
         q_t = traj.quaternion_list[k]

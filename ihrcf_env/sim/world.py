@@ -141,14 +141,13 @@ class World:
         offset_xy: tuple[float, float] = (0.0, 0.0),
         yaw: float = 0.0,
     ) -> None:
-        """Start a new episode: deck on ``profile`` (validated over ``horizon_s`` seconds), drone
+        """Start a new episode: deck on ``profile`` (stroke checked over ``horizon_s`` seconds), drone
         hovering ``altitude`` m above the deck frame origin, shifted by ``offset_xy`` (world, m)."""
-        n_ticks = int(math.ceil(horizon_s * self.config.physics_hz)) + 1
         traj = DeckTrajectory(
             profile,
             self.config.stewart,
             self.dt,
-            n_ticks,
+            horizon_s,
             plate_half_thickness=self.config.deck.thickness / 2,
         )
         self.tick = 0
