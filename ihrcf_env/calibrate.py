@@ -58,6 +58,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--width", type=int, default=512, help="image width (px), default 512")
     ap.add_argument("--height", type=int, default=512, help="image height (px), default 512")
     ap.add_argument("--fov-deg", type=float, default=60.0, help="vertical field of view (deg), default 60")
+    ap.add_argument("--k1", type=float, default=0.0, help="camera radial distortion k1, default 0")
+    ap.add_argument("--k2", type=float, default=0.0, help="camera radial distortion k2, default 0")
     ap.add_argument(
         "--output",
         default=None,
@@ -88,7 +90,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ihrcf_env.sim.sensors import CameraConfig
 
     try:
-        camera = CameraConfig(width=args.width, height=args.height, fov=math.radians(args.fov_deg))
+        camera = CameraConfig(
+            width=args.width,
+            height=args.height,
+            fov=math.radians(args.fov_deg),
+            distortion=(args.k1, args.k2),
+        )
         ascent = AscentSettings(stages=args.stages, bottom=args.bottom, top=args.top)
         board = ChessboardSettings(n_views=args.views)
     except ValueError as e:

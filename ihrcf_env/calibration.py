@@ -499,6 +499,8 @@ class Calibration:
         seed: RNG seed of the calibration run (None if unseeded).
         created_with: producer string, e.g. ``"ihrcf_env 0.1.0"``.
         report: free JSON-serialisable dict (stages used/skipped, measurements).
+        lens_distortion: (k1, k2) radial distortion of the simulated camera the file was made for
+            (the camera's property, like ``fov``; ``dist`` is what the chessboard estimated).
         format_version: file format version (:data:`FORMAT_VERSION`).
         source: file this was loaded from (not serialised).
     """
@@ -514,6 +516,7 @@ class Calibration:
     seed: int | None = None
     created_with: str = f"ihrcf_env {__version__}"
     report: dict[str, Any] = field(default_factory=dict)
+    lens_distortion: tuple[float, float] = (0.0, 0.0)
     format_version: int = FORMAT_VERSION
     source: str | None = field(default=None, compare=False, repr=False)
 
@@ -522,6 +525,12 @@ class Calibration:
         if self.image_width <= 0 or self.image_height <= 0:
             raise ValueError(f"image size must be positive, got {self.image_width}x{self.image_height}")
         self.fov = float(self.fov)
+        k = np.asarray(self.lens_distortion, dtype=np.float64)
+        if k.shape != (2,) or not np.all(np.isfinite(k)):
+            raise ValueError(
+                f"lens_distortion must be two finite numbers (k1, k2), got {self.lens_distortion!r}"
+            )
+        self.lens_distortion = (float(k[0]), float(k[1]))
         if not (0.0 < self.fov < math.pi):
             raise ValueError(f"fov must be in (0, pi) rad, got {self.fov!r}")
         if not isinstance(self.tables, RangePixelTable):
@@ -552,6 +561,7 @@ class Calibration:
             "image_width": self.image_width,
             "image_height": self.image_height,
             "fov": self.fov,
+            "lens_distortion": list(self.lens_distortion),
             "rig": self.rig,
             "tables": self.tables.to_dict(),
             "K": self.K.tolist(),
@@ -617,6 +627,7 @@ class Calibration:
                 seed=d["seed"],
                 created_with=str(d["created_with"]),
                 report=dict(d["report"]),
+                lens_distortion=tuple(d.get("lens_distortion", (0.0, 0.0))),
                 format_version=d["format_version"],
                 source=source,
             )
@@ -644,10 +655,22 @@ class Calibration:
             raise CalibrationError(f"{name}: not a valid calibration JSON file: {e}") from e
         return cls.from_dict(data, source=name)
 
-    def matches(self, width: int, height: int, fov: float, rig: SensorRig | Mapping[str, Any]) -> list[str]:
+    def matches(
+        self,
+        width: int,
+        height: int,
+        fov: float,
+        rig: SensorRig | Mapping[str, Any],
+        distortion: tuple[float, float] = (0.0, 0.0),
+    ) -> list[str]:
         """Human-readable differences between this file and a camera config / rig (empty if none)."""
         rd = dict(rig.to_dict() if isinstance(rig, SensorRig) else rig)
         diffs = []
+        if not np.allclose(
+            np.asarray(distortion, dtype=np.float64), self.lens_distortion, rtol=0.0, atol=1e-12
+        ):
+            theirs = tuple(float(x) for x in distortion)
+            diffs.append(f"lens distortion (k1, k2) {self.lens_distortion} in the file vs {theirs}")
         if (int(width), int(height)) != (self.image_width, self.image_height):
             diffs.append(f"image size {self.image_width}x{self.image_height} in the file vs {width}x{height}")
         if not math.isclose(float(fov), self.fov, rel_tol=0.0, abs_tol=1e-8):
@@ -667,19 +690,22 @@ class Calibration:
         fov: float,
         rig: SensorRig | Mapping[str, Any],
         output: str | os.PathLike[str] | None = None,
+        distortion: tuple[float, float] = (0.0, 0.0),
     ) -> None:
         """Raise :class:`CalibrationError` if the file was made for another camera config (px, rad) or rig.
 
         The message gives the command that produces a matching file; ``output`` is the path to
         suggest in it (default ``calibration_<W>x<H>_fov<F>.json``).
         """
-        diffs = self.matches(width, height, fov, rig)
+        diffs = self.matches(width, height, fov, rig, distortion)
         if not diffs:
             return
         fov_deg = f"{math.degrees(fov):.10g}"
         out = str(output) if output is not None else f"calibration_{width}x{height}_fov{fov_deg}.json"
+        k1, k2 = (float(x) for x in distortion)
+        lens = f" --k1 {k1:.10g} --k2 {k2:.10g}" if (k1, k2) != (0.0, 0.0) else ""
         cmd = (
-            f"python -m ihrcf_env.calibrate --width {width} --height {height} --fov-deg {fov_deg} "
+            f"python -m ihrcf_env.calibrate --width {width} --height {height} --fov-deg {fov_deg}{lens} "
             f"--output {out}"
         )
         rig_note = " (with the same rig settings)" if any(s.startswith("rig") for s in diffs) else ""

@@ -108,7 +108,7 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
             cal = calibration
         else:
             cal = Calibration.load(calibration)
-        cal.check_matches(cam.width, cam.height, cam.fov, base.rig)
+        cal.check_matches(cam.width, cam.height, cam.fov, base.rig, distortion=cam.distortion)
         self.calibration = cal
         deck = base.config.deck
         self.estimator = estimator_from_calibration(cal, deck.tag_size, deck.tag_id, max_residual)

@@ -139,3 +139,22 @@ def test_realistic_tof_still_valid_and_finite():
         env.close()
     assert len(err["ihrcf"]) >= 40  # a dropout may cost a frame, never the run
     assert np.all(np.isfinite(err["ihrcf"]))
+
+
+def test_distorted_camera_needs_a_calibration_made_for_it(tmp_path):
+    with pytest.raises(CalibrationError, match=r"--k1 -0\.05 --k2 0"):
+        gym.make(ENV_ID, camera_distortion=(-0.05, 0.0))
+    from ihrcf_env.calibrate import main as calibrate
+
+    out = tmp_path / "cal_k1.json"
+    assert (
+        calibrate(["--k1", "-0.05", "--stages", "24", "--views", "6", "--quiet", "--output", str(out)]) == 0
+    )
+    env = gym.make(ENV_ID, camera_distortion=(-0.05, 0.0), calibration=out, keep_image=False)
+    try:
+        obs, _ = env.reset(seed=0, options={"altitude": 1.0, "offset": (0.0, 0.0)})
+        assert obs["ihrcf"]["valid"] == 1 and obs["atda"]["valid"] == 1
+        gt = obs["ground_truth"]["position"]
+        assert np.abs(obs["ihrcf"]["position"] - gt).max() < 0.01
+    finally:
+        env.close()

@@ -541,6 +541,7 @@ def run_calibration(
         image_width=camera.width,
         image_height=camera.height,
         fov=camera.fov,
+        lens_distortion=camera.distortion,
         rig=rig.to_dict(),
         tables=asc.table,
         K=cb.intrinsics.K,
