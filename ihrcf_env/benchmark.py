@@ -35,7 +35,7 @@ import ihrcf_env  # noqa: F401  (registers the envs)
 def speed(size: int, steps: int, control_hz: int = 20) -> tuple[float, float]:
     """(env steps per second, real-time factor) for camera ``size`` (0 = no camera)."""
     kw = {"camera": False} if size == 0 else {"camera_width": size, "camera_height": size}
-    env = gym.make("ihrcf_env/DeckLandingRaw-v0", control_hz=control_hz, max_episode_steps=None, **kw)
+    env = gym.make("ihrcf_env/DeckLandingRaw-v0", control_hz=control_hz, max_episode_steps=steps + 10, **kw)
     try:
         env.reset(seed=0)
         a = np.zeros(4, dtype=np.float32)
@@ -58,7 +58,7 @@ def estimation_ms(frames: int) -> float | None:
 
     if not default_calibration_path().is_file():
         return None
-    env = gym.make("ihrcf_env/DeckLanding-v0", max_episode_steps=None)
+    env = gym.make("ihrcf_env/DeckLanding-v0", max_episode_steps=frames + 10)
     try:
         obs, _ = env.reset(seed=0)
         wrapper = env
@@ -107,7 +107,7 @@ def accuracy(
         keep_image=False,
         tof_noise=tof_noise,
         camera_distortion=distortion,
-        max_episode_steps=None,
+        max_episode_steps=frames + 10,
         horizon_s=frames / 20 + 2,
     )
     errs: dict[str, list[np.ndarray]] = {"IHRCF": [], "ATDA": []}

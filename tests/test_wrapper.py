@@ -117,7 +117,7 @@ def _errors(env, n, seed=0):
 
 
 def test_ihrcf_beats_the_paper_over_100_frames_and_atda_on_height():
-    env = gym.make(ENV_ID, keep_image=False, max_episode_steps=None)
+    env = gym.make(ENV_ID, keep_image=False)
     try:
         err, invalid = _errors(env, 120)
     finally:
@@ -132,7 +132,7 @@ def test_ihrcf_beats_the_paper_over_100_frames_and_atda_on_height():
 
 
 def test_realistic_tof_still_valid_and_finite():
-    env = gym.make(ENV_ID, keep_image=False, tof_noise="realistic", max_episode_steps=None)
+    env = gym.make(ENV_ID, keep_image=False, tof_noise="realistic")
     try:
         err, invalid = _errors(env, 60, seed=3)
     finally:
