@@ -281,12 +281,8 @@ class DeckLandingEnv(gym.Env):
 
     # -- pieces --------------------------------------------------------------------------
     def _horizon(self) -> float:
-        if self.horizon_s is not None:
-            return self.horizon_s
-        spec_steps = self.spec.max_episode_steps if self.spec is not None else None
-        if spec_steps:
-            return spec_steps / self.config.control_hz + 1.0
-        return DEFAULT_HORIZON_S
+        """Seconds over which reset checks the deck profile against the legs' stroke."""
+        return self.horizon_s if self.horizon_s is not None else DEFAULT_HORIZON_S
 
     def _get_obs(self) -> dict[str, Any]:
         w = self.world
