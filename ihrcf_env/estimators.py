@@ -342,6 +342,14 @@ class TagDetector:
         params.cornerRefinementMethod = _REFINE_METHODS[refine]
         params.cornerRefinementMinAccuracy = 0.01
         params.cornerRefinementMaxIterations = 100
+        # The tag's black square, its white quiet zone and the square deck around it are nested,
+        # nearly concentric quads. With OpenCV 5's defaults (minMarkerDistanceRate 0.125,
+        # minDistanceToBorder 3) the black square was dropped in favour of its neighbours on some
+        # frames: measured on 300 random rendered poses (0.45-2.5 m, tilts to 0.2 rad), 255 of the
+        # 259 with the tag fully in view were detected; with 0.05 (OpenCV 4's default) and 1 px,
+        # 259 of 259, and no false ids in either case.
+        params.minMarkerDistanceRate = 0.05
+        params.minDistanceToBorder = 1
         dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
         self._detector = cv2.aruco.ArucoDetector(dictionary, params)
 

@@ -79,6 +79,16 @@ def test_tag_out_of_view_gives_invalid_zeros():
         env.close()
 
 
+def test_tag_seen_on_a_level_static_deck():
+    # regression: OpenCV's default candidate filtering lost the tag among the nested squares here
+    env = gym.make(ENV_ID, deck_profile="static", keep_image=False)
+    try:
+        obs, info = env.reset(seed=0)
+        assert obs["ihrcf"]["valid"] == 1 and obs["atda"]["valid"] == 1, info["ihrcf_reason"]
+    finally:
+        env.close()
+
+
 def test_calibration_mismatch_gives_the_command():
     with pytest.raises(CalibrationError, match="python -m ihrcf_env.calibrate"):
         gym.make(ENV_ID, camera_fov=math.radians(50.0))
