@@ -180,8 +180,6 @@ class DeckLandingEnv(gym.Env):
         self.world = World(self.config, gui=render_mode == "human")
         self._state_id = p.saveState(physicsClientId=self.world.client)
         self._profile: MotionProfile | None = None
-        self._steps = 0
-        self._done = False
 
     # -- gymnasium API -------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict, dict]:
@@ -223,8 +221,6 @@ class DeckLandingEnv(gym.Env):
         self.world.reset(
             self._profile, self._horizon(), altitude=alt, offset_xy=(float(off[0]), float(off[1])), yaw=yaw
         )
-        self._steps = 0
-        self._done = False
         self._last_touchdown: Touchdown | None = None
         obs = self._get_obs()
         info = self._get_info(self.world.snapshot())
@@ -246,7 +242,6 @@ class DeckLandingEnv(gym.Env):
         else:
             self.world.set_motor_thrusts((a + 1.0) / 2.0)
         touchdown = self.world.step()
-        self._steps += 1
         if touchdown is not None and self._last_touchdown is None:
             self._last_touchdown = touchdown
         snap = self.world.snapshot()
