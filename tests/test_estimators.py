@@ -344,6 +344,8 @@ def test_deck_pose_estimator(rendered) -> None:
 
 
 def test_import_does_not_load_pybullet() -> None:
-    code = "import sys, ihrcf_env.estimators, ihrcf_env.geometry; print('pybullet' in sys.modules)"
+    pure = ("estimators", "geometry", "frames", "rig", "paths", "calibration")
+    mods = ", ".join(["ihrcf_env"] + [f"ihrcf_env.{m}" for m in pure])
+    code = f"import sys, {mods}; print('pybullet' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
