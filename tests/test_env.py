@@ -285,3 +285,23 @@ def test_tilt_crash_in_motor_mode():
         assert math.isfinite(info["reward_terminal"])
     finally:
         env.close()
+
+
+def test_random_deck_start_is_seeded_and_deck_time_option_sets_it():
+    from ihrcf_env.sim.profiles import paper_profile
+
+    env = raw(camera=False, random_deck_start=True)
+    try:
+        _, a = env.reset(seed=4)
+        _, b = env.reset(seed=4)
+        _, c = env.reset(seed=5)
+        np.testing.assert_array_equal(a["deck_quaternion_world"], b["deck_quaternion_world"])
+        assert not np.array_equal(a["deck_quaternion_world"], c["deck_quaternion_world"])
+        _, d = env.reset(seed=0, options={"deck_time": 37.0})
+        off, rpy = paper_profile()(37.0)
+        home = env.config.stewart.home_position
+        np.testing.assert_allclose(d["deck_position_world"], home + off, atol=1e-6)
+        with pytest.raises(ValueError, match="deck_time"):
+            env.reset(options={"deck_time": -1.0})
+    finally:
+        env.close()

@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 from ihrcf_env.frames import euler_from_matrix, quat_from_matrix
 from ihrcf_env.rig import SensorRig
 from ihrcf_env.sim.deck import DeckConfig
-from ihrcf_env.sim.profiles import MotionProfile, make_profile
+from ihrcf_env.sim.profiles import PAPER_DURATION, MotionProfile, ShiftedProfile, make_profile
 from ihrcf_env.sim.sensors import CameraConfig, ToFConfig
 from ihrcf_env.sim.world import ACTION_MODES, Snapshot, Touchdown, World, WorldConfig
 
@@ -70,6 +70,7 @@ class DeckLandingEnv(gym.Env):
         control_hz: int = 20,
         deck_profile: str | Callable[[float], Any] | MotionProfile = "paper",
         sea_state_amplitudes: Mapping[str, float] | None = None,
+        random_deck_start: bool = False,
         camera: bool = True,
         camera_width: int = 512,
         camera_height: int = 512,
@@ -159,6 +160,7 @@ class DeckLandingEnv(gym.Env):
         self.arena_half_width = float(arena_half_width)
         self.arena_ceiling = float(arena_ceiling)
         self.horizon_s = horizon_s
+        self.random_deck_start = bool(random_deck_start)
         self.chase_size = (int(chase_size[0]), int(chase_size[1]))
 
         tof_max = np.float32(tof_max_range)
@@ -187,15 +189,16 @@ class DeckLandingEnv(gym.Env):
 
         The start is drawn from ``np_random``: altitude ``start_altitude +- start_altitude_jitter``
         above the deck origin, a horizontal offset uniform in ``+-start_offset`` per axis (m) and a
-        yaw uniform in ``+-start_yaw`` (rad). ``options`` may fix ``altitude`` (m), ``offset``
-        ((x, y) m, world) and ``yaw`` (rad).
+        yaw uniform in ``+-start_yaw`` (rad). With ``random_deck_start`` the deck's motion starts at a
+        time uniform in [0, 130) s of its profile instead of at t = 0. ``options`` may fix
+        ``altitude`` (m), ``offset`` ((x, y) m, world), ``yaw`` (rad) and ``deck_time`` (s).
         """
         super().reset(seed=seed)
         options = dict(options or {})
-        unknown = set(options) - {"altitude", "offset", "yaw"}
+        unknown = set(options) - {"altitude", "offset", "yaw", "deck_time"}
         if unknown:
             raise ValueError(
-                f"reset options has unknown keys {sorted(unknown)}; known: altitude, offset, yaw"
+                f"reset options has unknown keys {sorted(unknown)}; known: altitude, offset, yaw, deck_time"
             )
         rng = self.np_random
         alt = self.start_altitude + rng.uniform(-1, 1) * self.start_altitude_jitter
@@ -216,7 +219,13 @@ class DeckLandingEnv(gym.Env):
             if not math.isfinite(yaw):
                 raise ValueError(f"options['yaw'] must be finite (rad), got {yaw!r}")
 
-        self._profile = make_profile(self.deck_profile, rng, self.sea_state_amplitudes)
+        deck_time = rng.uniform(0.0, PAPER_DURATION) if self.random_deck_start else 0.0
+        if "deck_time" in options:
+            deck_time = float(options["deck_time"])
+            if not (math.isfinite(deck_time) and deck_time >= 0):
+                raise ValueError(f"options['deck_time'] must be a finite time >= 0 (s), got {deck_time!r}")
+        profile = make_profile(self.deck_profile, rng, self.sea_state_amplitudes)
+        self._profile = ShiftedProfile(profile, deck_time) if deck_time else profile
         p.restoreState(stateId=self._state_id, physicsClientId=self.world.client)
         self.world.reset(
             self._profile, self._horizon(), altitude=alt, offset_xy=(float(off[0]), float(off[1])), yaw=yaw

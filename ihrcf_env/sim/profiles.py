@@ -167,6 +167,23 @@ class CallableProfile(MotionProfile):
         return out[:, :3], out[:, 3:]
 
 
+class ShiftedProfile(MotionProfile):
+    """``base`` started ``t0`` seconds into its motion: pose(t) = base(t + t0)."""
+
+    def __init__(self, base: MotionProfile, t0: float) -> None:
+        if not math.isfinite(t0):
+            raise ValueError(f"deck start time must be finite (s), got {t0!r}")
+        self.base = base
+        self.t0 = float(t0)
+        self.name = base.name
+
+    def sample(self, t: NDArray[np.float64]) -> PoseArrays:
+        return self.base.sample(np.asarray(t, dtype=np.float64) + self.t0)
+
+
+#: Duration (s) of the "paper" run; random deck start times are drawn in [0, PAPER_DURATION).
+PAPER_DURATION = 130.0
+
 PROFILE_NAMES: tuple[str, ...] = ("paper", "sea_state", "static")
 
 
