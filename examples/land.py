@@ -15,7 +15,8 @@ only to report how each episode ended. Phases:
    The drop is committed when the relative tilt *predicted at touchdown* and the heave velocity
    are small (the deck near the top/bottom of its heave or moving slowly), so the drone does not
    arrive while the deck is tilted beyond the 10 deg limit. On the "paper" profile the deck tilts
-   more than 10 deg from ~3.5 s to ~13.5 s, so the drone waits at the hold height and lands at ~16 s.
+   more than 10 deg from ~3.5 s to ~13.5 s, so with ``--deck-start zero`` the drone waits at the hold
+   height and lands at ~16 s (by default each episode starts the deck at a seeded random time).
 3. **drop**: centring continues while the tag is seen, then zero lateral command (the autopilot
    holds position once the tag leaves the image); vertical command = estimated deck heave velocity
    minus the approach speed (0.35 m/s, 0.25 m/s in the last 15 cm), on the ToF ranges, until the
@@ -439,6 +440,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument(
         "--control-hz", type=int, default=20, help="agent/camera rate (default 20; 10 halves the wall time)"
     )
+    ap.add_argument(
+        "--deck-start",
+        choices=("random", "zero"),
+        default="random",
+        help="start the deck motion at a seeded random time of its profile (default) or at t = 0",
+    )
     ap.add_argument("--short", action="store_true", help="quick check: 1 episode on the static deck, 10 s")
     ap.add_argument("--quiet", action="store_true", help="only the summary")
     args = ap.parse_args(argv)
@@ -459,13 +466,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.tof_noise,
             args.max_seconds,
             verbose=not args.quiet,
-            env_kwargs={"control_hz": args.control_hz},
+            env_kwargs={"control_hz": args.control_hz, "random_deck_start": args.deck_start == "random"},
         )
         summaries[profile] = summarize(results)
     wall = time.perf_counter() - t0
     print(
         f"\nlanding report ({args.episodes} episodes per profile, tof_noise={args.tof_noise}, "
-        f"wall {wall:.0f} s)"
+        f"deck start {args.deck_start}, wall {wall:.0f} s)"
     )
     for profile, s in summaries.items():
         print(format_summary(profile, s))
