@@ -182,6 +182,7 @@ def test_nan_or_inf_action_raises(bad):
         ({"sea_state_amplitudes": {"wobble": 1.0}, "deck_profile": "sea_state"}, "unknown"),
     ],
 )
+@pytest.mark.filterwarnings("ignore:.*render_mode.*:UserWarning")  # gymnasium warns before our ValueError
 def test_bad_config_raises_at_make(kwargs, name):
     with pytest.raises(ValueError, match=name):
         gym.make(ENV_ID, **kwargs)
