@@ -3,18 +3,15 @@
 from __future__ import annotations
 
 import csv
-import importlib.util
-import sys
 from collections.abc import Iterator
-from pathlib import Path
 from types import ModuleType
 
 import numpy as np
 import pytest
+from example_loader import imported_example
 
 from ihrcf_env.frames import matrix_from_euler, quat_from_matrix
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "hover_and_track.py"
 FIGURES = (
     "fig14_euler_angles.png",
     "fig15_translations.png",
@@ -28,16 +25,9 @@ FIGURES = (
 
 @pytest.fixture(scope="module")
 def example() -> Iterator[ModuleType]:
-    """The example script imported as a module (it is not part of the package)."""
-    spec = importlib.util.spec_from_file_location("hover_and_track", EXAMPLE)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up here
-    try:
-        spec.loader.exec_module(module)
+    """The example script imported as a module."""
+    with imported_example("hover_and_track.py", "hover_and_track") as module:
         yield module
-    finally:
-        sys.modules.pop(spec.name, None)
 
 
 def test_short_run_prints_the_table_and_saves_figures_and_csv(example, tmp_path, capsys):

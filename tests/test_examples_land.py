@@ -2,36 +2,25 @@
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import re
-import sys
 from collections.abc import Iterator
-from pathlib import Path
 from types import ModuleType
 from typing import Any
 
 import numpy as np
 import pytest
+from example_loader import imported_example
 
 from ihrcf_env.frames import matrix_from_euler, quat_from_matrix
 from ihrcf_env.rig import SensorRig
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "land.py"
-
 
 @pytest.fixture(scope="module")
 def land() -> Iterator[ModuleType]:
-    """The example script imported as a module (it is not part of the package)."""
-    spec = importlib.util.spec_from_file_location("land_example", EXAMPLE)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up here
-    try:
-        spec.loader.exec_module(module)
+    """The example script imported as a module."""
+    with imported_example("land.py", "land_example") as module:
         yield module
-    finally:
-        sys.modules.pop(spec.name, None)
 
 
 def _obs(height: float, deck_rpy: tuple[float, float, float], tag: bool = True) -> dict[str, Any]:
