@@ -184,6 +184,9 @@ class World:
         if sp.shape != (4,) or not np.all(np.isfinite(sp)):
             raise ValueError(f"velocity setpoint must be 4 finite numbers, got {setpoint!r}")
         self._setpoint = tuple(sp.tolist())
+        if not self._mode_velocity:  # coming from motor commands: hold from where the drone is now
+            pos, R = self.drone_pose()
+            self.controller.reset(pos, math.atan2(R[1, 0], R[0, 0]))
         self._mode_velocity = True
 
     def set_motor_thrusts(self, fractions: NDArray[np.float64]) -> None:
