@@ -316,7 +316,6 @@ def test_chessboard_fast(world, scene):
     np.testing.assert_array_equal(res.K_true, K_TRUE)
 
 
-@pytest.mark.slow
 def test_chessboard_full(world, scene):
     """Item 1: >= 15 views (30, the CLI default), focal error < 0.5 %, RMS < 0.3 px, for several seeds."""
     world.reset(StaticProfile(), 0.1, altitude=2.5)
@@ -390,7 +389,6 @@ def test_cli_reports_failure_without_traceback(tmp_path: Path, capsys):
     assert not (tmp_path / "x.json").exists()
 
 
-@pytest.mark.slow
 def test_shipped_file_is_reproduced_by_the_cli(tmp_path: Path, capsys):
     """The shipped default file is exactly what ``python -m ihrcf_env.calibrate`` writes by default."""
     out = tmp_path / "default.json"
