@@ -45,6 +45,7 @@ from numpy.typing import NDArray
 
 import ihrcf_env  # noqa: F401  (registers ihrcf_env/DeckLanding-v0)
 from ihrcf_env.frames import matrix_from_euler, matrix_from_quat
+from ihrcf_env.geometry import fit_plane
 from ihrcf_env.rig import SensorRig
 
 GRAVITY = 9.81
@@ -193,12 +194,10 @@ class LandingController:
             # beams run along the optical axis (body -z) from the sensors
             hits = self.sensors[valid] + ranges[valid, None] * np.array([0.0, 0.0, -1.0])
             q = hits @ R_lb.T
-            A = np.column_stack([q[:, 0], q[:, 1], np.ones(len(q))])
-            (a, b, c0), *_ = np.linalg.lstsq(A, q[:, 2], rcond=None)
-            tof_height = -float(c0)
-            n_level = np.array([-a, -b, 1.0])
-            tof_normal = n_level / np.linalg.norm(n_level)
-            resid = q[:, 2] - A @ np.array([a, b, c0])
+            # plane n.x = d in the level frame (unit n, n_z >= 0): least squares on 4, exact on 3
+            tof_normal, d = fit_plane(q)
+            tof_height = -d / float(tof_normal[2])  # depth of the plane below the body origin
+            resid = q @ tof_normal - d
             tof_full = bool(valid.all() and np.max(np.abs(resid)) < 0.05)
         elif valid.any():
             tof_height = float(np.mean(ranges[valid])) - float(self.sensors[0, 2])

@@ -20,6 +20,7 @@ import pybullet as p
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from ihrcf_env.frames import quat_from_matrix
 from ihrcf_env.sim.assets import asset_path, tag_texture
 from ihrcf_env.sim.profiles import MotionProfile
 from ihrcf_env.sim.stewart import StewartGeometry
@@ -318,7 +319,7 @@ class Deck:
         """Place the tag and legs at the plate's current pose (call before rendering)."""
         cid = self.client
         pos, R = self.pose()
-        quat = Rotation.from_matrix(R).as_quat()
+        quat = quat_from_matrix(R)
         p.resetBasePositionAndOrientation(self.tag_body, pos.tolist(), quat.tolist(), physicsClientId=cid)
         tops = self.geometry.top_joints_world(pos, R)
         bases = self.geometry.base_joints

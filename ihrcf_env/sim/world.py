@@ -16,6 +16,7 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
+from ihrcf_env.frames import relative_pose
 from ihrcf_env.rig import SensorRig
 from ihrcf_env.sim.deck import Deck, DeckConfig, DeckTrajectory, rotation_matrix
 from ihrcf_env.sim.drone import GRAVITY, QuadParams, Quadrotor, VelocityController, VelocityGains
@@ -280,13 +281,11 @@ class World:
 
     def snapshot(self) -> Snapshot:
         """Ground-truth state of drone and deck now (one read of the simulator)."""
-        pos, quat, vel, omega = self.quad.state()
+        pos, quat, vel, _ = self.quad.state()
         R = rotation_matrix(quat)
         pos_a = np.array(pos)
         deck_pos, R_wd = self.deck.pose()
-        v_deck, w_deck = self.deck.velocity()
-        com, _ = p.getBasePositionAndOrientation(self.deck.body, physicsClientId=self.client)
-        deck_point_vel = v_deck + np.cross(w_deck, pos_a - np.array(com))
+        R_bd, p_bd = relative_pose(R, pos_a, R_wd, deck_pos)
         return Snapshot(
             drone_position=pos_a,
             drone_rotation=R,
@@ -294,7 +293,7 @@ class World:
             drone_velocity=np.array(vel),
             deck_position=deck_pos,
             deck_rotation=R_wd,
-            deck_point_velocity=deck_point_vel,
-            deck_position_body=R.T @ (deck_pos - pos_a),
-            deck_rotation_body=R.T @ R_wd,
+            deck_point_velocity=self.deck.point_velocity(pos_a),
+            deck_position_body=p_bd,
+            deck_rotation_body=R_bd,
         )
