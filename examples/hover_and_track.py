@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 import ihrcf_env  # noqa: F401  (registers ihrcf_env/DeckLanding-v0)
-from ihrcf_env.frames import euler_from_matrix, matrix_from_euler, matrix_from_quat, wrap_angle
+from ihrcf_env.core.frames import euler_from_matrix, matrix_from_euler, matrix_from_quat, wrap_angle
 
 #: Tracking gains: (m/s)/m for x, y and z, (rad/s)/rad for yaw.
 K_XY = 1.0

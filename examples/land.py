@@ -44,9 +44,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 import ihrcf_env  # noqa: F401  (registers ihrcf_env/DeckLanding-v0)
-from ihrcf_env.frames import matrix_from_euler, matrix_from_quat
-from ihrcf_env.geometry import fit_plane
-from ihrcf_env.rig import SensorRig
+from ihrcf_env.core.frames import matrix_from_euler, matrix_from_quat
+from ihrcf_env.core.geometry import fit_plane
+from ihrcf_env.core.rig import SensorRig
 
 GRAVITY = 9.81
 PROFILES = ("paper", "sea_state", "static")

@@ -14,6 +14,6 @@ ENV_ID = "ihrcf_env/DeckLanding-v0"  # wrapped with the IHRCF/ATDA/ground-truth 
 RAW_ENV_ID = "ihrcf_env/DeckLandingRaw-v0"  # the raw DeckLandingEnv
 
 if ENV_ID not in registry:
-    register(id=ENV_ID, entry_point="ihrcf_env.wrappers:make_deck_landing", max_episode_steps=600)
+    register(id=ENV_ID, entry_point="ihrcf_env.wrappers.estimates:make_deck_landing", max_episode_steps=600)
 if RAW_ENV_ID not in registry:
     register(id=RAW_ENV_ID, entry_point="ihrcf_env.envs.deck_landing:DeckLandingEnv", max_episode_steps=600)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from example_loader import imported_example
 
-from ihrcf_env.frames import matrix_from_euler, quat_from_matrix
+from ihrcf_env.core.frames import matrix_from_euler, quat_from_matrix
 
 FIGURES = (
     "fig14_euler_angles.png",

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from example_loader import imported_example
 
-from ihrcf_env.frames import matrix_from_euler, quat_from_matrix
-from ihrcf_env.rig import SensorRig
+from ihrcf_env.core.frames import matrix_from_euler, quat_from_matrix
+from ihrcf_env.core.rig import SensorRig
 
 
 @pytest.fixture(scope="module")

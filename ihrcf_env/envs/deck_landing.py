@@ -40,10 +40,10 @@ import pybullet as p
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from ihrcf_env.frames import euler_from_matrix, quat_from_matrix
-from ihrcf_env.rig import SensorRig
+from ihrcf_env.core.frames import euler_from_matrix, quat_from_matrix
+from ihrcf_env.core.profiles import PAPER_DURATION, MotionProfile, ShiftedProfile, make_profile
+from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.sim.deck import DeckConfig
-from ihrcf_env.sim.profiles import PAPER_DURATION, MotionProfile, ShiftedProfile, make_profile
 from ihrcf_env.sim.sensors import CameraConfig, ToFConfig
 from ihrcf_env.sim.world import ACTION_MODES, Snapshot, Touchdown, World, WorldConfig
 
@@ -56,7 +56,7 @@ DEFAULT_HORIZON_S = 600.0
 class DeckLandingEnv(gym.Env):
     """Quadrotor landing on a 6-DOF Stewart deck, sensed by a downward camera and four ToF beams.
 
-    Frames and conventions: see :mod:`ihrcf_env.frames`. Ground truth is in ``info``: the deck
+    Frames and conventions: see :mod:`ihrcf_env.core.frames`. Ground truth is in ``info``: the deck
     pose in the drone body frame (``deck_position_body`` m, ``deck_euler_body`` roll/pitch/yaw rad),
     world poses of drone and deck, the six leg lengths and contact flags.
     """

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from ihrcf_env.paths import asset_path
+from ihrcf_env.core.paths import asset_path
 
 __all__ = ["asset_path", "tag_texture"]
 

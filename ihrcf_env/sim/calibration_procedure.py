@@ -10,7 +10,8 @@
   holds each stage for the rest of ``stage_period_s``, then takes one image and the four ideal
   ranges. Each pad is segmented (YCbCr eq. 2, Table 1, filled convex hull, centroid eq. 7); a stage
   where any pad is missing or cut by the image border is skipped and reported.
-* :func:`run_calibration`: both, in a fresh :class:`World`, -> a :class:`~ihrcf_env.calibration.Calibration`.
+* :func:`run_calibration`: both, in a fresh :class:`World`, -> a
+  :class:`~ihrcf_env.core.calibration.Calibration`.
 
 The pads are fixed on the deck (placed once at the first stage's touch points), like real pads;
 the report gives how far the beams' touch points wandered from the pad centres during the
@@ -33,7 +34,7 @@ import pybullet as p
 from numpy.typing import ArrayLike, NDArray
 
 from ihrcf_env import __version__
-from ihrcf_env.calibration import (
+from ihrcf_env.core.calibration import (
     Calibration,
     IntrinsicsResult,
     RangePixelTable,
@@ -41,10 +42,10 @@ from ihrcf_env.calibration import (
     find_chessboard,
     segment_pads,
 )
-from ihrcf_env.frames import matrix_from_euler
-from ihrcf_env.rig import PAD_COLOURS, SensorRig, intrinsics_from_fov
+from ihrcf_env.core.frames import matrix_from_euler
+from ihrcf_env.core.profiles import StaticProfile
+from ihrcf_env.core.rig import PAD_COLOURS, SensorRig, intrinsics_from_fov
 from ihrcf_env.sim.calibration_scene import DEFAULT_PAD_RADIUS, PAD_RGB, CalibrationScene
-from ihrcf_env.sim.profiles import StaticProfile
 from ihrcf_env.sim.sensors import CameraConfig, ToFArray, ToFConfig
 from ihrcf_env.sim.world import World, WorldConfig
 

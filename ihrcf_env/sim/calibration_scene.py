@@ -28,8 +28,8 @@ import numpy as np
 import pybullet as p
 from numpy.typing import ArrayLike, NDArray
 
-from ihrcf_env.frames import as_array, quat_from_matrix
-from ihrcf_env.rig import PAD_COLOURS
+from ihrcf_env.core.frames import as_array, quat_from_matrix
+from ihrcf_env.core.rig import PAD_COLOURS
 from ihrcf_env.sim.assets import asset_path
 from ihrcf_env.sim.world import World
 

@@ -20,10 +20,10 @@ import pybullet as p
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from ihrcf_env.frames import quat_from_matrix
+from ihrcf_env.core.frames import quat_from_matrix
+from ihrcf_env.core.profiles import MotionProfile
+from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.sim.assets import asset_path, tag_texture
-from ihrcf_env.sim.profiles import MotionProfile
-from ihrcf_env.sim.stewart import StewartGeometry
 
 GRAVITY = 9.81
 

@@ -16,13 +16,13 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
-from ihrcf_env.frames import relative_pose
-from ihrcf_env.rig import SensorRig
+from ihrcf_env.core.frames import relative_pose
+from ihrcf_env.core.profiles import MotionProfile
+from ihrcf_env.core.rig import SensorRig
+from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.sim.deck import Deck, DeckConfig, DeckTrajectory, rotation_matrix
 from ihrcf_env.sim.drone import GRAVITY, QuadParams, Quadrotor, VelocityController, VelocityGains
-from ihrcf_env.sim.profiles import MotionProfile
 from ihrcf_env.sim.sensors import CameraConfig, DownCamera, ToFArray, ToFConfig
-from ihrcf_env.sim.stewart import StewartGeometry
 
 ACTION_MODES: tuple[str, ...] = ("velocity", "motors")
 

@@ -9,7 +9,7 @@ import numpy as np
 
 import ihrcf_env  # noqa: F401
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _thunk(steps: int):

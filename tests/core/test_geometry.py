@@ -1,4 +1,4 @@
-"""Tests for ihrcf_env.geometry with synthetic data of known answer."""
+"""Tests for ihrcf_env.core.geometry with synthetic data of known answer."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ihrcf_env.geometry import (
+from ihrcf_env.core.geometry import (
     apply_homography,
     collinear,
     fit_plane,
@@ -15,7 +15,7 @@ from ihrcf_env.geometry import (
     quad_is_degenerate,
     rigid_fit,
 )
-from ihrcf_env.rig import tag_corners_deck
+from ihrcf_env.core.rig import tag_corners_deck
 
 
 def _random_h(rng: np.random.Generator) -> np.ndarray:

@@ -8,7 +8,7 @@ platform frame, ``joint_depth`` below the deck's top surface, in pairs centred a
 classic zig-zag layout. Leg length = distance between its two joints.
 
 The platform pose is that of the **deck frame** (origin at the tag centre on the top surface, see
-``ihrcf_env.frames``) in the world.
+``ihrcf_env.core.frames``) in the world.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Tests of ihrcf_env.calibration: YCbCr (eq. 2), Table 1, pad segmentation (eqs. 3-7), PCHIP tables,
+"""Tests of ihrcf_env.core.calibration: YCbCr (eq. 2), Table 1, pad segmentation (eqs. 3-7), PCHIP tables,
 chessboard intrinsics and the calibration file."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-from ihrcf_env.calibration import (
+from ihrcf_env.core.calibration import (
     FORMAT_VERSION,
     YCBCR_THRESHOLDS,
     Calibration,
@@ -31,8 +31,8 @@ from ihrcf_env.calibration import (
     segment_pad,
     segment_pads,
 )
-from ihrcf_env.frames import matrix_from_euler
-from ihrcf_env.rig import PAD_COLOURS, SensorRig, intrinsics_from_fov
+from ihrcf_env.core.frames import matrix_from_euler
+from ihrcf_env.core.rig import PAD_COLOURS, SensorRig, intrinsics_from_fov
 
 # ------------------------------------------------------------------------------------ YCbCr / Table 1
 
@@ -498,5 +498,5 @@ def test_default_calibration_path():
 
 
 def test_module_does_not_import_pybullet():
-    code = "import sys, ihrcf_env.calibration; sys.exit('pybullet' in sys.modules)"
+    code = "import sys, ihrcf_env.core.calibration; sys.exit('pybullet' in sys.modules)"
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0

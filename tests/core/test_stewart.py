@@ -5,15 +5,15 @@ import math
 import numpy as np
 import pytest
 
-from ihrcf_env.frames import matrix_from_euler
-from ihrcf_env.sim.profiles import (
+from ihrcf_env.core.frames import matrix_from_euler
+from ihrcf_env.core.profiles import (
     CallableProfile,
     StaticProfile,
     make_profile,
     paper_profile,
     sea_state_profile,
 )
-from ihrcf_env.sim.stewart import StewartGeometry
+from ihrcf_env.core.stewart import StewartGeometry
 
 GEO = StewartGeometry()
 

@@ -2,7 +2,7 @@
 
 A profile maps times ``t`` (s, array of shape (N,)) to ``(offset (N, 3) m, rpy (N, 3) rad)``: the
 deck frame's translation from the home position (world axes) and its roll/pitch/yaw (ZYX,
-see ``ihrcf_env.frames``). Built-in profiles are vectorised; a user callable ``t -> pose`` for one
+see ``ihrcf_env.core.frames``). Built-in profiles are vectorised; a user callable ``t -> pose`` for one
 scalar time is wrapped by :class:`CallableProfile`.
 """
 

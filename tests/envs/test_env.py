@@ -289,7 +289,7 @@ def test_tilt_crash_in_motor_mode():
 
 
 def test_random_deck_start_is_seeded_and_deck_time_option_sets_it():
-    from ihrcf_env.sim.profiles import paper_profile
+    from ihrcf_env.core.profiles import paper_profile
 
     env = raw(camera=False, random_deck_start=True)
     try:

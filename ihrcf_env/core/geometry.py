@@ -1,6 +1,6 @@
 """Plane, homography and rigid-fit geometry for the IHRCF estimator (pure numpy, no simulator).
 
-Frames are whatever the caller passes in; :mod:`ihrcf_env.estimators` uses the camera frame
+Frames are whatever the caller passes in; :mod:`ihrcf_env.core.estimators` uses the camera frame
 (OpenCV: x right, y down, z along the optical axis, metres) for 3-D points and OpenCV pixel
 coordinates (pixel centres at integers) for image points.
 """
@@ -12,7 +12,7 @@ import itertools
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ihrcf_env.frames import as_array
+from ihrcf_env.core.frames import as_array
 
 #: Relative singular-value threshold below which a linear system is treated as rank deficient.
 _RANK_TOL = 1e-10

@@ -27,9 +27,9 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from ihrcf_env.calibration import Calibration, default_calibration_path
-from ihrcf_env.estimators import DeckPoseEstimator, PoseEstimate
-from ihrcf_env.rig import SensorRig
+from ihrcf_env.core.calibration import Calibration, default_calibration_path
+from ihrcf_env.core.estimators import DeckPoseEstimator, PoseEstimate
+from ihrcf_env.core.rig import SensorRig
 
 POSITION_BOUND = 10.0  # m
 ESTIMATE_KEYS = ("ihrcf", "atda", "ground_truth")
@@ -75,7 +75,7 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         env: a ``DeckLandingEnv`` (possibly wrapped) with its camera on.
         calibration: a :class:`Calibration`, a path to a calibration file, or None for the file
             shipped in ``assets/`` (which must match the env's camera; otherwise a
-            :class:`~ihrcf_env.calibration.CalibrationError` gives the command that makes one).
+            :class:`~ihrcf_env.core.calibration.CalibrationError` gives the command that makes one).
         keep_image: keep the raw camera image in the observation.
         flatten: return one float32 Box (see the module docstring); implies no image.
         max_residual: IHRCF rigid-fit RMS (m) above which the estimate is declared invalid.

@@ -8,8 +8,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import ihrcf_env  # noqa: F401
-from ihrcf_env.calibration import CalibrationError
-from ihrcf_env.wrappers import DeckPoseObservation
+from ihrcf_env.core.calibration import CalibrationError
+from ihrcf_env.wrappers.estimates import DeckPoseObservation
 
 ENV_ID = "ihrcf_env/DeckLanding-v0"
 
@@ -154,7 +154,7 @@ def test_realistic_tof_still_valid_and_finite():
 def test_distorted_camera_needs_a_calibration_made_for_it(tmp_path):
     with pytest.raises(CalibrationError, match=r"--k1 -0\.05 --k2 0"):
         gym.make(ENV_ID, camera_distortion=(-0.05, 0.0))
-    from ihrcf_env.calibrate import main as calibrate
+    from ihrcf_env.cli.calibrate import main as calibrate
 
     out = tmp_path / "cal_k1.json"
     assert (

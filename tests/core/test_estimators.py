@@ -1,16 +1,14 @@
-"""Tests for ihrcf_env.estimators on synthetic data of known answer (no simulator)."""
+"""Tests for ihrcf_env.core.estimators on synthetic data of known answer (no simulator)."""
 
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 
 import cv2
 import numpy as np
 import pytest
 
-from ihrcf_env.estimators import (
+from ihrcf_env.core.estimators import (
     APRILTAG_CORNER_OFFSET_PX,
     R_DECK_MARKER,
     DeckPoseEstimator,
@@ -19,14 +17,14 @@ from ihrcf_env.estimators import (
     atda_estimate,
     ihrcf_estimate,
 )
-from ihrcf_env.frames import (
+from ihrcf_env.core.frames import (
     body_pose_to_cam,
     cam_pose_to_body,
     euler_from_matrix,
     matrix_from_euler,
     rotation_angle,
 )
-from ihrcf_env.rig import SensorRig, intrinsics_from_fov, tag_corners_deck
+from ihrcf_env.core.rig import SensorRig, intrinsics_from_fov, tag_corners_deck
 
 RIG = SensorRig()
 K = intrinsics_from_fov(512, 512, math.radians(60))  # f = 443.4 px
@@ -341,11 +339,3 @@ def test_deck_pose_estimator(rendered) -> None:
     assert np.array_equal(dpe.prior_rotation, atda.rotation)  # kept across a lost frame
     dpe.reset()
     assert dpe.prior_rotation is None
-
-
-def test_import_does_not_load_pybullet() -> None:
-    pure = ("estimators", "geometry", "frames", "rig", "paths", "calibration")
-    mods = ", ".join(["ihrcf_env"] + [f"ihrcf_env.{m}" for m in pure])
-    code = f"import sys, {mods}; print('pybullet' in sys.modules)"
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "False"

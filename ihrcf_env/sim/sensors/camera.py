@@ -1,4 +1,4 @@
-"""Drone sensors: the downward TinyRenderer camera and the four ray-cast ToF range sensors."""
+"""The drone's downward camera, rendered by PyBullet's TinyRenderer."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
-from ihrcf_env.frames import R_BODY_CAM
-from ihrcf_env.rig import SensorRig, intrinsics_from_fov
+from ihrcf_env.core.frames import R_BODY_CAM
+from ihrcf_env.core.rig import SensorRig, intrinsics_from_fov
 
 
 @dataclass(frozen=True)
@@ -149,75 +149,3 @@ def render_rgb(client: int, config: CameraConfig, view: object, proj: object) ->
     )
     img = np.asarray(rgba, dtype=np.uint8).reshape(c.height, c.width, 4)
     return np.ascontiguousarray(img[:, :, :3])
-
-
-#: ToF noise presets: Gaussian sigma (m), dropout probability per reading, minimum range (m).
-TOF_PRESETS: dict[str, dict[str, float]] = {
-    "ideal": {"sigma": 0.0, "dropout": 0.0, "min_range": 0.0},
-    # VL53L1X-like: +-20 mm ranging error taken as 2 sigma, 1 % dropouts, 4 cm minimum range.
-    "realistic": {"sigma": 0.01, "dropout": 0.01, "min_range": 0.04},
-}
-
-
-@dataclass(frozen=True)
-class ToFConfig:
-    """Four ToF beams parallel to the optical axis. ``noise`` is a key of :data:`TOF_PRESETS`."""
-
-    max_range: float = 4.0
-    noise: str = "ideal"
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.max_range) and self.max_range > 0):
-            raise ValueError(f"tof max_range must be positive (m), got {self.max_range!r}")
-        if self.noise not in TOF_PRESETS:
-            raise ValueError(f"tof_noise must be one of {sorted(TOF_PRESETS)}, got {self.noise!r}")
-
-    @property
-    def preset(self) -> dict[str, float]:
-        return TOF_PRESETS[self.noise]
-
-
-class ToFArray:
-    """Ray-cast range sensors ps1..ps4 (see :mod:`ihrcf_env.rig`)."""
-
-    def __init__(self, client: int, config: ToFConfig, rig: SensorRig) -> None:
-        self.client = client
-        self.config = config
-        self._pos_body = rig.sensor_positions_body
-        preset = config.preset
-        self._sigma = preset["sigma"]
-        self._dropout = preset["dropout"]
-        self._min = preset["min_range"]
-
-    def true_ranges(
-        self, pos: NDArray[np.float64], R_wb: NDArray[np.float64]
-    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        """Noise-free ranges (m) along body -z and hit flags. Misses read ``max_range``."""
-        starts = self._pos_body @ R_wb.T + pos
-        ends = starts - R_wb[:, 2] * self.config.max_range
-        hits = p.rayTestBatch(starts.tolist(), ends.tolist(), physicsClientId=self.client)
-        ranges = np.empty(4)
-        hit = np.empty(4, dtype=bool)
-        for i, h in enumerate(hits):
-            hit[i] = h[0] >= 0
-            ranges[i] = h[2] * self.config.max_range if hit[i] else self.config.max_range
-        return ranges, hit
-
-    def read(
-        self, pos: NDArray[np.float64], R_wb: NDArray[np.float64], rng: np.random.Generator
-    ) -> tuple[NDArray[np.float32], NDArray[np.int8]]:
-        """Measured ranges (m, float32 in [0, max_range]) and validity flags (int8 0/1).
-
-        Invalid readings (miss, dropout, outside [min_range, max_range]) read ``max_range``.
-        Randomness comes only from ``rng``; the ideal preset draws nothing.
-        """
-        ranges, hit = self.true_ranges(pos, R_wb)
-        valid = hit.copy()
-        if self._sigma > 0.0 or self._dropout > 0.0:
-            noise = rng.normal(0.0, self._sigma, 4) if self._sigma > 0 else np.zeros(4)
-            drop = rng.random(4) < self._dropout
-            ranges = ranges + noise
-            valid &= ~drop
-        valid &= (ranges >= self._min) & (ranges <= self.config.max_range)
-        ranges = np.where(valid, ranges, self.config.max_range)
-        return ranges.astype(np.float32), valid.astype(np.int8)

@@ -6,10 +6,10 @@ import numpy as np
 import pybullet as p
 import pytest
 
-from ihrcf_env.frames import body_pose_to_cam, matrix_from_euler
-from ihrcf_env.rig import tag_corners_deck
-from ihrcf_env.sim.profiles import CallableProfile, StaticProfile, paper_profile, sea_state_profile
-from ihrcf_env.sim.sensors import CameraConfig
+from ihrcf_env.core.frames import body_pose_to_cam, matrix_from_euler
+from ihrcf_env.core.profiles import CallableProfile, StaticProfile, paper_profile, sea_state_profile
+from ihrcf_env.core.rig import tag_corners_deck
+from ihrcf_env.sim.sensors import CameraConfig, ToFConfig
 from ihrcf_env.sim.world import World, WorldConfig
 
 
@@ -64,7 +64,7 @@ def test_realistic_tof_noise_is_seeded():
     w = World(
         WorldConfig(
             camera=None,
-            tof=__import__("ihrcf_env.sim.sensors", fromlist=["ToFConfig"]).ToFConfig(noise="realistic"),
+            tof=ToFConfig(noise="realistic"),
         )
     )
     try:

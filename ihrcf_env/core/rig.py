@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from ihrcf_env.frames import R_BODY_CAM, as_array
+from ihrcf_env.core.frames import R_BODY_CAM, as_array
 
 PAD_COLOURS: tuple[str, str, str, str] = ("blue", "green", "yellow", "red")
 
@@ -39,7 +39,7 @@ class SensorRig:
         a: distance of each ToF sensor from the optical centre (paper: 0.1 m).
         theta: angle of each sensor from the camera x axis (paper: 45 degrees).
         camera_position: optical centre in the body frame (m). The camera's orientation is
-            :data:`ihrcf_env.frames.R_BODY_CAM` (looking down, image top towards the nose).
+            :data:`ihrcf_env.core.frames.R_BODY_CAM` (looking down, image top towards the nose).
     """
 
     a: float = 0.1
@@ -87,7 +87,7 @@ def intrinsics_from_fov(width: int, height: int, fov: float) -> NDArray[np.float
     """Pinhole K (OpenCV pixel-centre convention) of a camera with vertical field of view ``fov`` (rad).
 
     Square pixels; the principal point is the image centre, ``((W - 1) / 2, (H - 1) / 2)``.
-    (A particular renderer may put it elsewhere: see ``ihrcf_env.sim.sensors.CameraConfig``.)
+    (A particular renderer may put it elsewhere: see ``ihrcf_env.sim.sensors.camera.CameraConfig``.)
     """
     if width <= 0 or height <= 0:
         raise ValueError(f"image size must be positive, got {width}x{height}")

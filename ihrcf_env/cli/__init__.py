@@ -1,0 +1,1 @@
+"""Command-line tools: ``python -m ihrcf_env.calibrate``, ``python -m ihrcf_env.benchmark``."""

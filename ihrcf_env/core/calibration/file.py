@@ -1,0 +1,296 @@
+"""The versioned calibration file (deterministic JSON): chessboard intrinsics and the
+range -> pixel tables, with the camera and rig they were made for.
+
+Pixel convention everywhere: OpenCV pixel centres, ``u`` = column, ``v`` = row, pixel ``(r, c)``
+has its centre at ``(u, v) = (c, r)``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from importlib.resources.abc import Traversable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ihrcf_env import __version__
+from ihrcf_env.core.calibration.tables import RangePixelTable
+from ihrcf_env.core.paths import assets_dir
+from ihrcf_env.core.rig import SensorRig
+
+#: Version of the calibration file format written by :meth:`Calibration.save`.
+FORMAT_VERSION: int = 1
+
+
+class CalibrationError(ValueError):
+    """A calibration file is missing, unreadable, malformed, or made for another camera/rig."""
+
+
+def default_calibration_path() -> Path:
+    """The calibration file shipped with the package (``assets/calibration_default.json``)."""
+    return assets_dir() / "calibration_default.json"
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.generic):
+        return o.item()
+    raise TypeError(f"{type(o).__name__} is not JSON serialisable")
+
+
+def _reject_constant(name: str) -> float:
+    raise ValueError(f"non-finite number {name} in JSON")
+
+
+_REQUIRED_KEYS = (
+    "image_width",
+    "image_height",
+    "fov",
+    "rig",
+    "tables",
+    "K",
+    "dist",
+    "chessboard_rms",
+    "seed",
+    "created_with",
+    "report",
+)
+
+
+@dataclass(eq=False)
+class Calibration:
+    """Versioned calibration file of one camera configuration and rig.
+
+    Attributes:
+        image_width, image_height: image size (px) the file was made for.
+        fov: vertical field of view (rad) the file was made for.
+        rig: :meth:`ihrcf_env.core.rig.SensorRig.to_dict` of the rig.
+        tables: the range -> pixel tables ps1..ps4.
+        K: (3, 3) intrinsics from the chessboard stage (section 2.1; used by ATDA).
+        dist: (5,) distortion (k1, k2, p1, p2, k3).
+        chessboard_rms: reprojection RMS (px) of the chessboard calibration, None if skipped.
+        seed: RNG seed of the calibration run (None if unseeded).
+        created_with: producer string, e.g. ``"ihrcf_env 0.1.0"``.
+        report: free JSON-serialisable dict (stages used/skipped, measurements).
+        lens_distortion: (k1, k2) radial distortion of the simulated camera the file was made for
+            (the camera's property, like ``fov``; ``dist`` is what the chessboard estimated).
+        format_version: file format version (:data:`FORMAT_VERSION`).
+        source: file this was loaded from (not serialised).
+    """
+
+    image_width: int
+    image_height: int
+    fov: float
+    rig: dict[str, Any]
+    tables: RangePixelTable
+    K: NDArray[np.float64]
+    dist: NDArray[np.float64]
+    chessboard_rms: float | None = None
+    seed: int | None = None
+    created_with: str = f"ihrcf_env {__version__}"
+    report: dict[str, Any] = field(default_factory=dict)
+    lens_distortion: tuple[float, float] = (0.0, 0.0)
+    format_version: int = FORMAT_VERSION
+    source: str | None = field(default=None, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.image_width, self.image_height = int(self.image_width), int(self.image_height)
+        if self.image_width <= 0 or self.image_height <= 0:
+            raise ValueError(f"image size must be positive, got {self.image_width}x{self.image_height}")
+        self.fov = float(self.fov)
+        k = np.asarray(self.lens_distortion, dtype=np.float64)
+        if k.shape != (2,) or not np.all(np.isfinite(k)):
+            raise ValueError(
+                f"lens_distortion must be two finite numbers (k1, k2), got {self.lens_distortion!r}"
+            )
+        self.lens_distortion = (float(k[0]), float(k[1]))
+        if not (0.0 < self.fov < math.pi):
+            raise ValueError(f"fov must be in (0, pi) rad, got {self.fov!r}")
+        if not isinstance(self.tables, RangePixelTable):
+            raise ValueError(f"tables must be a RangePixelTable, got {type(self.tables).__name__}")
+        self.K = np.asarray(self.K, dtype=np.float64)
+        self.dist = np.asarray(self.dist, dtype=np.float64)
+        if self.K.shape != (3, 3) or not np.all(np.isfinite(self.K)):
+            raise ValueError(f"K must be a finite (3, 3) matrix, got shape {self.K.shape}")
+        if self.dist.shape != (5,) or not np.all(np.isfinite(self.dist)):
+            raise ValueError(f"dist must be finite with shape (5,), got shape {self.dist.shape}")
+        if self.chessboard_rms is not None:
+            self.chessboard_rms = float(self.chessboard_rms)
+            if not math.isfinite(self.chessboard_rms):
+                raise ValueError("chessboard_rms must be finite or None")
+        missing = [k for k in ("a", "theta", "camera_position") if k not in self.rig]
+        if missing:
+            raise ValueError(f"rig: missing key(s) {missing}")
+        self.rig = {
+            "a": float(self.rig["a"]),
+            "theta": float(self.rig["theta"]),
+            "camera_position": [float(x) for x in self.rig["camera_position"]],
+        }
+        SensorRig(self.rig["a"], self.rig["theta"], tuple(self.rig["camera_position"]))  # validates
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "format_version": self.format_version,
+            "image_width": self.image_width,
+            "image_height": self.image_height,
+            "fov": self.fov,
+            "lens_distortion": list(self.lens_distortion),
+            "rig": self.rig,
+            "tables": self.tables.to_dict(),
+            "K": self.K.tolist(),
+            "dist": self.dist.tolist(),
+            "chessboard_rms": self.chessboard_rms,
+            "seed": self.seed,
+            "created_with": self.created_with,
+            "report": self.report,
+        }
+
+    def to_json(self) -> str:
+        """Deterministic JSON: sorted keys, floats by ``repr`` (exact round trip), no NaN/inf."""
+        try:
+            return (
+                json.dumps(self.to_dict(), sort_keys=True, indent=1, allow_nan=False, default=_json_default)
+                + "\n"
+            )
+        except ValueError as e:
+            raise ValueError(f"calibration contains a non-finite number (report?): {e}") from e
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the calibration file; the same contents always give byte-identical files."""
+        p = Path(path)
+        text = self.to_json()
+        if p.parent != Path(""):
+            p.parent.mkdir(parents=True, exist_ok=True)
+        tmp = p.with_name(p.name + ".tmp")
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, p)
+        return p
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any], source: str = "<dict>") -> Calibration:
+        """Validate and build; raises :class:`CalibrationError` naming ``source`` and the problem."""
+        if not isinstance(d, Mapping):
+            raise CalibrationError(f"{source}: expected a JSON object, got {type(d).__name__}")
+        if "format_version" not in d:
+            raise CalibrationError(f"{source}: missing 'format_version' (not an ihrcf_env calibration file?)")
+        if d["format_version"] != FORMAT_VERSION:
+            raise CalibrationError(
+                f"{source}: unsupported format_version {d['format_version']!r} (this ihrcf_env reads "
+                f"{FORMAT_VERSION}); re-create it with python -m ihrcf_env.calibrate"
+            )
+        missing = [k for k in _REQUIRED_KEYS if k not in d]
+        if missing:
+            raise CalibrationError(f"{source}: missing key(s) {missing}")
+        try:
+            tables = RangePixelTable.from_dict(d["tables"])
+        except (ValueError, KeyError, TypeError) as e:
+            raise CalibrationError(f"{source}: bad 'tables': {e}") from e
+        if not isinstance(d["report"], dict):
+            raise CalibrationError(f"{source}: 'report' must be an object")
+        try:
+            return cls(
+                image_width=d["image_width"],
+                image_height=d["image_height"],
+                fov=d["fov"],
+                rig=d["rig"],
+                tables=tables,
+                K=d["K"],
+                dist=d["dist"],
+                chessboard_rms=d["chessboard_rms"],
+                seed=d["seed"],
+                created_with=str(d["created_with"]),
+                report=dict(d["report"]),
+                lens_distortion=tuple(d.get("lens_distortion", (0.0, 0.0))),
+                format_version=d["format_version"],
+                source=source,
+            )
+        except (ValueError, KeyError, TypeError) as e:
+            raise CalibrationError(f"{source}: {e}") from e
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str] | Traversable) -> Calibration:
+        """Read and validate a calibration file; :class:`CalibrationError` naming the file otherwise."""
+        name = str(path)
+        try:
+            if isinstance(path, str | os.PathLike):
+                text = Path(path).read_text(encoding="utf-8")
+            else:
+                text = path.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise CalibrationError(
+                f"{name}: calibration file not found; create one with python -m ihrcf_env.calibrate"
+            ) from None
+        except (OSError, UnicodeDecodeError) as e:
+            raise CalibrationError(f"{name}: cannot read calibration file: {e}") from e
+        try:
+            data = json.loads(text, parse_constant=_reject_constant)
+        except ValueError as e:
+            raise CalibrationError(f"{name}: not a valid calibration JSON file: {e}") from e
+        return cls.from_dict(data, source=name)
+
+    def matches(
+        self,
+        width: int,
+        height: int,
+        fov: float,
+        rig: SensorRig | Mapping[str, Any],
+        distortion: tuple[float, float] = (0.0, 0.0),
+    ) -> list[str]:
+        """Human-readable differences between this file and a camera config / rig (empty if none)."""
+        rd = dict(rig.to_dict() if isinstance(rig, SensorRig) else rig)
+        diffs = []
+        if not np.allclose(
+            np.asarray(distortion, dtype=np.float64), self.lens_distortion, rtol=0.0, atol=1e-12
+        ):
+            theirs = tuple(float(x) for x in distortion)
+            diffs.append(f"lens distortion (k1, k2) {self.lens_distortion} in the file vs {theirs}")
+        if (int(width), int(height)) != (self.image_width, self.image_height):
+            diffs.append(f"image size {self.image_width}x{self.image_height} in the file vs {width}x{height}")
+        if not math.isclose(float(fov), self.fov, rel_tol=0.0, abs_tol=1e-8):
+            diffs.append(f"fov {math.degrees(self.fov):.10g} deg in the file vs {math.degrees(fov):.10g} deg")
+        for key in ("a", "theta"):
+            if not math.isclose(float(rd[key]), self.rig[key], rel_tol=0.0, abs_tol=1e-9):
+                diffs.append(f"rig {key} {self.rig[key]!r} in the file vs {float(rd[key])!r}")
+        cp = np.asarray(rd["camera_position"], dtype=np.float64)
+        if cp.shape != (3,) or not np.allclose(cp, self.rig["camera_position"], rtol=0.0, atol=1e-9):
+            diffs.append(f"rig camera_position {self.rig['camera_position']} in the file vs {cp.tolist()}")
+        return diffs
+
+    def check_matches(
+        self,
+        width: int,
+        height: int,
+        fov: float,
+        rig: SensorRig | Mapping[str, Any],
+        output: str | os.PathLike[str] | None = None,
+        distortion: tuple[float, float] = (0.0, 0.0),
+    ) -> None:
+        """Raise :class:`CalibrationError` if the file was made for another camera config (px, rad) or rig.
+
+        The message gives the command that produces a matching file; ``output`` is the path to
+        suggest in it (default ``calibration_<W>x<H>_fov<F>.json``).
+        """
+        diffs = self.matches(width, height, fov, rig, distortion)
+        if not diffs:
+            return
+        fov_deg = f"{math.degrees(fov):.10g}"
+        out = str(output) if output is not None else f"calibration_{width}x{height}_fov{fov_deg}.json"
+        k1, k2 = (float(x) for x in distortion)
+        lens = f" --k1 {k1:.10g} --k2 {k2:.10g}" if (k1, k2) != (0.0, 0.0) else ""
+        cmd = (
+            f"python -m ihrcf_env.calibrate --width {width} --height {height} --fov-deg {fov_deg}{lens} "
+            f"--output {out}"
+        )
+        rig_note = " (with the same rig settings)" if any(s.startswith("rig") for s in diffs) else ""
+        raise CalibrationError(
+            f"calibration file {self.source or '<in memory>'} does not match the requested configuration: "
+            + "; ".join(diffs)
+            + f". Produce a matching file with:\n    {cmd}{rig_note}"
+        )

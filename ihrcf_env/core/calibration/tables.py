@@ -1,0 +1,152 @@
+"""The range -> pixel lookup table (paper section 2.2): one PCHIP interpolant per ToF sensor
+(ps1..ps4) mapping a range reading ``d`` (m) to the pixel ``(u, v)`` where that sensor's beam
+touches the surface.
+
+Pixel convention everywhere: OpenCV pixel centres, ``u`` = column, ``v`` = row, pixel ``(r, c)``
+has its centre at ``(u, v) = (c, r)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.interpolate import PchipInterpolator
+
+#: Range-sensor names in rig order; sensor i is centred on pad ``PAD_COLOURS[i]``.
+SENSOR_NAMES: tuple[str, str, str, str] = ("ps1", "ps2", "ps3", "ps4")
+
+
+class SensorTable:
+    """Range -> pixel table of one ToF sensor: PCHIP interpolation of ``u(d)`` and ``v(d)``.
+
+    Built from samples ``ranges`` (N,) in metres and ``pixels`` (N, 2) ``(u, v)``: rows with a
+    non-finite value are dropped, samples are sorted by range, samples with exactly equal ranges are
+    merged (their pixels averaged), and at least 4 distinct ranges are required. The interpolant is
+    :class:`scipy.interpolate.PchipInterpolator` (the paper's PCHIP) with ``extrapolate=False``.
+    """
+
+    def __init__(self, ranges: ArrayLike, pixels: ArrayLike, name: str = "sensor") -> None:
+        self.name = str(name)
+        r = np.asarray(ranges, dtype=np.float64)
+        p = np.asarray(pixels, dtype=np.float64)
+        if r.ndim != 1 or p.shape != (r.size, 2):
+            raise ValueError(
+                f"{self.name}: ranges must be (N,) and pixels (N, 2), got {r.shape} and {p.shape}"
+            )
+        ok = np.isfinite(r) & np.all(np.isfinite(p), axis=1)
+        r, p = r[ok], p[ok]
+        uniq, inverse, counts = np.unique(r, return_inverse=True, return_counts=True)
+        if uniq.size < 4:
+            raise ValueError(
+                f"{self.name}: need at least 4 distinct finite range samples for PCHIP, got {uniq.size}"
+            )
+        merged = np.zeros((uniq.size, 2))
+        np.add.at(merged, inverse, p)
+        merged /= counts[:, None]
+        self._ranges = uniq
+        self._pixels = merged
+        self._ranges.setflags(write=False)
+        self._pixels.setflags(write=False)
+        self._interp = PchipInterpolator(uniq, merged, axis=0, extrapolate=False)
+
+    @property
+    def ranges(self) -> NDArray[np.float64]:
+        """(M,) strictly increasing table ranges (m)."""
+        return self._ranges
+
+    @property
+    def pixels(self) -> NDArray[np.float64]:
+        """(M, 2) table pixels ``(u, v)`` at :attr:`ranges`."""
+        return self._pixels
+
+    @property
+    def span(self) -> tuple[float, float]:
+        """``(d_min, d_max)`` (m): the ranges the table covers."""
+        return float(self._ranges[0]), float(self._ranges[-1])
+
+    def __call__(self, ranges: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """Pixels of range readings: ``(uv (N, 2), in_range (N,))`` for ``ranges`` (N,) (m).
+
+        Readings outside ``[d_min, d_max]`` are clamped to the nearer table end (NaN, e.g. a
+        "no target" reading, to ``d_max``) and flagged ``in_range = False``: the output is never NaN.
+        """
+        d = np.atleast_1d(np.asarray(ranges, dtype=np.float64))
+        if d.ndim != 1:
+            raise ValueError(f"{self.name}: ranges must be (N,), got {d.shape}")
+        lo, hi = self.span
+        in_range = np.isfinite(d) & (d >= lo) & (d <= hi)
+        dc = np.clip(np.where(np.isnan(d), hi, d), lo, hi)
+        return np.asarray(self._interp(dc), dtype=np.float64), in_range
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "ranges": self._ranges.tolist(), "pixels": self._pixels.tolist()}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> SensorTable:
+        return cls(d["ranges"], d["pixels"], name=d.get("name", "sensor"))
+
+    def __repr__(self) -> str:
+        lo, hi = self.span
+        return f"SensorTable({self.name!r}, {self._ranges.size} samples, {lo:.4g}..{hi:.4g} m)"
+
+
+class RangePixelTable:
+    """The four sensor tables ps1..ps4 (rig order): range readings (4,) -> touch pixels (4, 2)."""
+
+    def __init__(self, tables: Sequence[SensorTable]) -> None:
+        tables = tuple(tables)
+        if len(tables) != 4 or not all(isinstance(t, SensorTable) for t in tables):
+            raise ValueError(f"RangePixelTable needs 4 SensorTable (ps1..ps4), got {len(tables)} items")
+        self.tables: tuple[SensorTable, SensorTable, SensorTable, SensorTable] = tables  # type: ignore[assignment]
+
+    @classmethod
+    def from_samples(cls, ranges: ArrayLike, pixels: ArrayLike) -> RangePixelTable:
+        """Build from calibration stages: ``ranges`` (N, 4) (m) and ``pixels`` (N, 4, 2) ``(u, v)``.
+
+        A stage where a pad was not found can carry NaN pixels; it is dropped for that sensor only.
+        """
+        r = np.asarray(ranges, dtype=np.float64)
+        p = np.asarray(pixels, dtype=np.float64)
+        if r.ndim != 2 or r.shape[1] != 4 or p.shape != (r.shape[0], 4, 2):
+            raise ValueError(f"ranges must be (N, 4) and pixels (N, 4, 2), got {r.shape} and {p.shape}")
+        return cls([SensorTable(r[:, i], p[:, i], name=SENSOR_NAMES[i]) for i in range(4)])
+
+    @property
+    def spans(self) -> NDArray[np.float64]:
+        """(4, 2) ``(d_min, d_max)`` (m) per sensor."""
+        return np.array([t.span for t in self.tables])
+
+    def __call__(self, ranges: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """``(uv (4, 2), in_range (4,))`` for one reading per sensor ``ranges`` (4,) (m).
+
+        Out-of-span or non-finite readings are clamped to the table end and flagged False
+        (see :meth:`SensorTable.__call__`); the output is never NaN.
+        """
+        d = np.asarray(ranges, dtype=np.float64)
+        if d.shape != (4,):
+            raise ValueError(f"ranges must have shape (4,) (ps1..ps4), got {d.shape}")
+        uv = np.empty((4, 2))
+        ok = np.empty(4, dtype=bool)
+        for i, t in enumerate(self.tables):
+            p, f = t(d[i : i + 1])
+            uv[i], ok[i] = p[0], f[0]
+        return uv, ok
+
+    def to_dict(self) -> dict[str, Any]:
+        return {name: t.to_dict() for name, t in zip(SENSOR_NAMES, self.tables, strict=True)}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> RangePixelTable:
+        tables = []
+        for name in SENSOR_NAMES:
+            if name not in d:
+                raise ValueError(f"tables: missing sensor {name!r}")
+            sd = d[name]
+            tables.append(SensorTable(sd["ranges"], sd["pixels"], name=name))
+        return cls(tables)
+
+    def __repr__(self) -> str:
+        return "RangePixelTable(" + ", ".join(repr(t) for t in self.tables) + ")"

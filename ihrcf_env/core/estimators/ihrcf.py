@@ -1,0 +1,118 @@
+"""IHRCF: Inverse Homography Range Camera Fusion (paper sections 2.4-2.8).
+
+Both estimators report the pose of the **deck** frame in the drone **body** frame (see
+:mod:`ihrcf_env.core.frames`): ``position`` (m), ``rotation`` ``R_body_deck`` and ``euler``
+(roll, pitch, yaw) in radians, intrinsic Z-Y-X.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ihrcf_env.core.estimators.base import DEGENERATE_REL_TOL, PoseEstimate, _shape_checked
+from ihrcf_env.core.frames import cam_pose_to_body
+from ihrcf_env.core.geometry import (
+    apply_homography,
+    fit_plane,
+    homography_from_points,
+    plane_z,
+    quad_is_degenerate,
+    rigid_fit,
+)
+from ihrcf_env.core.rig import SensorRig, tag_corners_deck
+
+TouchPixels = Callable[[NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.bool_]]]
+
+
+def ihrcf_estimate(
+    corners_px: ArrayLike,
+    ranges: ArrayLike,
+    ranges_valid: ArrayLike,
+    touch_pixels: TouchPixels,
+    rig: SensorRig,
+    tag_size: float,
+    max_residual: float = 0.01,
+) -> PoseEstimate:
+    """IHRCF deck pose from the four tag corners and the four ToF ranges (paper sections 2.4-2.8).
+
+    Args:
+        corners_px: (4, 2) tag corners in OpenCV pixels (pixel centres at integers), in OpenCV's
+            aruco order (the order of :func:`tag_corners_deck`).
+        ranges: (4,) ranges of ps1..ps4 along the optical axis, m (NaN allowed for missing ones).
+        ranges_valid: (4,) bool, which ranges are usable.
+        touch_pixels: the range-to-pixel calibration: maps (4,) ranges (m) of ps1..ps4 to their
+            (4, 2) touch pixels and a (4,) bool "inside the calibrated range" mask.
+        rig: sensor geometry (sensor XY in the camera frame, camera position in the body frame).
+        tag_size: outer black-border side of the tag, m.
+        max_residual: largest acceptable RMS rigid-fit residual, m.
+
+    Returns:
+        A :class:`PoseEstimate`; invalid with a reason for any bad measurement (never raises for
+        those). Raises ValueError only for wrongly shaped inputs.
+    """
+    corners = _shape_checked(corners_px, (4, 2), "corners_px")
+    r = _shape_checked(ranges, (4,), "ranges")
+    rv = _shape_checked(ranges_valid, (4,), "ranges_valid", dtype=bool)
+    if not np.all(np.isfinite(corners)):
+        return PoseEstimate.invalid("non-finite tag corners")
+    sensor_xy = rig.sensor_xy_cam  # (4, 2) ps1..ps4, camera frame, m
+
+    # Section 2.6: the deck plane (camera frame) through the valid touch points (x_i, y_i, d_i).
+    with np.errstate(invalid="ignore"):
+        valid = rv & np.isfinite(r) & (r > 0)
+    if int(valid.sum()) < 3:
+        return PoseEstimate.invalid("fewer than 3 valid ranges")
+    touch = np.column_stack([sensor_xy[valid], r[valid]])
+    try:
+        normal, offset = fit_plane(touch)  # least squares on 4 points, eq. (20) on 3
+        predicted = plane_z(normal, offset, sensor_xy)
+    except ValueError as e:
+        return PoseEstimate.invalid(f"deck plane undefined: {e}")
+    full_ranges = np.where(valid, r, predicted)  # missing ranges predicted from the plane
+    if not (np.all(np.isfinite(full_ranges)) and np.all(full_ranges > 0)):
+        return PoseEstimate.invalid("predicted range not positive")
+
+    # Touch pixels from the calibration table (paper section 2.2).
+    tp, inside = touch_pixels(full_ranges.copy())
+    tp = _shape_checked(tp, (4, 2), "touch_pixels()[0]")
+    inside = _shape_checked(inside, (4,), "touch_pixels()[1]", dtype=bool)
+    if not np.all(inside):
+        return PoseEstimate.invalid("range outside calibration table")
+    if not np.all(np.isfinite(tp)):
+        return PoseEstimate.invalid("non-finite touch pixels")
+    if quad_is_degenerate(sensor_xy, DEGENERATE_REL_TOL):
+        return PoseEstimate.invalid("degenerate sensor layout")
+    if quad_is_degenerate(tp, DEGENERATE_REL_TOL):
+        return PoseEstimate.invalid("degenerate touch pixels")
+
+    # Section 2.4: homography sensor XY (camera frame, m) -> touch pixel. Row i of both arrays is
+    # sensor ps_i (eq. 17-18 reorder both sides to ps1, ps2, ps4, ps3; only the row correspondence
+    # matters, which is kept explicit here).
+    try:
+        H = homography_from_points(sensor_xy, tp)
+        H_inv = np.linalg.inv(H)
+    except (ValueError, np.linalg.LinAlgError) as e:
+        return PoseEstimate.invalid(f"homography failed: {e}")
+    # Section 2.5: inverse homography of the tag corners -> camera-frame XY on the deck plane.
+    xy = apply_homography(H_inv, corners)
+    if not np.all(np.isfinite(xy)):
+        return PoseEstimate.invalid("tag corner maps to infinity")
+    # Section 2.6, eq. (22): Z from the plane.
+    z = plane_z(normal, offset, xy)
+    if not np.all(z > 0):
+        return PoseEstimate.invalid("tag corner behind the camera")
+    measured = np.column_stack([xy, z])
+
+    # Section 2.7: rigid transform deck model -> measured corners (camera frame).
+    try:
+        R_cd, t_cd, rms = rigid_fit(tag_corners_deck(tag_size), measured)
+    except ValueError as e:
+        return PoseEstimate.invalid(f"rigid fit failed: {e}")
+    if not rms <= max_residual:
+        return PoseEstimate.invalid(f"fit residual {rms:.4g} m > {max_residual:.4g} m")
+    # Section 2.8 (eq. 26-27) is replaced by the explicit camera -> body conversion.
+    R_bd, p_bd = cam_pose_to_body(R_cd, t_cd, rig.camera_position)
+    return PoseEstimate.from_body_pose(R_bd, p_bd, rms)
