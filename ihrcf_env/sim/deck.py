@@ -20,12 +20,11 @@ import pybullet as p
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.frames import quat_from_matrix
 from ihrcf_env.core.profiles import MotionProfile
 from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.sim.assets import asset_path, tag_texture
-
-GRAVITY = 9.81
 
 
 def rotation_matrix(quat: tuple[float, ...] | NDArray[np.float64]) -> NDArray[np.float64]:

@@ -21,9 +21,8 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
+from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.sim.assets import asset_path
-
-GRAVITY = 9.81
 
 
 @dataclass(frozen=True)
