@@ -21,15 +21,10 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from ihrcf_env.core.constants import GRAVITY
-from ihrcf_env.core.frames import quat_from_matrix
+from ihrcf_env.core.frames import matrix_from_quat, quat_from_matrix
 from ihrcf_env.core.profiles import MotionProfile
 from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.sim.assets import asset_path, tag_texture
-
-
-def rotation_matrix(quat: tuple[float, ...] | NDArray[np.float64]) -> NDArray[np.float64]:
-    """(3, 3) rotation matrix of a PyBullet quaternion (x, y, z, w) (fast path for the sim loop)."""
-    return np.array(p.getMatrixFromQuaternion(quat)).reshape(3, 3)
 
 
 @dataclass(frozen=True)
@@ -264,7 +259,7 @@ class Deck:
         self.trajectory = trajectory
         self._tick = 0
         pos, quat = trajectory.position[0], trajectory.quaternion[0]
-        body_pos = pos + rotation_matrix(quat)[:, 2] * -self._half
+        body_pos = pos + matrix_from_quat(quat)[:, 2] * -self._half
         p.resetBasePositionAndOrientation(
             self.body, body_pos.tolist(), quat.tolist(), physicsClientId=self.client
         )
@@ -295,7 +290,7 @@ class Deck:
     def pose(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """World pose of the deck frame: (position (3,), rotation (3, 3))."""
         pos, quat = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
-        R = rotation_matrix(quat)
+        R = matrix_from_quat(quat)
         return np.array(pos) + R[:, 2] * self._half, R
 
     def velocity(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -16,13 +16,15 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
-from ihrcf_env.core.frames import relative_pose
+from ihrcf_env.core.constants import GRAVITY
+from ihrcf_env.core.frames import matrix_from_quat, relative_pose
 from ihrcf_env.core.profiles import MotionProfile
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.core.stewart import StewartGeometry
-from ihrcf_env.sim.deck import Deck, DeckConfig, DeckTrajectory, rotation_matrix
-from ihrcf_env.sim.drone import GRAVITY, QuadParams, Quadrotor, VelocityController, VelocityGains
-from ihrcf_env.sim.sensors import CameraConfig, DownCamera, ToFArray, ToFConfig
+from ihrcf_env.sim.deck import Deck, DeckConfig, DeckTrajectory
+from ihrcf_env.sim.disturbances import Disturbance
+from ihrcf_env.sim.drone import QuadParams, Quadrotor, VelocityController, VelocityGains
+from ihrcf_env.sim.sensors import IMU, BodyState, CameraConfig, DownCamera, Sensor, ToFArray, ToFConfig
 
 ACTION_MODES: tuple[str, ...] = ("velocity", "motors")
 
@@ -96,14 +98,30 @@ class Snapshot:
 
 
 class World:
-    """Ground + Stewart deck + quadrotor with camera and ToF in one explicit PyBullet client."""
+    """Ground + Stewart deck + quadrotor with its sensors in one explicit PyBullet client.
+
+    Sensors (:class:`~ihrcf_env.sim.sensors.Sensor`) are in :attr:`sensors`, by name, in reading
+    order; :meth:`read_sensors` reads them all. Disturbances
+    (:class:`~ihrcf_env.sim.disturbances.Disturbance`) added with :meth:`add_disturbance` push
+    the drone at every physics step.
+    """
 
     def __init__(self, config: WorldConfig | None = None, gui: bool = False) -> None:
         self.config = config if config is not None else WorldConfig()
-        cfg = self.config
+        self._closed = True  # until the client exists
         self.client = p.connect(p.GUI if gui else p.DIRECT)
+        if self.client < 0:
+            raise RuntimeError("could not start a PyBullet physics client" + (" with a GUI" if gui else ""))
         self._closed = False
         self._tmp = tempfile.TemporaryDirectory(prefix="ihrcf_env_")
+        try:
+            self._build(gui)
+        except BaseException:
+            self.close()  # never leak a connected client or its temp dir
+            raise
+
+    def _build(self, gui: bool) -> None:
+        cfg = self.config
         cid = self.client
         self.dt = 1.0 / cfg.physics_hz
         p.resetSimulation(physicsClientId=cid)
@@ -126,6 +144,13 @@ class World:
         self.controller = VelocityController(self.quad, cfg.gains)
         self.camera = DownCamera(cid, cfg.camera, cfg.rig) if cfg.camera is not None else None
         self.tof = ToFArray(cid, cfg.tof, cfg.rig)
+        self.imu_sensor = IMU()
+        self.sensors: dict[str, Sensor] = {}
+        if self.camera is not None:
+            self.sensors["camera"] = self.camera
+        self.sensors["tof"] = self.tof
+        self.sensors["imu"] = self.imu_sensor
+        self.disturbances: list[Disturbance] = []
         self.tick = 0
         self._motor_cmd = [0.0] * 4
         self._prev_vel = np.zeros(3)
@@ -143,7 +168,9 @@ class World:
         yaw: float = 0.0,
     ) -> None:
         """Start a new episode: deck on ``profile`` (stroke checked over ``horizon_s`` seconds), drone
-        hovering ``altitude`` m above the deck frame origin, shifted by ``offset_xy`` (world, m)."""
+        hovering ``altitude`` m above the deck frame origin, shifted by ``offset_xy`` (world, m).
+        Sensors and disturbances are reset by :meth:`reset_random` (they draw from the env's rng)."""
+        self._check_open()
         traj = DeckTrajectory(
             profile,
             self.config.stewart,
@@ -163,6 +190,13 @@ class World:
         self._acc_world = np.zeros(3)
         self.deck.update_visuals()
 
+    def reset_random(self, rng: np.random.Generator) -> None:
+        """Let sensors and disturbances draw this episode's random state (biases, gusts) from ``rng``."""
+        for sensor in self.sensors.values():
+            sensor.reset(rng)
+        for d in self.disturbances:
+            d.reset(rng)
+
     def close(self) -> None:
         """Disconnect the client and remove temporary files; safe to call twice."""
         if self._closed:
@@ -173,6 +207,22 @@ class World:
         except p.error:
             pass
         self._tmp.cleanup()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("this world is closed (its PyBullet client was disconnected)")
+
+    def add_disturbance(self, disturbance: Disturbance) -> None:
+        """Apply ``disturbance``'s force to the drone at every physics step from now on."""
+        if not isinstance(disturbance, Disturbance):
+            raise TypeError(
+                f"disturbance must have reset(rng) and __call__(t, position, velocity), got {disturbance!r}"
+            )
+        self.disturbances.append(disturbance)
 
     @property
     def time(self) -> float:
@@ -198,16 +248,25 @@ class World:
 
     def step(self) -> Touchdown | None:
         """Advance one control period (``substeps`` physics steps); return the first contact, if any."""
+        self._check_open()
         cid = self.client
         quad, ctrl, deck = self.quad, self.controller, self.deck
         dt = self.dt
         first: Touchdown | None = None
         vel_mode = self._mode_velocity
+        disturbances = self.disturbances
         for _ in range(self.config.substeps):
             deck.drive(self.tick)
             pos, quat, vel, omega = quad.state()
             cmd = ctrl.compute(self._setpoint, dt, pos, quat, vel, omega) if vel_mode else self._motor_cmd
             quad.apply(cmd, dt, pos, quat, vel)
+            if disturbances:
+                t = self.tick * dt
+                fx = fy = fz = 0.0
+                for d in disturbances:
+                    f = d(t, pos, vel)
+                    fx, fy, fz = fx + f[0], fy + f[1], fz + f[2]
+                p.applyExternalForce(quad.body, -1, (fx, fy, fz), pos, p.WORLD_FRAME, physicsClientId=cid)
             self._prev_vel = vel
             p.stepSimulation(physicsClientId=cid)
             self.tick += 1
@@ -248,30 +307,59 @@ class World:
     def drone_pose(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """World position (m) and rotation matrix of the drone body frame."""
         pos, quat = p.getBasePositionAndOrientation(self.quad.body, physicsClientId=self.client)
-        return np.asarray(pos), rotation_matrix(quat)
+        return np.asarray(pos), matrix_from_quat(quat)
+
+    def body_state(self) -> BodyState:
+        """The drone's true state now, as sensors see it."""
+        self._check_open()
+        pos, quat, vel, omega = self.quad.state()
+        return BodyState(
+            time=self.time,
+            position=np.asarray(pos),
+            rotation=matrix_from_quat(quat),
+            quaternion=np.asarray(quat),
+            velocity=np.asarray(vel),
+            angular_velocity=np.asarray(omega),
+            acceleration=self._acc_world.copy(),
+        )
+
+    def read_sensors(
+        self, rng: np.random.Generator, names: tuple[str, ...] | None = None
+    ) -> dict[str, NDArray]:
+        """One reading of the sensors ``names`` (default: all, in :attr:`sensors` order), merged into
+        one mapping of measurement names (``image``, ``ranges``, ``ranges_valid``, ``quaternion``,
+        ``angular_velocity``, ``linear_acceleration``) to arrays. Call once per control step:
+        noise models advance by one control period."""
+        state = self.body_state()
+        dt = self.config.substeps * self.dt
+        out: dict[str, NDArray] = {}
+        for name in names if names is not None else tuple(self.sensors):
+            if name == "camera":
+                self.deck.update_visuals()
+            out.update(self.sensors[name].read(state, dt, rng))
+        return out
 
     def render_camera(self) -> NDArray[np.uint8]:
         """The downward camera's RGB image (H, W, 3) uint8."""
         if self.camera is None:
             raise RuntimeError("this world has no camera (camera=None in WorldConfig)")
-        self.deck.update_visuals()
-        pos, R = self.drone_pose()
-        return self.camera.render(pos, R)
+        image: NDArray[np.uint8] = self.read_sensors(np.random.default_rng(0), ("camera",))["image"]
+        return image
 
     def read_tof(self, rng: np.random.Generator) -> tuple[NDArray[np.float32], NDArray[np.int8]]:
-        pos, R = self.drone_pose()
-        return self.tof.read(pos, R, rng)
+        """ToF ``(ranges, ranges_valid)``, see :class:`~ihrcf_env.sim.sensors.ToFArray`."""
+        r = self.read_sensors(rng, ("tof",))
+        return r["ranges"], r["ranges_valid"]
 
-    def imu(self) -> dict[str, NDArray[np.float64]]:
-        """Ideal IMU: attitude quaternion (x, y, z, w, world from body), body rates (rad/s, body
-        frame) and specific force (m/s^2, body frame; reads +9.81 on z when hovering)."""
-        pos, quat, vel, omega = self.quad.state()
-        R = rotation_matrix(quat)
-        f = self._acc_world + np.array([0.0, 0.0, GRAVITY])
+    def imu(self, rng: np.random.Generator | None = None) -> dict[str, NDArray[np.float64]]:
+        """IMU reading: attitude ``quaternion`` (x, y, z, w, world from body), body rates
+        ``angular_velocity`` (rad/s, body frame) and specific force ``acceleration`` (m/s^2, body
+        frame; reads +9.81 on z when hovering); see :class:`~ihrcf_env.sim.sensors.IMU`."""
+        r = self.read_sensors(rng if rng is not None else np.random.default_rng(0), ("imu",))
         return {
-            "quaternion": np.asarray(quat),
-            "angular_velocity": R.T @ np.asarray(omega),
-            "acceleration": R.T @ f,
+            "quaternion": r["quaternion"],
+            "angular_velocity": r["angular_velocity"],
+            "acceleration": r["linear_acceleration"],
         }
 
     def deck_in_body(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -281,8 +369,9 @@ class World:
 
     def snapshot(self) -> Snapshot:
         """Ground-truth state of drone and deck now (one read of the simulator)."""
+        self._check_open()
         pos, quat, vel, _ = self.quad.state()
-        R = rotation_matrix(quat)
+        R = matrix_from_quat(quat)
         pos_a = np.array(pos)
         deck_pos, R_wd = self.deck.pose()
         R_bd, p_bd = relative_pose(R, pos_a, R_wd, deck_pos)

@@ -1,6 +1,18 @@
-"""The drone's sensors in the simulator: downward camera, four ToF beams."""
+"""The drone's sensors in the simulator, each a :class:`Sensor`: downward camera, four ToF beams, IMU."""
 
+from ihrcf_env.sim.sensors.base import BodyState, Sensor
 from ihrcf_env.sim.sensors.camera import CameraConfig, DownCamera, render_rgb
+from ihrcf_env.sim.sensors.imu import IMU
 from ihrcf_env.sim.sensors.tof import TOF_PRESETS, ToFArray, ToFConfig
 
-__all__ = ["TOF_PRESETS", "CameraConfig", "DownCamera", "ToFArray", "ToFConfig", "render_rgb"]
+__all__ = [
+    "IMU",
+    "TOF_PRESETS",
+    "BodyState",
+    "CameraConfig",
+    "DownCamera",
+    "Sensor",
+    "ToFArray",
+    "ToFConfig",
+    "render_rgb",
+]

@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.rig import SensorRig, intrinsics_from_fov
+from ihrcf_env.sim.sensors.base import BodyState
 
 
 @dataclass(frozen=True)
@@ -70,7 +71,9 @@ class CameraConfig:
 
 
 class DownCamera:
-    """Renders what the drone's downward camera sees with ``ER_TINY_RENDERER``."""
+    """Renders what the drone's downward camera sees with ``ER_TINY_RENDERER`` (a :class:`Sensor`)."""
+
+    name = "camera"
 
     def __init__(self, client: int, config: CameraConfig, rig: SensorRig) -> None:
         self.client = client
@@ -90,6 +93,13 @@ class DownCamera:
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """World pose (optical centre, R_world_cam) of the camera for a body pose."""
         return pos + R_wb @ self._cam_offset, R_wb @ R_BODY_CAM
+
+    def reset(self, rng: np.random.Generator) -> None:
+        pass
+
+    def read(self, state: BodyState, dt: float, rng: np.random.Generator) -> dict[str, NDArray]:
+        """``image``: (H, W, 3) uint8. The world places the deck's visuals before reading."""
+        return {"image": self.render(state.position, state.rotation)}
 
     def render(self, pos: NDArray[np.float64], R_wb: NDArray[np.float64]) -> NDArray[np.uint8]:
         """RGB image (H, W, 3) uint8 for the body pose (world position ``pos``, rotation ``R_wb``)."""

@@ -10,6 +10,8 @@ import pybullet as p
 from numpy.typing import NDArray
 
 from ihrcf_env.core.rig import SensorRig
+from ihrcf_env.sim.noise import Chain, Dropout, GaussianNoise, NoiseModel
+from ihrcf_env.sim.sensors.base import BodyState
 
 #: ToF noise presets: Gaussian sigma (m), dropout probability per reading, minimum range (m).
 TOF_PRESETS: dict[str, dict[str, float]] = {
@@ -38,16 +40,29 @@ class ToFConfig:
 
 
 class ToFArray:
-    """Ray-cast range sensors ps1..ps4 (see :mod:`ihrcf_env.core.rig`)."""
+    """Ray-cast range sensors ps1..ps4 (see :mod:`ihrcf_env.core.rig`): a :class:`Sensor` reading
+    ``ranges`` (4,) float32 m and ``ranges_valid`` (4,) int8.
 
-    def __init__(self, client: int, config: ToFConfig, rig: SensorRig) -> None:
+    ``noise`` (default: built from the config's preset, Gaussian then dropouts) corrupts the true
+    ranges; readings outside ``[min_range, max_range]`` are then invalid. Invalid readings (miss,
+    dropout, out of range) read ``max_range``.
+    """
+
+    name = "tof"
+
+    def __init__(
+        self, client: int, config: ToFConfig, rig: SensorRig, noise: NoiseModel | None = None
+    ) -> None:
         self.client = client
         self.config = config
         self._pos_body = rig.sensor_positions_body
         preset = config.preset
-        self._sigma = preset["sigma"]
-        self._dropout = preset["dropout"]
         self._min = preset["min_range"]
+        self.noise: NoiseModel = (
+            noise
+            if noise is not None
+            else Chain((GaussianNoise(preset["sigma"]), Dropout(preset["dropout"])))
+        )
 
     def true_ranges(
         self, pos: NDArray[np.float64], R_wb: NDArray[np.float64]
@@ -63,21 +78,13 @@ class ToFArray:
             ranges[i] = h[2] * self.config.max_range if hit[i] else self.config.max_range
         return ranges, hit
 
-    def read(
-        self, pos: NDArray[np.float64], R_wb: NDArray[np.float64], rng: np.random.Generator
-    ) -> tuple[NDArray[np.float32], NDArray[np.int8]]:
-        """Measured ranges (m, float32 in [0, max_range]) and validity flags (int8 0/1).
+    def reset(self, rng: np.random.Generator) -> None:
+        self.noise.reset(rng)
 
-        Invalid readings (miss, dropout, outside [min_range, max_range]) read ``max_range``.
-        Randomness comes only from ``rng``; the ideal preset draws nothing.
-        """
-        ranges, hit = self.true_ranges(pos, R_wb)
-        valid = hit.copy()
-        if self._sigma > 0.0 or self._dropout > 0.0:
-            noise = rng.normal(0.0, self._sigma, 4) if self._sigma > 0 else np.zeros(4)
-            drop = rng.random(4) < self._dropout
-            ranges = ranges + noise
-            valid &= ~drop
-        valid &= (ranges >= self._min) & (ranges <= self.config.max_range)
+    def read(self, state: BodyState, dt: float, rng: np.random.Generator) -> dict[str, NDArray]:
+        """Measured ``ranges`` (m, float32 in [0, max_range]) and ``ranges_valid`` (int8 0/1)."""
+        ranges, hit = self.true_ranges(state.position, state.rotation)
+        ranges, valid = self.noise.apply(ranges, hit, dt, rng)
+        valid = valid & (ranges >= self._min) & (ranges <= self.config.max_range)
         ranges = np.where(valid, ranges, self.config.max_range)
-        return ranges.astype(np.float32), valid.astype(np.int8)
+        return {"ranges": ranges.astype(np.float32), "ranges_valid": valid.astype(np.int8)}

@@ -1,0 +1,47 @@
+"""The sensor interface: every simulated sensor reads named arrays from the drone's true state.
+
+A sensor is built once per world (it may hold PyBullet handles of that world's client) and is
+read once per control step. ``read`` returns a mapping of observation names to arrays; all its
+randomness comes from the generator it is given (the env's ``np_random``). Adding a sensor means
+writing one class with this shape and registering it in ``World.sensors``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+@dataclass(frozen=True)
+class BodyState:
+    """True state of the drone at one instant (world frame unless stated; SI units).
+
+    ``acceleration`` is the world-frame acceleration of the centre of mass over the last control
+    step (m/s^2, gravity not included); ``angular_velocity`` is world-frame (rad/s).
+    """
+
+    time: float
+    position: NDArray[np.float64]
+    rotation: NDArray[np.float64]  # R_world_body
+    quaternion: NDArray[np.float64]  # x, y, z, w; world from body
+    velocity: NDArray[np.float64]
+    angular_velocity: NDArray[np.float64]
+    acceleration: NDArray[np.float64]
+
+
+@runtime_checkable
+class Sensor(Protocol):
+    """A simulated sensor: ``read`` maps the true body state to named measurement arrays."""
+
+    name: str
+
+    def reset(self, rng: np.random.Generator) -> None:
+        """Start of an episode (re-draw biases, clear delay lines)."""
+
+    def read(self, state: BodyState, dt: float, rng: np.random.Generator) -> Mapping[str, NDArray]:
+        """Measurements for ``state``; ``dt`` (s) is the time since the previous read."""
+        ...
