@@ -102,9 +102,9 @@ def quat_from_matrix(R: ArrayLike) -> NDArray[np.float64]:
     else:
         s = math.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1]) * 2
         q = [(R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s, 0.25 * s, (R[1, 0] - R[0, 1]) / s]
-    q = np.array(q)
-    q /= np.linalg.norm(q)
-    return -q if q[3] < 0 else q
+    qa = np.array(q, dtype=np.float64)
+    qa /= np.linalg.norm(qa)
+    return -qa if qa[3] < 0 else qa
 
 
 def relative_pose(
@@ -148,7 +148,14 @@ def rotation_angle(R_a: ArrayLike, R_b: ArrayLike) -> float:
     return math.acos(max(-1.0, min(1.0, (np.trace(R) - 1.0) / 2.0)))
 
 
-def wrap_angle(a: ArrayLike) -> NDArray[np.float64]:
-    """Wrap angles (rad) to (-pi, pi]."""
+def wrap_angle(a: ArrayLike, period: float = 2 * math.pi) -> NDArray[np.float64]:
+    """Wrap angles (rad) to (-period/2, period/2]: (-pi, pi] by default.
+
+    The one angle-wrapping helper of the package; ``period = pi/2`` gives the heading error modulo
+    the square deck's 90 deg symmetry, in (-pi/4, pi/4].
+    """
+    if not (math.isfinite(period) and period > 0):
+        raise ValueError(f"period must be positive, got {period!r}")
     a = np.asarray(a, dtype=np.float64)
-    return np.pi - np.mod(np.pi - a, 2 * np.pi)
+    half = 0.5 * period
+    return half - np.mod(half - a, period)

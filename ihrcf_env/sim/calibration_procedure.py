@@ -437,7 +437,7 @@ def true_touch_pixels(
     pts = np.concatenate([np.broadcast_to(xy, (d.shape[0], 4, 2)), d[..., None]], axis=-1).reshape(-1, 3)
     dc = np.zeros(5) if dist is None else np.asarray(dist, dtype=np.float64)
     uv, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), K, dc)
-    return uv.reshape(d.shape[0], 4, 2)
+    return np.asarray(uv, dtype=np.float64).reshape(d.shape[0], 4, 2)
 
 
 def table_errors_px(

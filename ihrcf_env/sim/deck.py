@@ -11,6 +11,7 @@ where the plate and the inverse kinematics say, before every camera render.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -97,7 +98,7 @@ class DeckTrajectory:
         """Make sure poses up to physics tick ``tick`` exist (extends by whole chunks)."""
         while tick >= len(self.times) and self.stalled_at is None:
             k0 = len(self.times)
-            t = (k0 + np.arange(self._chunk)) * self.dt
+            t = (k0 + np.arange(self._chunk, dtype=np.float64)) * self.dt
             offset, rpy = self.profile.sample(t)
             rot = Rotation.from_euler("ZYX", rpy[:, ::-1])
             position = self.geometry.home_position + offset
@@ -125,7 +126,7 @@ class DeckTrajectory:
         return len(self.times)
 
 
-def _quat_mul(a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, float, float, float]:
+def _quat_mul(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float, float]:
     ax, ay, az, aw = a
     bx, by, bz, bw = b
     return (
@@ -136,9 +137,7 @@ def _quat_mul(a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, float,
     )
 
 
-def angular_velocity_between(
-    q_from: tuple[float, ...], q_to: tuple[float, ...], dt: float
-) -> tuple[float, ...]:
+def angular_velocity_between(q_from: Sequence[float], q_to: Sequence[float], dt: float) -> tuple[float, ...]:
     """World-frame angular velocity (rad/s) that rotates ``q_from`` into ``q_to`` in ``dt`` seconds."""
     x, y, z, w = _quat_mul(q_to, (-q_from[0], -q_from[1], -q_from[2], q_from[3]))
     if w < 0:

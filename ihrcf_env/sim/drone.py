@@ -216,7 +216,7 @@ class VelocityController:
         quat: tuple[float, ...],
         vel: tuple[float, ...],
         omega: tuple[float, ...],
-    ) -> NDArray[np.float64]:
+    ) -> list[float]:
         """Rotor speed commands (rad/s) for ``setpoint = (vx, vy, vz, yaw_rate)`` (m/s, rad/s).
 
         Written with scalar maths: it runs at the physics rate and numpy's per-call overhead on

@@ -153,7 +153,6 @@ class World:
         self.disturbances: list[Disturbance] = []
         self.tick = 0
         self._motor_cmd = [0.0] * 4
-        self._prev_vel = np.zeros(3)
         self._acc_world = np.zeros(3)
         self._setpoint = (0.0, 0.0, 0.0, 0.0)
         self._mode_velocity = cfg.action_mode == "velocity"
@@ -186,7 +185,6 @@ class World:
         self.controller.reset(start, yaw)
         self._motor_cmd = list(self.quad.rotor_speed)
         self._setpoint = (0.0, 0.0, 0.0, 0.0)
-        self._prev_vel = np.zeros(3)
         self._acc_world = np.zeros(3)
         self.deck.update_visuals()
 
@@ -243,7 +241,7 @@ class World:
     def set_motor_thrusts(self, fractions: NDArray[np.float64]) -> None:
         """Per-motor thrust as a fraction of the maximum, clipped to [0, 1]."""
         f = np.clip(np.asarray(fractions, dtype=np.float64), 0.0, 1.0) * self.config.quad.max_thrust
-        self._motor_cmd = self.quad.thrusts_to_speeds(f)
+        self._motor_cmd = self.quad.thrusts_to_speeds(f.tolist())
         self._mode_velocity = False
 
     def step(self) -> Touchdown | None:
@@ -255,6 +253,7 @@ class World:
         first: Touchdown | None = None
         vel_mode = self._mode_velocity
         disturbances = self.disturbances
+        prev_vel: tuple[float, ...] = (0.0, 0.0, 0.0)
         for _ in range(self.config.substeps):
             deck.drive(self.tick)
             pos, quat, vel, omega = quad.state()
@@ -267,13 +266,13 @@ class World:
                     f = d(t, pos, vel)
                     fx, fy, fz = fx + f[0], fy + f[1], fz + f[2]
                 p.applyExternalForce(quad.body, -1, (fx, fy, fz), pos, p.WORLD_FRAME, physicsClientId=cid)
-            self._prev_vel = vel
+            prev_vel = vel
             p.stepSimulation(physicsClientId=cid)
             self.tick += 1
             if first is None:
                 first = self._check_contact(approach_velocity=vel)
         v_now = p.getBaseVelocity(quad.body, physicsClientId=cid)[0]
-        self._acc_world = (np.asarray(v_now) - np.asarray(self._prev_vel)) / dt
+        self._acc_world = (np.asarray(v_now) - np.asarray(prev_vel)) / dt
         return first
 
     def _check_contact(self, approach_velocity: tuple[float, ...]) -> Touchdown | None:

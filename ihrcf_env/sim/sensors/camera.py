@@ -111,11 +111,10 @@ class DownCamera:
             physicsClientId=self.client,
         )
         img = render_rgb(self.client, self.config, view, self._proj)
-        if self._maps is not None:
-            img = cv2.remap(
-                img, self._maps[0], self._maps[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-            )
-        return img
+        if self._maps is None:
+            return img
+        out = cv2.remap(img, self._maps[0], self._maps[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return np.asarray(out, dtype=np.uint8)
 
 
 def _distortion_maps(config: CameraConfig) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
