@@ -1,0 +1,10 @@
+"""Experiments: rollouts of the env scored with :mod:`ihrcf_env.core.metrics` (may use envs/,
+wrappers/, sim/, core/ and control/, never cli/).
+
+* :mod:`ihrcf_env.experiments.rollout`: :func:`rollout`, the one loop that flies a policy and
+  records a :class:`Recording`.
+* :mod:`ihrcf_env.experiments.accuracy`: the paper's motionless hover, :func:`accuracy`.
+* :mod:`ihrcf_env.experiments.hover_and_track`: the IHRCF tracking hover, :func:`run`, CSV output.
+* :mod:`ihrcf_env.experiments.figures`: Figs. 14-20 of a recording (matplotlib, imported lazily).
+* :mod:`ihrcf_env.experiments.landing`: the landing evaluation, :func:`evaluate`.
+"""

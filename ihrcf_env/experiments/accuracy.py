@@ -1,0 +1,78 @@
+"""The paper's accuracy experiment: a motionless drone hovering 1 m above the moving deck.
+
+The drone holds its world pose (zero velocity actions) straight above the deck centre, nose along
+the deck, while the deck moves beneath it; the IHRCF and ATDA deck poses (body frame) are scored
+against ground truth over the valid frames (:mod:`ihrcf_env.core.metrics`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+
+from ihrcf_env.core.metrics import ErrorStats
+from ihrcf_env.experiments.rollout import Recording, rollout
+
+#: ``env.reset`` options of the paper's hover: 1 m above the deck centre, aligned with the deck.
+HOVER_START: dict[str, Any] = {"altitude": 1.0, "offset": (0.0, 0.0), "yaw": 0.0}
+
+
+def hover_rollout(env: gym.Env, frames: int, seed: int = 0) -> Recording:
+    """Reset ``env`` (``ihrcf_env/DeckLanding-v0``) to :data:`HOVER_START` and record ``frames``
+    control steps of the motionless hover; score it with :meth:`Recording.error_stats`."""
+    return rollout(env, frames, None, seed=seed, options=HOVER_START)
+
+
+def make_accuracy_env(
+    frames: int,
+    tof_noise: str = "ideal",
+    distortion: tuple[float, float] = (0.0, 0.0),
+    calibration: str | Path | None = None,
+    deck_profile: str = "paper",
+    **env_kwargs: Any,
+) -> gym.Env:
+    """``ihrcf_env/DeckLanding-v0`` for a ``frames``-step accuracy run (no image kept).
+
+    Args:
+        frames: control steps to be run; the episode limits are set beyond them.
+        tof_noise: ``"ideal"`` or ``"realistic"`` ToF ranges.
+        distortion: camera radial distortion (k1, k2); a distorted camera needs ``calibration``.
+        calibration: calibration file made for this camera (default: the shipped one).
+        deck_profile: deck motion, ``"paper"`` by default.
+        env_kwargs: further ``gym.make`` arguments.
+    """
+    hz = int(env_kwargs.get("control_hz", 20))
+    return gym.make(
+        "ihrcf_env/DeckLanding-v0",
+        calibration=calibration,
+        keep_image=False,
+        tof_noise=tof_noise,
+        camera_distortion=tuple(distortion),
+        deck_profile=deck_profile,
+        max_episode_steps=frames + 10,
+        horizon_s=frames / hz + 2,
+        **env_kwargs,
+    )
+
+
+def accuracy(
+    frames: int,
+    tof_noise: str = "ideal",
+    distortion: tuple[float, float] = (0.0, 0.0),
+    seed: int = 0,
+    calibration: str | Path | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
+) -> dict[str, ErrorStats]:
+    """Run the paper's hover for ``frames`` steps; per estimator (``"atda"``, ``"ihrcf"``): MAE and
+    peak (6,) = X, Y, Z (m), roll, pitch, yaw (deg), and the invalid-frame count.
+
+    See :func:`make_accuracy_env` for the arguments.
+    """
+    env = make_accuracy_env(frames, tof_noise, distortion, calibration, **dict(env_kwargs or {}))
+    try:
+        return hover_rollout(env, frames, seed).error_stats()
+    finally:
+        env.close()
