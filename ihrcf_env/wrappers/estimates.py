@@ -1,4 +1,4 @@
-"""Observation wrapper exposing the IHRCF and ATDA deck-pose estimates beside ground truth.
+"""Observation wrapper exposing the deck-pose estimates (IHRCF, ATDA) beside ground truth.
 
 Each of ``obs["ihrcf"]``, ``obs["atda"]`` and ``obs["ground_truth"]`` is a Dict with
 
@@ -8,19 +8,33 @@ Each of ``obs["ihrcf"]``, ``obs["atda"]`` and ``obs["ground_truth"]`` is a Dict 
 
 While an estimate is invalid (tag not found, fewer than 3 valid ranges, degenerate geometry, range
 outside the calibration table, fit residual too large) it reports position (0, 0, 0) and euler
-(0, 0, 0) with ``valid = 0``; the reason is in ``info["ihrcf_reason"]`` / ``info["atda_reason"]``
-(also on ``wrapper.last_estimates``). Values are clipped into the space's bounds; never NaN.
+(0, 0, 0) with ``valid = 0``; the reason is in ``info[f"{name}_reason"]`` (``info["ihrcf_reason"]``,
+``info["atda_reason"]``) and the fit residual in ``info[f"{name}_residual"]`` (IHRCF m, ATDA px);
+the estimates themselves are on ``wrapper.last_estimates`` (name -> PoseEstimate). Values are
+clipped into the space's bounds; never NaN.
 
-``flatten=True`` gives one float32 Box for RL libraries, in this order: ranges (4), ranges_valid (4),
-imu quaternion (4), angular velocity (3), linear acceleration (3), then for ihrcf, atda and
-ground_truth each position (3), euler (3), valid (1): 39 values. The image is not part of it.
+The estimators are those of :data:`~ihrcf_env.core.estimators.DEFAULT_ESTIMATORS` (``ihrcf``,
+``atda``) unless ``estimators=`` names others of the registry
+(:mod:`ihrcf_env.core.estimators.registry`); everything below loops over their names, in order.
+
+``flatten=True`` gives one float32 Box for RL libraries, laid out as :func:`flat_slices` says (also
+``wrapper.flat_slices``): ranges (4), ranges_valid (4), imu quaternion (4), angular velocity (3),
+linear acceleration (3), then for each estimator and finally ground_truth a 7-value block of
+position (3), euler (3), valid (1): 39 values by default. The image is not part of it. Use the
+named slices rather than numbers::
+
+    s = flat_slices()          # or env.get_wrapper_attr("flat_slices")
+    obs[s["ihrcf"]]            # the IHRCF block, slice(18, 25)
+    obs[s["ihrcf.position"]]   # slice(18, 21)
 """
 
 from __future__ import annotations
 
 import math
+import numbers
 import os
-from typing import Any
+from collections.abc import Iterable, Mapping
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -28,26 +42,114 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from ihrcf_env.core.calibration import Calibration, default_calibration_path
-from ihrcf_env.core.estimators import DeckPoseEstimator, PoseEstimate
+from ihrcf_env.core.estimators import (
+    DEFAULT_ESTIMATORS,
+    DeckPoseEstimator,
+    DeckPoseSource,
+    ImuSample,
+    PoseEstimate,
+    SensorFrame,
+    check_estimator_names,
+)
 from ihrcf_env.core.rig import SensorRig
 
+if TYPE_CHECKING:
+    from ihrcf_env.envs.deck_landing import DeckLandingEnv
+
 POSITION_BOUND = 10.0  # m
-ESTIMATE_KEYS = ("ihrcf", "atda", "ground_truth")
+#: The key of the ground-truth pose block; always after the estimators.
+GROUND_TRUTH = "ground_truth"
+#: The pose keys of ``ihrcf_env/DeckLanding-v0``, in observation order.
+ESTIMATE_KEYS: tuple[str, ...] = (*DEFAULT_ESTIMATORS, GROUND_TRUTH)
+#: Fields of one pose block of the flat observation: (name, size).
+POSE_FIELDS: tuple[tuple[str, int], ...] = (("position", 3), ("euler", 3), ("valid", 1))
+POSE_SIZE = sum(n for _, n in POSE_FIELDS)
+#: Sensor values at the start of the flat observation: (flat name, path in the raw observation, size).
+SENSOR_FIELDS: tuple[tuple[str, tuple[str, ...], int], ...] = (
+    ("ranges", ("ranges",), 4),
+    ("ranges_valid", ("ranges_valid",), 4),
+    ("imu.quaternion", ("imu", "quaternion"), 4),
+    ("imu.angular_velocity", ("imu", "angular_velocity"), 3),
+    ("imu.linear_acceleration", ("imu", "linear_acceleration"), 3),
+)
+
+
+def flat_slices(estimators: Iterable[str] = DEFAULT_ESTIMATORS) -> dict[str, slice]:
+    """Named slices of the flat observation (``flatten=True``) for the given estimators.
+
+    Keys: ``"ranges"``, ``"ranges_valid"``, ``"imu.quaternion"``, ``"imu.angular_velocity"``,
+    ``"imu.linear_acceleration"``, then for each estimator name and ``"ground_truth"`` the whole
+    7-value block under its name and its parts under ``f"{name}.position"``, ``f"{name}.euler"``,
+    ``f"{name}.valid"``; ``"all"`` is the whole vector. For DeckLanding-v0: ``ihrcf`` 18:25,
+    ``atda`` 25:32, ``ground_truth`` 32:39.
+    """
+    out: dict[str, slice] = {}
+    i = 0
+    for name, _, n in SENSOR_FIELDS:
+        out[name] = slice(i, i + n)
+        i += n
+    for key in (*check_estimator_names(estimators), GROUND_TRUTH):
+        out[key] = slice(i, i + POSE_SIZE)
+        for field, n in POSE_FIELDS:
+            out[f"{key}.{field}"] = slice(i, i + n)
+            i += n
+    out["all"] = slice(0, i)
+    return out
+
+
+def _rig(calibration: Calibration) -> SensorRig:
+    r = calibration.rig
+    cp = r["camera_position"]
+    return SensorRig(float(r["a"]), float(r["theta"]), (float(cp[0]), float(cp[1]), float(cp[2])))
 
 
 def estimator_from_calibration(
-    calibration: Calibration, tag_size: float, tag_id: int, max_residual: float = 0.01
+    calibration: Calibration,
+    tag_size: float,
+    tag_id: int,
+    max_residual: float = 0.01,
+    estimators: Iterable[str] = DEFAULT_ESTIMATORS,
 ) -> DeckPoseEstimator:
     """A :class:`DeckPoseEstimator` using a calibration file's table (IHRCF) and chessboard K (ATDA)."""
     return DeckPoseEstimator(
-        rig=SensorRig(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in calibration.rig.items()}),
+        rig=_rig(calibration),
         tag_size=tag_size,
         tag_id=tag_id,
         K=calibration.K,
         dist=calibration.dist,
         touch_pixels=calibration.tables,
         max_residual=max_residual,
+        estimators=estimators,
     )
+
+
+def _describe(value: Any) -> str:
+    return f"{value!r} ({type(value).__name__})"
+
+
+def check_wrapper_options(
+    calibration: Any = None,
+    keep_image: Any = True,
+    flatten: Any = False,
+    max_residual: Any = 0.01,
+    estimators: Any = DEFAULT_ESTIMATORS,
+    raw: Any = False,
+) -> tuple[str, ...]:
+    """Type and value checks of the wrapper's options, before anything is built: TypeError (wrong
+    type) or ValueError (bad value) naming the option. Returns the estimator names as a tuple."""
+    for name, value in (("raw", raw), ("keep_image", keep_image), ("flatten", flatten)):
+        if not isinstance(value, bool | np.bool_):
+            raise TypeError(f"{name} must be a bool (True or False), got {_describe(value)}")
+    if isinstance(max_residual, bool | np.bool_) or not isinstance(max_residual, numbers.Real):
+        raise TypeError(f"max_residual must be a real number (m), got {_describe(max_residual)}")
+    if not (math.isfinite(float(max_residual)) and float(max_residual) > 0):
+        raise ValueError(f"max_residual must be positive and finite (m), got {max_residual!r}")
+    if calibration is not None and not isinstance(calibration, Calibration | str | os.PathLike):
+        raise TypeError(
+            "calibration must be a Calibration, a path (str or os.PathLike) to a calibration file, or "
+            f"None for the shipped file; got {_describe(calibration)}"
+        )
+    return check_estimator_names(estimators)
 
 
 def _pose_space() -> spaces.Dict:
@@ -68,17 +170,44 @@ def _pose_obs(position: NDArray[np.float64], euler: NDArray[np.float64], valid: 
     }
 
 
+def _get(tree: Mapping[str, Any], path: tuple[str, ...]) -> Any:
+    for key in path:
+        tree = tree[key]
+    return tree
+
+
+def _bounds(space: spaces.Space, n: int, name: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(low, high) of a raw observation field that goes into the flat vector."""
+    if isinstance(space, spaces.MultiBinary) and space.shape == (n,):
+        return np.zeros(n), np.ones(n)
+    if isinstance(space, spaces.Box) and space.shape == (n,):
+        return space.low.astype(np.float64), space.high.astype(np.float64)
+    raise ValueError(f"flatten=True: the env's {name} space must be a Box or MultiBinary of shape ({n},)")
+
+
 class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
-    """Adds ``ihrcf``, ``atda`` and ``ground_truth`` deck poses (body frame) to the observation.
+    """Adds each estimator's deck pose and ``ground_truth`` (body frame) to the observation.
 
     Args:
         env: a ``DeckLandingEnv`` (possibly wrapped) with its camera on.
-        calibration: a :class:`Calibration`, a path to a calibration file, or None for the file
-            shipped in ``assets/`` (which must match the env's camera; otherwise a
+        calibration: a :class:`Calibration`, a path (str or os.PathLike) to a calibration file, or
+            None for the file shipped in ``assets/`` (which must match the env's camera; otherwise a
             :class:`~ihrcf_env.core.calibration.CalibrationError` gives the command that makes one).
-        keep_image: keep the raw camera image in the observation.
-        flatten: return one float32 Box (see the module docstring); implies no image.
+        keep_image: keep the raw camera image in the observation (bool).
+        flatten: return one float32 Box (see :func:`flat_slices`); implies no image (bool).
         max_residual: IHRCF rigid-fit RMS (m) above which the estimate is declared invalid.
+        estimators: registered estimator names, in observation order (default ihrcf, atda).
+
+    Bad options raise TypeError / ValueError naming the option before anything is built.
+
+    Attributes:
+        estimator: the :class:`DeckPoseEstimator` (detection once per frame + the estimators).
+        estimators: ordered mapping name -> :class:`DeckPoseSource` (``estimator.sources``).
+        pose_keys: the estimator names then ``"ground_truth"``: the pose blocks, in order.
+        flat_slices: name -> slice of the flat observation (see :func:`flat_slices`; also valid
+            without ``flatten``, describing what the flat vector would be).
+        last_estimates: name -> :class:`PoseEstimate` of the last observation (None before reset).
+        last_frame: the last :class:`SensorFrame` fed to the estimators (None before reset).
     """
 
     def __init__(
@@ -88,20 +217,25 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         keep_image: bool = True,
         flatten: bool = False,
         max_residual: float = 0.01,
+        estimators: Iterable[str] = DEFAULT_ESTIMATORS,
     ) -> None:
+        names = check_wrapper_options(calibration, keep_image, flatten, max_residual, estimators)
         gym.utils.RecordConstructorArgs.__init__(
-            self, calibration=calibration, keep_image=keep_image, flatten=flatten, max_residual=max_residual
+            self,
+            calibration=calibration,
+            keep_image=keep_image,
+            flatten=flatten,
+            max_residual=max_residual,
+            estimators=names,
         )
         gym.ObservationWrapper.__init__(self, env)
-        base = env.unwrapped
+        base = cast("DeckLandingEnv", env.unwrapped)
         cam = getattr(base, "camera_config", None)
         if cam is None:
             raise ValueError(
                 "camera=False leaves IHRCF and ATDA without an image: use camera=True, or raw=True "
                 "(gym.make) / the raw env for a camera-less simulation"
             )
-        if not (math.isfinite(max_residual) and max_residual > 0):
-            raise ValueError(f"max_residual must be positive (m), got {max_residual!r}")
         if calibration is None:
             cal = Calibration.load(default_calibration_path())
         elif isinstance(calibration, Calibration):
@@ -111,78 +245,93 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         cal.check_matches(cam.width, cam.height, cam.fov, base.rig, distortion=cam.distortion)
         self.calibration = cal
         deck = base.config.deck
-        self.estimator = estimator_from_calibration(cal, deck.tag_size, deck.tag_id, max_residual)
-        self.keep_image = bool(keep_image) and not flatten
+        self.estimator = estimator_from_calibration(
+            cal, deck.tag_size, deck.tag_id, float(max_residual), estimators=names
+        )
+        self.estimators: dict[str, DeckPoseSource] = self.estimator.sources
+        self.pose_keys: tuple[str, ...] = (*names, GROUND_TRUTH)
+        self.flat_slices: dict[str, slice] = flat_slices(names)
         self.flatten = bool(flatten)
-        self.last_estimates: tuple[PoseEstimate, PoseEstimate] | None = None
+        self.keep_image = bool(keep_image) and not self.flatten
+        self.last_estimates: dict[str, PoseEstimate] | None = None
+        self.last_frame: SensorFrame | None = None
 
         inner = env.observation_space
-        assert isinstance(inner, spaces.Dict)
+        if not isinstance(inner, spaces.Dict):
+            raise ValueError(f"the env's observation space must be a Dict, got {type(inner).__name__}")
         d = {k: v for k, v in inner.spaces.items() if k != "image" or self.keep_image}
-        for key in ESTIMATE_KEYS:
+        for key in self.pose_keys:
             d[key] = _pose_space()
         self._dict_space = spaces.Dict(d)
         if self.flatten:
-            lows, highs = [], []
-            for key in ("ranges", "ranges_valid"):
-                sp = inner[key]
-                lows.append(np.zeros(4) if key == "ranges_valid" else sp.low)
-                highs.append(np.ones(4) if key == "ranges_valid" else sp.high)
-            for key in ("quaternion", "angular_velocity", "linear_acceleration"):
-                lows.append(inner["imu"][key].low)
-                highs.append(inner["imu"][key].high)
-            for _ in ESTIMATE_KEYS:
-                lows += [np.full(3, -POSITION_BOUND), np.full(3, -math.pi), np.zeros(1)]
-                highs += [np.full(3, POSITION_BOUND), np.full(3, math.pi), np.ones(1)]
-            low = np.concatenate(lows).astype(np.float32)
-            high = np.concatenate(highs).astype(np.float32)
-            self.observation_space = spaces.Box(low, high, low.shape, np.float32)
+            size = self.flat_slices["all"].stop
+            low, high = np.empty(size), np.empty(size)
+            for name, path, n in SENSOR_FIELDS:
+                sl = self.flat_slices[name]
+                low[sl], high[sl] = _bounds(cast(spaces.Space, _get(inner.spaces, path)), n, name)
+            for key in self.pose_keys:
+                for field, bound in (("position", POSITION_BOUND), ("euler", math.pi), ("valid", None)):
+                    sl = self.flat_slices[f"{key}.{field}"]
+                    low[sl], high[sl] = (0.0, 1.0) if bound is None else (-bound, bound)
+            self.observation_space = spaces.Box(
+                low.astype(np.float32), high.astype(np.float32), (size,), np.float32
+            )
         else:
             self.observation_space = self._dict_space
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
         self.estimator.reset()
+        self.last_estimates = None
+        self.last_frame = None
         obs, info = self.env.reset(seed=seed, options=options)
-        out = self.observation(obs)
+        out = self.observation(obs, time=info.get("time"))
         self._add_reasons(info)
         return out, info
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
         obs, reward, terminated, truncated, info = self.env.step(action)
-        out = self.observation(obs)
+        out = self.observation(obs, time=info.get("time"))
         self._add_reasons(info)
-        return out, reward, terminated, truncated, info
+        return out, float(reward), terminated, truncated, info
 
     def _add_reasons(self, info: dict) -> None:
         if self.last_estimates is not None:
-            info["ihrcf_reason"] = self.last_estimates[0].reason
-            info["atda_reason"] = self.last_estimates[1].reason
-            info["ihrcf_residual"] = self.last_estimates[0].residual
+            for name, est in self.last_estimates.items():
+                info[f"{name}_reason"] = est.reason
+                info[f"{name}_residual"] = est.residual
 
-    def observation(self, observation: dict[str, Any]) -> Any:
-        ihrcf, atda = self.estimator.estimate(
-            observation["image"], observation["ranges"], observation["ranges_valid"].astype(bool)
+    def sensor_frame(self, observation: Mapping[str, Any], time: float | None = None) -> SensorFrame:
+        """The :class:`SensorFrame` of a raw observation (tag detected once), at ``time`` (s; None:
+        unknown, NaN)."""
+        imu = observation["imu"]
+        return self.estimator.frame(
+            observation["image"],
+            observation["ranges"],
+            np.asarray(observation["ranges_valid"]).astype(bool),
+            time=math.nan if time is None else float(time),
+            imu=ImuSample(imu["quaternion"], imu["angular_velocity"], imu["linear_acceleration"]),
         )
-        self.last_estimates = (ihrcf, atda)
-        gt_pos, gt_euler = self.env.unwrapped.deck_pose_body()
-        out = {k: v for k, v in observation.items() if k != "image" or self.keep_image}
-        out["ihrcf"] = _pose_obs(ihrcf.position, ihrcf.euler, ihrcf.valid)
-        out["atda"] = _pose_obs(atda.position, atda.euler, atda.valid)
-        out["ground_truth"] = _pose_obs(gt_pos, gt_euler, True)
+
+    def observation(self, observation: dict[str, Any], time: float | None = None) -> Any:
+        """The wrapped observation of a raw one; ``time`` (s) is the frame's time (None: unknown)."""
+        frame = self.sensor_frame(observation, time)
+        estimates = self.estimator.update(frame)
+        self.last_frame = frame
+        self.last_estimates = estimates
+        gt_pos, gt_euler = cast("DeckLandingEnv", self.env.unwrapped).deck_pose_body()
+        poses = {name: _pose_obs(e.position, e.euler, e.valid) for name, e in estimates.items()}
+        poses[GROUND_TRUTH] = _pose_obs(gt_pos, gt_euler, True)
         if not self.flatten:
+            out = {k: v for k, v in observation.items() if k != "image" or self.keep_image}
+            out.update(poses)
             return out
-        imu = out["imu"]
-        parts = [
-            out["ranges"],
-            out["ranges_valid"].astype(np.float32),
-            imu["quaternion"],
-            imu["angular_velocity"],
-            imu["linear_acceleration"],
-        ]
-        for key in ESTIMATE_KEYS:
-            e = out[key]
-            parts += [e["position"], e["euler"], np.array([e["valid"]], np.float32)]
-        return np.concatenate(parts).astype(np.float32)
+        flat = np.empty(self.flat_slices["all"].stop, np.float32)
+        for name, path, _ in SENSOR_FIELDS:
+            flat[self.flat_slices[name]] = _get(observation, path)
+        for key, pose in poses.items():
+            for field, _ in POSE_FIELDS:
+                flat[self.flat_slices[f"{key}.{field}"]] = pose[field]
+        return flat
 
 
 def make_deck_landing(
@@ -191,10 +340,15 @@ def make_deck_landing(
     keep_image: bool = True,
     flatten: bool = False,
     max_residual: float = 0.01,
+    estimators: Iterable[str] = DEFAULT_ESTIMATORS,
     **env_kwargs: Any,
 ) -> gym.Env:
     """Entry point of ``ihrcf_env/DeckLanding-v0``: the env wrapped with :class:`DeckPoseObservation`,
-    or the raw :class:`~ihrcf_env.envs.deck_landing.DeckLandingEnv` with ``raw=True``."""
+    or the raw :class:`~ihrcf_env.envs.deck_landing.DeckLandingEnv` with ``raw=True``.
+
+    The wrapper's options are checked before the env is built; if the wrapper still fails, the env
+    is closed before the error propagates."""
+    names = check_wrapper_options(calibration, keep_image, flatten, max_residual, estimators, raw)
     from ihrcf_env.envs.deck_landing import DeckLandingEnv
 
     env = DeckLandingEnv(**env_kwargs)
@@ -202,8 +356,13 @@ def make_deck_landing(
         return env
     try:
         return DeckPoseObservation(
-            env, calibration=calibration, keep_image=keep_image, flatten=flatten, max_residual=max_residual
+            env,
+            calibration=calibration,
+            keep_image=keep_image,
+            flatten=flatten,
+            max_residual=max_residual,
+            estimators=names,
         )
-    except Exception:
+    except BaseException:
         env.close()
         raise

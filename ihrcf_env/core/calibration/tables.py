@@ -97,10 +97,10 @@ class RangePixelTable:
     """The four sensor tables ps1..ps4 (rig order): range readings (4,) -> touch pixels (4, 2)."""
 
     def __init__(self, tables: Sequence[SensorTable]) -> None:
-        tables = tuple(tables)
-        if len(tables) != 4 or not all(isinstance(t, SensorTable) for t in tables):
-            raise ValueError(f"RangePixelTable needs 4 SensorTable (ps1..ps4), got {len(tables)} items")
-        self.tables: tuple[SensorTable, SensorTable, SensorTable, SensorTable] = tables  # type: ignore[assignment]
+        t = tuple(tables)
+        if len(t) != 4 or not all(isinstance(x, SensorTable) for x in t):
+            raise ValueError(f"RangePixelTable needs 4 SensorTable (ps1..ps4), got {len(t)} items")
+        self.tables: tuple[SensorTable, SensorTable, SensorTable, SensorTable] = (t[0], t[1], t[2], t[3])
 
     @classmethod
     def from_samples(cls, ranges: ArrayLike, pixels: ArrayLike) -> RangePixelTable:

@@ -36,12 +36,12 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ihrcf_env.core.estimators.base import DEGENERATE_REL_TOL, PoseEstimate, _shape_checked
+from ihrcf_env.core.estimators.base import DEGENERATE_REL_TOL, PoseEstimate, SensorFrame, _shape_checked
 from ihrcf_env.core.frames import as_array, cam_pose_to_body, rotation_angle
 from ihrcf_env.core.geometry import (
     quad_is_degenerate,
 )
-from ihrcf_env.core.rig import SensorRig
+from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 
 #: ATDA: if the two IPPE solutions' reprojection errors are within this ratio, a prior decides.
 AMBIGUITY_RATIO: float = 2.0
@@ -107,7 +107,9 @@ def atda_estimate(
         rvec = np.array(rvec0, dtype=np.float64).reshape(3, 1)
         tvec = np.array(tvec0, dtype=np.float64).reshape(3, 1)
         if refine:  # both IPPE solutions are polished before choosing (see module docstring)
-            rvec, tvec = cv2.solvePnPRefineLM(obj, img, Km, d, rvec, tvec)
+            r_lm, t_lm = cv2.solvePnPRefineLM(obj, img, Km, d, rvec, tvec)
+            rvec = np.asarray(r_lm, dtype=np.float64).reshape(3, 1)
+            tvec = np.asarray(t_lm, dtype=np.float64).reshape(3, 1)
         t = tvec.ravel()
         if not (np.all(np.isfinite(t)) and t[2] > 0):
             continue
@@ -122,3 +124,56 @@ def atda_estimate(
         best = min(cands[:2], key=lambda c: rotation_angle(prior, c[1]))
     err, R_bd, p_bd = best
     return PoseEstimate.from_body_pose(R_bd, p_bd, err)
+
+
+class ATDAEstimator:
+    """ATDA as a :class:`~ihrcf_env.core.estimators.base.DeckPoseSource`: :func:`atda_estimate` on
+    the frame's corners, with the last valid rotation (body frame) as the prior for the planar flip
+    ambiguity (:meth:`reset` forgets it; a frame without a valid estimate keeps it).
+
+    Args: ``K`` (3, 3) camera matrix, ``dist`` OpenCV distortion coefficients or None, ``tag_size``
+    m, ``rig``, ``refine`` (see :func:`atda_estimate`); ``name`` is the observation key.
+    """
+
+    def __init__(
+        self,
+        K: ArrayLike,
+        dist: ArrayLike | None,
+        tag_size: float,
+        rig: SensorRig,
+        refine: bool = True,
+        name: str = "atda",
+    ) -> None:
+        tag_corners_deck(tag_size)  # validates tag_size
+        self._name = str(name)
+        self.K = as_array(K, (3, 3), "K").copy()
+        self.dist = None if dist is None else np.asarray(dist, dtype=np.float64).ravel().copy()
+        self.tag_size = float(tag_size)
+        self.rig = rig
+        self.refine = bool(refine)
+        self._prior: NDArray[np.float64] | None = None
+
+    @property
+    def name(self) -> str:
+        """Observation key."""
+        return self._name
+
+    @property
+    def prior_rotation(self) -> NDArray[np.float64] | None:
+        """The prior: last valid ``R_body_deck`` (3, 3), or None."""
+        return None if self._prior is None else self._prior.copy()
+
+    def reset(self) -> None:
+        """Forget the rotation prior."""
+        self._prior = None
+
+    def update(self, frame: SensorFrame) -> PoseEstimate:
+        """ATDA estimate of ``frame``; invalid with the frame's reason when it has no corners."""
+        if frame.corners is None:
+            return PoseEstimate.invalid(frame.corners_reason)
+        est = atda_estimate(
+            frame.corners, self.K, self.dist, self.tag_size, self.rig, self._prior, self.refine
+        )
+        if est.valid:
+            self._prior = np.array(est.rotation)
+        return est

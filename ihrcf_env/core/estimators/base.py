@@ -1,13 +1,23 @@
-"""The pose-estimate record shared by every deck-pose estimator.
+"""What every deck-pose estimator shares: its input (:class:`SensorFrame`), its output
+(:class:`PoseEstimate`) and its interface (:class:`DeckPoseSource`).
 
-Both estimators report the pose of the **deck** frame in the drone **body** frame (see
+Every estimator reports the pose of the **deck** frame in the drone **body** frame (see
 :mod:`ihrcf_env.core.frames`): ``position`` (m), ``rotation`` ``R_body_deck`` and ``euler``
 (roll, pitch, yaw) in radians, intrinsic Z-Y-X.
+
+The interface follows dm_control's observables: a source has a ``name`` (its observation key), is
+``reset()`` at the start of an episode and ``update(frame)``-d once per sensor frame, in time order,
+returning its current estimate. Tag detection is done once per frame, outside the estimators (see
+:class:`~ihrcf_env.core.estimators.pipeline.DeckPoseEstimator`), and its corners are shared through
+the frame; a frame without corners (tag not found) still reaches every estimator, so that a
+temporal filter can propagate on the IMU and the ranges.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -62,12 +72,105 @@ class PoseEstimate:
     def from_body_pose(cls, R_body_deck: ArrayLike, p_body_deck: ArrayLike, residual: float) -> PoseEstimate:
         """A valid estimate from a body-frame rotation (3, 3) and position (3,) (m)."""
         R = as_array(R_body_deck, (3, 3), "R_body_deck")
-        return cls(p_body_deck, euler_from_matrix(R), R, True, residual, "")
+        p = np.asarray(p_body_deck, dtype=np.float64)
+        return cls(p, euler_from_matrix(R), R, True, residual, "")
 
 
 def _shape_checked(x: ArrayLike, shape: tuple[int, ...], name: str, dtype: type = np.float64) -> NDArray:
     """Shape check only (NaN allowed: a bad measurement, not a programmer error)."""
-    a = np.asarray(x, dtype=dtype)
+    a: NDArray = np.asarray(x, dtype=dtype)
     if a.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got {a.shape}")
     return a
+
+
+def _readonly(x: ArrayLike, shape: tuple[int, ...], name: str, dtype: type = np.float64) -> NDArray:
+    """A read-only copy of ``x`` with exactly ``shape`` (NaN allowed: a bad measurement)."""
+    a: NDArray = np.array(_shape_checked(x, shape, name, dtype), copy=True)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class ImuSample:
+    """One IMU sample (body frame).
+
+    Attributes:
+        quaternion: (4,) attitude ``x, y, z, w``, world from body.
+        angular_velocity: (3,) body rates, rad/s, body frame.
+        specific_force: (3,) accelerometer reading (specific force), m/s^2, body frame
+            (+9.81 on z at hover).
+    """
+
+    quaternion: NDArray[np.float64]
+    angular_velocity: NDArray[np.float64]
+    specific_force: NDArray[np.float64]
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "quaternion", _readonly(self.quaternion, (4,), "quaternion"))
+        object.__setattr__(
+            self, "angular_velocity", _readonly(self.angular_velocity, (3,), "angular_velocity")
+        )
+        object.__setattr__(self, "specific_force", _readonly(self.specific_force, (3,), "specific_force"))
+
+
+#: ``SensorFrame.corners_reason`` when no corners were given and no reason either.
+TAG_NOT_FOUND: str = "tag not found"
+
+
+@dataclass(frozen=True, eq=False)
+class SensorFrame:
+    """Everything the estimators see at one instant (read-only arrays).
+
+    Attributes:
+        time: sample time, s (simulation time in the env; NaN when unknown).
+        corners: (4, 2) tag corners in OpenCV pixels (pixel centres at integers), OpenCV's aruco
+            order, or None when the tag was not detected.
+        corners_reason: why ``corners`` is None (default :data:`TAG_NOT_FOUND`); '' when detected.
+        ranges: (4,) ToF ranges of ps1..ps4 along the optical axis, m (NaN allowed).
+        ranges_valid: (4,) bool, which ranges are usable.
+        imu: the IMU sample of this instant, or None.
+        image: the camera image the corners came from (uint8), or None (e.g. a projected camera
+            model, or a log without images). Estimators must not rely on it being present.
+    """
+
+    time: float
+    corners: NDArray[np.float64] | None
+    ranges: NDArray[np.float64]
+    ranges_valid: NDArray[np.bool_]
+    corners_reason: str = ""
+    imu: ImuSample | None = None
+    image: NDArray[np.uint8] | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "time", float(self.time))
+        if self.corners is None:
+            object.__setattr__(self, "corners_reason", str(self.corners_reason) or TAG_NOT_FOUND)
+        else:
+            object.__setattr__(self, "corners", _readonly(self.corners, (4, 2), "corners"))
+            object.__setattr__(self, "corners_reason", "")
+        object.__setattr__(self, "ranges", _readonly(self.ranges, (4,), "ranges"))
+        object.__setattr__(self, "ranges_valid", _readonly(self.ranges_valid, (4,), "ranges_valid", bool))
+        if self.imu is not None and not isinstance(self.imu, ImuSample):
+            raise TypeError(f"imu must be an ImuSample or None, got {type(self.imu).__name__}")
+        if math.isinf(self.time):
+            raise ValueError(f"time must be finite (s) or NaN (unknown), got {self.time!r}")
+
+
+@runtime_checkable
+class DeckPoseSource(Protocol):
+    """A deck-pose estimator fed one :class:`SensorFrame` at a time.
+
+    ``name`` is its observation key (``obs[name]``, ``info[f"{name}_reason"]``). ``reset()`` forgets
+    any state (priors, filters) at the start of an episode. ``update(frame)`` takes the next frame
+    (time non-decreasing between resets) and returns the current estimate, invalid with a reason
+    when there is none; it raises only for programmer errors (wrong shapes), never for bad
+    measurements.
+    """
+
+    @property
+    def name(self) -> str: ...
+
+    def reset(self) -> None: ...
+
+    def update(self, frame: SensorFrame) -> PoseEstimate: ...

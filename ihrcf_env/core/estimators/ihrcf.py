@@ -7,12 +7,13 @@ Both estimators report the pose of the **deck** frame in the drone **body** fram
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ihrcf_env.core.estimators.base import DEGENERATE_REL_TOL, PoseEstimate, _shape_checked
+from ihrcf_env.core.estimators.base import DEGENERATE_REL_TOL, PoseEstimate, SensorFrame, _shape_checked
 from ihrcf_env.core.frames import cam_pose_to_body
 from ihrcf_env.core.geometry import (
     apply_homography,
@@ -116,3 +117,51 @@ def ihrcf_estimate(
     # Section 2.8 (eq. 26-27) is replaced by the explicit camera -> body conversion.
     R_bd, p_bd = cam_pose_to_body(R_cd, t_cd, rig.camera_position)
     return PoseEstimate.from_body_pose(R_bd, p_bd, rms)
+
+
+class IHRCFEstimator:
+    """IHRCF as a :class:`~ihrcf_env.core.estimators.base.DeckPoseSource`: stateless, one
+    :func:`ihrcf_estimate` per frame on the frame's corners and ranges.
+
+    Args: as :func:`ihrcf_estimate` (``touch_pixels`` table, ``rig``, ``tag_size`` m,
+    ``max_residual`` m); ``name`` is the observation key.
+    """
+
+    def __init__(
+        self,
+        touch_pixels: TouchPixels,
+        rig: SensorRig,
+        tag_size: float,
+        max_residual: float = 0.01,
+        name: str = "ihrcf",
+    ) -> None:
+        tag_corners_deck(tag_size)  # validates tag_size
+        if not (math.isfinite(max_residual) and max_residual > 0):
+            raise ValueError(f"max_residual must be positive (m), got {max_residual!r}")
+        self._name = str(name)
+        self.touch_pixels = touch_pixels
+        self.rig = rig
+        self.tag_size = float(tag_size)
+        self.max_residual = float(max_residual)
+
+    @property
+    def name(self) -> str:
+        """Observation key."""
+        return self._name
+
+    def reset(self) -> None:
+        """Nothing to forget (stateless)."""
+
+    def update(self, frame: SensorFrame) -> PoseEstimate:
+        """IHRCF estimate of ``frame``; invalid with the frame's reason when it has no corners."""
+        if frame.corners is None:
+            return PoseEstimate.invalid(frame.corners_reason)
+        return ihrcf_estimate(
+            frame.corners,
+            frame.ranges,
+            frame.ranges_valid,
+            self.touch_pixels,
+            self.rig,
+            self.tag_size,
+            self.max_residual,
+        )

@@ -1,23 +1,36 @@
-"""One frame through detection and both estimators."""
+"""One frame through tag detection (once) and every registered estimator, in order."""
 
 from __future__ import annotations
+
+import math
+from collections.abc import Iterable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ihrcf_env.core.estimators.atda import atda_estimate
-from ihrcf_env.core.estimators.base import PoseEstimate
+from ihrcf_env.core.estimators.atda import ATDAEstimator
+from ihrcf_env.core.estimators.base import DeckPoseSource, ImuSample, PoseEstimate, SensorFrame
 from ihrcf_env.core.estimators.detector import TagDetector
-from ihrcf_env.core.estimators.ihrcf import TouchPixels, ihrcf_estimate
+from ihrcf_env.core.estimators.ihrcf import TouchPixels
+from ihrcf_env.core.estimators.registry import DEFAULT_ESTIMATORS, EstimatorConfig, build_estimators
 from ihrcf_env.core.frames import as_array
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 
 
 class DeckPoseEstimator:
-    """Tag detection + IHRCF + ATDA for one camera frame and one set of ToF ranges.
+    """Tag detection + the registered estimators (default IHRCF and ATDA) for one camera frame and
+    one set of ToF ranges.
 
-    Keeps the last valid ATDA rotation (body frame) as the prior for the flip ambiguity
-    (:meth:`reset` forgets it).
+    :meth:`frame` detects the tag once and packs a :class:`SensorFrame`; :meth:`update` feeds it to
+    every estimator of :attr:`sources` (an ordered mapping name -> :class:`DeckPoseSource`) and
+    returns name -> :class:`PoseEstimate`. :meth:`estimate` is the two-estimator shortcut kept for
+    compatibility. :meth:`reset` resets every estimator (e.g. ATDA's flip prior).
+
+    Args:
+        rig, tag_size (m), K (3, 3), dist, touch_pixels, max_residual (m): see
+            :class:`~ihrcf_env.core.estimators.registry.EstimatorConfig`.
+        tag_id: AprilTag 36h11 id to detect. refine: the detector's corner refinement.
+        estimators: registered names, in order (default ``("ihrcf", "atda")``).
     """
 
     def __init__(
@@ -30,38 +43,93 @@ class DeckPoseEstimator:
         touch_pixels: TouchPixels,
         refine: str = "subpix",
         max_residual: float = 0.01,
+        estimators: Iterable[str] = DEFAULT_ESTIMATORS,
     ) -> None:
         tag_corners_deck(tag_size)  # validates tag_size
-        self.rig = rig
-        self.tag_size = float(tag_size)
-        self.K = as_array(K, (3, 3), "K").copy()
-        self.dist = None if dist is None else np.asarray(dist, dtype=np.float64).ravel().copy()
-        self.touch_pixels = touch_pixels
-        self.max_residual = float(max_residual)
+        self.config = EstimatorConfig(
+            rig=rig,
+            tag_size=float(tag_size),
+            K=as_array(K, (3, 3), "K").copy(),
+            dist=None if dist is None else np.asarray(dist, dtype=np.float64).ravel().copy(),
+            touch_pixels=touch_pixels,
+            max_residual=float(max_residual),
+        )
         self.detector = TagDetector(tag_id, refine)
-        self._prior: NDArray[np.float64] | None = None
+        self.sources: dict[str, DeckPoseSource] = build_estimators(self.config, estimators)
+
+    # the configuration, as attributes (compatibility)
+    @property
+    def rig(self) -> SensorRig:
+        return self.config.rig
+
+    @property
+    def tag_size(self) -> float:
+        return self.config.tag_size
+
+    @property
+    def K(self) -> NDArray[np.float64]:
+        return self.config.K
+
+    @property
+    def dist(self) -> NDArray[np.float64] | None:
+        return self.config.dist
+
+    @property
+    def touch_pixels(self) -> TouchPixels:
+        return self.config.touch_pixels
+
+    @property
+    def max_residual(self) -> float:
+        return self.config.max_residual
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The estimators' names (observation keys), in order."""
+        return tuple(self.sources)
 
     @property
     def prior_rotation(self) -> NDArray[np.float64] | None:
-        """The ATDA prior: last valid ATDA ``R_body_deck`` (3, 3), or None."""
-        return None if self._prior is None else self._prior.copy()
+        """The ATDA prior: last valid ATDA ``R_body_deck`` (3, 3), or None (also without ATDA)."""
+        atda = self.sources.get("atda")
+        return atda.prior_rotation if isinstance(atda, ATDAEstimator) else None
 
     def reset(self) -> None:
-        """Forget the ATDA rotation prior."""
-        self._prior = None
+        """Reset every estimator (forgets ATDA's rotation prior and any filter state)."""
+        for source in self.sources.values():
+            source.reset()
+
+    def frame(
+        self,
+        image: ArrayLike,
+        ranges: ArrayLike,
+        ranges_valid: ArrayLike,
+        time: float = math.nan,
+        imu: ImuSample | None = None,
+    ) -> SensorFrame:
+        """Detect the tag in ``image`` (uint8) once and pack the frame: ``ranges`` (4,) m of
+        ps1..ps4, ``ranges_valid`` (4,) bool, ``time`` s (NaN: unknown), ``imu`` sample or None."""
+        img = np.asarray(image)
+        corners = self.detector.detect(img)
+        return SensorFrame(
+            time=time,
+            corners=corners,
+            ranges=np.asarray(ranges, dtype=np.float64),
+            ranges_valid=np.asarray(ranges_valid, dtype=bool),
+            imu=imu,
+            image=img,
+        )
+
+    def update(self, frame: SensorFrame) -> dict[str, PoseEstimate]:
+        """Feed ``frame`` to every estimator, in order: name -> estimate."""
+        return {name: source.update(frame) for name, source in self.sources.items()}
 
     def estimate(
         self, image: ArrayLike, ranges: ArrayLike, ranges_valid: ArrayLike
     ) -> tuple[PoseEstimate, PoseEstimate]:
-        """(IHRCF, ATDA) estimates from one image and the four ranges (m) of ps1..ps4."""
-        corners = self.detector.detect(image)
-        if corners is None:
-            lost = PoseEstimate.invalid("tag not found")
-            return lost, lost
-        ihrcf = ihrcf_estimate(
-            corners, ranges, ranges_valid, self.touch_pixels, self.rig, self.tag_size, self.max_residual
-        )
-        atda = atda_estimate(corners, self.K, self.dist, self.tag_size, self.rig, self._prior)
-        if atda.valid:
-            self._prior = np.array(atda.rotation)
-        return ihrcf, atda
+        """(IHRCF, ATDA) estimates from one image and the four ranges (m) of ps1..ps4 (compatibility:
+        needs both estimators; :meth:`frame` + :meth:`update` give all of them by name)."""
+        missing = [n for n in ("ihrcf", "atda") if n not in self.sources]
+        if missing:
+            raise RuntimeError(f"estimate() needs the ihrcf and atda estimators; {missing} not configured")
+        out = self.update(self.frame(image, ranges, ranges_valid))
+        return out["ihrcf"], out["atda"]

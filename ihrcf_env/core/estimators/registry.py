@@ -1,0 +1,95 @@
+"""The estimator registry: the one place where a deck-pose estimator is added.
+
+Each entry of :data:`ESTIMATORS` maps an observation key to a factory building a
+:class:`~ihrcf_env.core.estimators.base.DeckPoseSource` from an :class:`EstimatorConfig`. Everything
+downstream (:class:`~ihrcf_env.core.estimators.pipeline.DeckPoseEstimator`, the observation wrapper's
+spaces, ``obs`` keys, ``info[f"{name}_reason"]`` and the flat layout) loops over the names, so a new
+estimator is one new module implementing the protocol plus one line here (and, if it needs more
+than the rig, the tag and the calibration, a field of :class:`EstimatorConfig` with a default).
+:data:`DEFAULT_ESTIMATORS` is what ``ihrcf_env/DeckLanding-v0`` shows; others are opted in by name.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ihrcf_env.core.estimators.atda import ATDAEstimator
+from ihrcf_env.core.estimators.base import DeckPoseSource
+from ihrcf_env.core.estimators.ihrcf import IHRCFEstimator, TouchPixels
+from ihrcf_env.core.rig import SensorRig
+
+
+@dataclass(frozen=True, eq=False)
+class EstimatorConfig:
+    """What the registered estimators are built from.
+
+    Attributes:
+        rig: sensor geometry (ToF layout and camera position in the body frame, m).
+        tag_size: side of the tag's black square, m.
+        K: (3, 3) camera matrix from the chessboard stage (px), for image-based estimators (ATDA).
+        dist: OpenCV distortion coefficients (k1, k2, p1, p2, k3), or None for none.
+        touch_pixels: the range -> touch-pixel table (IHRCF).
+        max_residual: IHRCF rigid-fit RMS above which the estimate is invalid, m.
+    """
+
+    rig: SensorRig
+    tag_size: float
+    K: NDArray[np.float64]
+    dist: NDArray[np.float64] | None
+    touch_pixels: TouchPixels
+    max_residual: float = 0.01
+
+
+EstimatorFactory = Callable[[EstimatorConfig], DeckPoseSource]
+
+#: Observation key -> factory, in the observation's order. Add new estimators here.
+ESTIMATORS: dict[str, EstimatorFactory] = {
+    "ihrcf": lambda c: IHRCFEstimator(c.touch_pixels, c.rig, c.tag_size, c.max_residual, name="ihrcf"),
+    "atda": lambda c: ATDAEstimator(c.K, c.dist, c.tag_size, c.rig, name="atda"),
+}
+
+#: The estimators of ``ihrcf_env/DeckLanding-v0`` (its observation layout), in order.
+DEFAULT_ESTIMATORS: tuple[str, ...] = ("ihrcf", "atda")
+
+#: Observation keys an estimator may not take.
+RESERVED_NAMES: frozenset[str] = frozenset({"ground_truth", "image", "ranges", "ranges_valid", "imu"})
+
+
+def check_estimator_names(names: Iterable[str]) -> tuple[str, ...]:
+    """``names`` as a tuple after checking each is a registered name, given once; TypeError or
+    ValueError naming ``estimators`` otherwise."""
+    if isinstance(names, str) or not isinstance(names, Iterable):
+        raise TypeError(f"estimators must be a sequence of names, got {type(names).__name__}")
+    out = tuple(names)
+    for n in out:
+        if not isinstance(n, str):
+            raise TypeError(f"estimators must contain names (str), got {type(n).__name__}")
+        if n in RESERVED_NAMES:
+            raise ValueError(f"estimators: {n!r} is reserved for another observation key")
+        if n not in ESTIMATORS:
+            raise ValueError(f"estimators: unknown name {n!r}; registered: {sorted(ESTIMATORS)}")
+    if len(set(out)) != len(out):
+        raise ValueError(f"estimators: a name is given twice in {list(out)}")
+    if not out:
+        raise ValueError("estimators must name at least one estimator")
+    return out
+
+
+def build_estimators(
+    config: EstimatorConfig, names: Iterable[str] = DEFAULT_ESTIMATORS
+) -> dict[str, DeckPoseSource]:
+    """An ordered mapping name -> new estimator for the registered ``names``."""
+    if not (math.isfinite(config.max_residual) and config.max_residual > 0):
+        raise ValueError(f"max_residual must be positive (m), got {config.max_residual!r}")
+    out: dict[str, DeckPoseSource] = {}
+    for n in check_estimator_names(names):
+        source = ESTIMATORS[n](config)
+        if source.name != n:
+            raise ValueError(f"estimator registered as {n!r} calls itself {source.name!r}")
+        out[n] = source
+    return out
