@@ -20,6 +20,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ihrcf_env import __version__
+from ihrcf_env.core.calibration._checks import (
+    check_int,
+    check_keys,
+    check_real,
+    check_real_array,
+    describe,
+    is_int,
+)
 from ihrcf_env.core.calibration.tables import RangePixelTable
 from ihrcf_env.core.paths import assets_dir
 from ihrcf_env.core.rig import SensorRig
@@ -62,6 +70,7 @@ _REQUIRED_KEYS = (
     "created_with",
     "report",
 )
+_OPTIONAL_KEYS = ("format_version", "lens_distortion")
 
 
 @dataclass(eq=False)
@@ -71,7 +80,7 @@ class Calibration:
     Attributes:
         image_width, image_height: image size (px) the file was made for.
         fov: vertical field of view (rad) the file was made for.
-        rig: :meth:`ihrcf_env.core.rig.SensorRig.to_dict` of the rig.
+        rig: :meth:`ihrcf_env.core.rig.SensorRig.to_dict` of the rig (a ``SensorRig`` is converted).
         tables: the range -> pixel tables ps1..ps4.
         K: (3, 3) intrinsics from the chessboard stage (section 2.1; used by ATDA).
         dist: (5,) distortion (k1, k2, p1, p2, k3).
@@ -101,39 +110,48 @@ class Calibration:
     source: str | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
-        self.image_width, self.image_height = int(self.image_width), int(self.image_height)
-        if self.image_width <= 0 or self.image_height <= 0:
-            raise ValueError(f"image size must be positive, got {self.image_width}x{self.image_height}")
-        self.fov = float(self.fov)
-        k = np.asarray(self.lens_distortion, dtype=np.float64)
-        if k.shape != (2,) or not np.all(np.isfinite(k)):
-            raise ValueError(
-                f"lens_distortion must be two finite numbers (k1, k2), got {self.lens_distortion!r}"
-            )
-        self.lens_distortion = (float(k[0]), float(k[1]))
+        """Type- and value-check every field (see the class docstring for units): TypeError for a
+        value of the wrong kind (ints must be ints, not floats or bools; numbers not null, bool or
+        strings; arrays of numbers), ValueError for a bad value, both naming the field."""
+        self.image_width = check_int(self.image_width, "image_width", minimum=1)
+        self.image_height = check_int(self.image_height, "image_height", minimum=1)
+        self.fov = check_real(self.fov, "fov", "rad")
         if not (0.0 < self.fov < math.pi):
             raise ValueError(f"fov must be in (0, pi) rad, got {self.fov!r}")
+        k = check_real_array(self.lens_distortion, (2,), "lens_distortion")
+        self.lens_distortion = (float(k[0]), float(k[1]))
         if not isinstance(self.tables, RangePixelTable):
-            raise ValueError(f"tables must be a RangePixelTable, got {type(self.tables).__name__}")
-        self.K = np.asarray(self.K, dtype=np.float64)
-        self.dist = np.asarray(self.dist, dtype=np.float64)
-        if self.K.shape != (3, 3) or not np.all(np.isfinite(self.K)):
-            raise ValueError(f"K must be a finite (3, 3) matrix, got shape {self.K.shape}")
-        if self.dist.shape != (5,) or not np.all(np.isfinite(self.dist)):
-            raise ValueError(f"dist must be finite with shape (5,), got shape {self.dist.shape}")
+            raise TypeError(f"tables must be a RangePixelTable, got {describe(self.tables)}")
+        self.K = check_real_array(self.K, (3, 3), "K")
+        if not (self.K[0, 0] > 0 and self.K[1, 1] > 0 and np.array_equal(self.K[2], [0.0, 0.0, 1.0])):
+            raise ValueError(f"K must be a camera matrix (fx, fy > 0, last row 0 0 1), got {self.K.tolist()}")
+        self.dist = check_real_array(self.dist, (5,), "dist")
         if self.chessboard_rms is not None:
-            self.chessboard_rms = float(self.chessboard_rms)
-            if not math.isfinite(self.chessboard_rms):
-                raise ValueError("chessboard_rms must be finite or None")
-        missing = [k for k in ("a", "theta", "camera_position") if k not in self.rig]
-        if missing:
-            raise ValueError(f"rig: missing key(s) {missing}")
+            self.chessboard_rms = check_real(self.chessboard_rms, "chessboard_rms", "px")
+            if self.chessboard_rms < 0:
+                raise ValueError(f"chessboard_rms must be >= 0 (px), got {self.chessboard_rms!r}")
+        if self.seed is not None:
+            self.seed = check_int(self.seed, "seed", minimum=0)
+        if not isinstance(self.created_with, str):
+            raise TypeError(f"created_with must be a string, got {describe(self.created_with)}")
+        if not isinstance(self.report, Mapping):
+            raise TypeError(f"report must be an object, got {describe(self.report)}")
+        self.report = dict(self.report)
+        self.format_version = check_int(self.format_version, "format_version")
+        rig = check_keys(
+            self.rig.to_dict() if isinstance(self.rig, SensorRig) else self.rig,
+            "rig",
+            ("a", "theta", "camera_position"),
+        )
         self.rig = {
-            "a": float(self.rig["a"]),
-            "theta": float(self.rig["theta"]),
-            "camera_position": [float(x) for x in self.rig["camera_position"]],
+            "a": check_real(rig["a"], "rig.a", "m"),
+            "theta": check_real(rig["theta"], "rig.theta", "rad"),
+            "camera_position": check_real_array(rig["camera_position"], (3,), "rig.camera_position").tolist(),
         }
-        SensorRig(self.rig["a"], self.rig["theta"], tuple(self.rig["camera_position"]))  # validates
+        try:
+            SensorRig(self.rig["a"], self.rig["theta"], tuple(self.rig["camera_position"]))
+        except ValueError as e:
+            raise ValueError(f"rig: {e}") from e
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -175,26 +193,30 @@ class Calibration:
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any], source: str = "<dict>") -> Calibration:
-        """Validate and build; raises :class:`CalibrationError` naming ``source`` and the problem."""
+        """Validate and build; raises :class:`CalibrationError` naming ``source`` and the field.
+
+        Every field is type-checked (see :meth:`__post_init__`); unknown keys are rejected (a
+        misspelt optional key would otherwise be silently replaced by its default)."""
         if not isinstance(d, Mapping):
-            raise CalibrationError(f"{source}: expected a JSON object, got {type(d).__name__}")
+            raise CalibrationError(f"{source}: expected a JSON object, got {describe(d)}")
         if "format_version" not in d:
             raise CalibrationError(f"{source}: missing 'format_version' (not an ihrcf_env calibration file?)")
-        if d["format_version"] != FORMAT_VERSION:
+        version = d["format_version"]
+        if not is_int(version) or version != FORMAT_VERSION:
             raise CalibrationError(
-                f"{source}: unsupported format_version {d['format_version']!r} (this ihrcf_env reads "
+                f"{source}: unsupported format_version {version!r} (this ihrcf_env reads "
                 f"{FORMAT_VERSION}); re-create it with python -m ihrcf_env.calibrate"
             )
         missing = [k for k in _REQUIRED_KEYS if k not in d]
         if missing:
             raise CalibrationError(f"{source}: missing key(s) {missing}")
+        unknown = sorted(str(k) for k in d if k not in _REQUIRED_KEYS + _OPTIONAL_KEYS)
+        if unknown:
+            raise CalibrationError(
+                f"{source}: unknown key(s) {unknown}; known: {sorted(_REQUIRED_KEYS + _OPTIONAL_KEYS)}"
+            )
         try:
             tables = RangePixelTable.from_dict(d["tables"])
-        except (ValueError, KeyError, TypeError) as e:
-            raise CalibrationError(f"{source}: bad 'tables': {e}") from e
-        if not isinstance(d["report"], dict):
-            raise CalibrationError(f"{source}: 'report' must be an object")
-        try:
             return cls(
                 image_width=d["image_width"],
                 image_height=d["image_height"],
@@ -205,14 +227,17 @@ class Calibration:
                 dist=d["dist"],
                 chessboard_rms=d["chessboard_rms"],
                 seed=d["seed"],
-                created_with=str(d["created_with"]),
-                report=dict(d["report"]),
-                lens_distortion=tuple(d.get("lens_distortion", (0.0, 0.0))),
-                format_version=d["format_version"],
+                created_with=d["created_with"],
+                report=d["report"],
+                lens_distortion=d.get("lens_distortion", (0.0, 0.0)),
+                format_version=version,
                 source=source,
             )
-        except (ValueError, KeyError, TypeError) as e:
-            raise CalibrationError(f"{source}: {e}") from e
+        except (ValueError, TypeError) as e:
+            msg = str(e)
+            if msg.startswith(("ps1", "ps2", "ps3", "ps4")):
+                msg = f"tables.{msg}"
+            raise CalibrationError(f"{source}: {msg}") from e
 
     @classmethod
     def load(cls, path: str | os.PathLike[str] | Traversable) -> Calibration:

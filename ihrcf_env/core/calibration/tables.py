@@ -15,6 +15,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import PchipInterpolator
 
+from ihrcf_env.core.calibration._checks import check_keys, check_real_array, describe
+
 #: Range-sensor names in rig order; sensor i is centred on pad ``PAD_COLOURS[i]``.
 SENSOR_NAMES: tuple[str, str, str, str] = ("ps1", "ps2", "ps3", "ps4")
 
@@ -85,8 +87,19 @@ class SensorTable:
         return {"name": self.name, "ranges": self._ranges.tolist(), "pixels": self._pixels.tolist()}
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> SensorTable:
-        return cls(d["ranges"], d["pixels"], name=d.get("name", "sensor"))
+    def from_dict(cls, d: Mapping[str, Any], field: str = "table", name: str | None = None) -> SensorTable:
+        """From :meth:`to_dict`'s JSON object, type-checked: ``ranges`` (N,) and ``pixels`` (N, 2)
+        numbers (no null: a missing sample is simply left out), optional ``name`` string (``name``
+        overrides it). TypeError / ValueError naming ``field`` and the key otherwise."""
+        check_keys(d, field, ("ranges", "pixels"), ("name",))
+        stored = d.get("name", "sensor")
+        if not isinstance(stored, str):
+            raise TypeError(f"{field}.name must be a string, got {describe(stored)}")
+        ranges = check_real_array(d["ranges"], (None,), f"{field}.ranges")
+        pixels = check_real_array(d["pixels"], (None, 2), f"{field}.pixels")
+        if np.any(ranges <= 0):
+            raise ValueError(f"{field}.ranges must be positive distances (m), got min {ranges.min()!r}")
+        return cls(ranges, pixels, name=stored if name is None else name)
 
     def __repr__(self) -> str:
         lo, hi = self.span
@@ -140,13 +153,17 @@ class RangePixelTable:
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> RangePixelTable:
-        tables = []
-        for name in SENSOR_NAMES:
-            if name not in d:
-                raise ValueError(f"tables: missing sensor {name!r}")
-            sd = d[name]
-            tables.append(SensorTable(sd["ranges"], sd["pixels"], name=name))
-        return cls(tables)
+        """From :meth:`to_dict`'s JSON object (keys ps1..ps4, see :meth:`SensorTable.from_dict`),
+        type-checked; TypeError / ValueError naming the field (e.g. ``tables.ps2.pixels``)."""
+        if not isinstance(d, Mapping):
+            raise TypeError(f"tables must be an object, got {describe(d)}")
+        missing = [name for name in SENSOR_NAMES if name not in d]
+        if missing:
+            raise ValueError(f"tables: missing sensor(s) {missing}")
+        check_keys(d, "tables", SENSOR_NAMES)
+        return cls(
+            [SensorTable.from_dict(d[name], field=f"tables.{name}", name=name) for name in SENSOR_NAMES]
+        )
 
     def __repr__(self) -> str:
         return "RangePixelTable(" + ", ".join(repr(t) for t in self.tables) + ")"
