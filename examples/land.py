@@ -1,30 +1,11 @@
 """Scripted landing on the moving deck using only the drone's own sensing (IHRCF + ToF + IMU).
 
-The controller never reads ``obs["ground_truth"]`` or the ground truth in ``info``; ``info`` is used
-only to report how each episode ended. Phases:
-
-1. **approach**: centre over the tag with the IHRCF x/y (level, heading frame), align the heading
-   with the IHRCF yaw (modulo 90 deg: the deck is square) and descend to ``hold_height`` (0.65 m:
-   the 0.4 m tag and its quiet zone leave the 60 deg view below ~0.4-0.55 m depending on the offset).
-2. **hold**: keep centred at ``hold_height`` while two small filters track the deck: an alpha-beta
-   filter on the deck height (drone altitude from integrating the IMU's vertical acceleration, kept
-   from drifting by the integral of the drone's own vertical commands, minus the ToF plane height
-   below the drone) gives the heave velocity, and alpha-beta filters on the
-   horizontal components of the deck normal in the level frame (from the IHRCF attitude, or from a
-   plane fitted to the four ToF hits when the tag is not seen) give the tilt and its rate.
-   The drop is committed when the relative tilt *predicted at touchdown* and the heave velocity
-   are small (the deck near the top/bottom of its heave or moving slowly), so the drone does not
-   arrive while the deck is tilted beyond the 10 deg limit. On the "paper" profile the deck tilts
-   more than 10 deg from ~3.5 s to ~13.5 s, so with ``--deck-start zero`` the drone waits at the hold
-   height and lands at ~16 s (by default each episode starts the deck at a seeded random time).
-3. **drop**: centring continues while the tag is seen, then zero lateral command (the autopilot
-   holds position once the tag leaves the image); vertical command = estimated deck heave velocity
-   minus the approach speed (0.35 m/s, 0.25 m/s in the last 15 cm), on the ToF ranges, until the
-   legs touch.
-
-Without a tag detection (e.g. a frame the detector misses) the drone holds its x/y and creeps down
-on the ranges until the tag is found; after ``tag_timeout`` it may commit on the ranges alone as long
-as all four beams see a plane (i.e. the drone is over the deck).
+The controller is :class:`ihrcf_env.control.landing.LandingController` (approach, hold until the
+deck's predicted tilt at touchdown and heave velocity allow it, drop on the ToF ranges); it never
+reads ground truth, and ``info`` is used only to report how each episode ended
+(:func:`ihrcf_env.experiments.landing.evaluate`). On the "paper" profile the deck tilts more than
+10 deg from ~3.5 s to ~13.5 s, so with ``--deck-start zero`` the drone waits at the hold height and
+lands at ~16 s (by default each episode starts the deck at a seeded random time).
 
 python examples/land.py                       # 20 seeds x paper and sea_state (~12 min wall)
 python examples/land.py --episodes 2 --profiles static --max-seconds 10
@@ -35,397 +16,10 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-from typing import Any
+from collections.abc import Sequence
 
-import gymnasium as gym
-import numpy as np
-from numpy.typing import NDArray
-
-import ihrcf_env  # noqa: F401  (registers ihrcf_env/DeckLanding-v0)
-from ihrcf_env.core.frames import matrix_from_euler, matrix_from_quat
-from ihrcf_env.core.geometry import fit_plane
-from ihrcf_env.core.rig import SensorRig
-
-GRAVITY = 9.81
-PROFILES = ("paper", "sea_state", "static")
-
-
-@dataclass(frozen=True)
-class LandingConfig:
-    """Tunables of :class:`LandingController` (metres, seconds, radians)."""
-
-    leg_length: float = 0.10  # legs below the body origin
-    hold_height: float = 0.65  # body origin above the deck while waiting for a window
-    approach_speed: float = 0.4  # max vertical speed in the approach
-    drop_speed: float = 0.35  # relative approach speed in the drop, high above the deck
-    touch_speed: float = 0.25  # relative approach speed in the last ``slow_zone`` of clearance
-    slow_zone: float = 0.15
-    k_xy: float = 1.2  # 1/s, lateral centring gain
-    max_xy_speed: float = 0.4
-    k_z: float = 1.5  # 1/s, height gain
-    k_yaw: float = 1.0  # 1/s, heading alignment gain (0 disables)
-    centred_tolerance: float = 0.05  # horizontal error to allow the drop
-    height_tolerance: float = 0.06
-    settle_time: float = 0.8  # s of good hold before the first commit decision (filters warm up)
-    commit_tilt: float = math.radians(7.0)  # predicted relative tilt at touchdown
-    max_tilt_now: float = math.radians(9.0)  # relative tilt allowed at the commit itself
-    max_deck_speed: float = 0.10  # |heave velocity| allowed at the commit
-    tag_timeout: float = 4.0  # s without the tag before committing on the ranges alone
-    drop_lag: float = 0.4  # s added to the drop-time estimate (the autopilot's velocity lag)
-    heave_alpha: float = 0.35
-    heave_beta: float = 0.06
-    tilt_alpha: float = 0.2
-    tilt_beta: float = 0.015
-    drift_k1: float = 0.2  # 1/s, IMU altitude pulled towards the commanded altitude
-    drift_k2: float = 0.01  # 1/s^2
-
-
-class AlphaBeta:
-    """Alpha-beta tracker of a scalar and its rate."""
-
-    def __init__(self, alpha: float, beta: float) -> None:
-        self.alpha, self.beta = alpha, beta
-        self.x: float | None = None
-        self.v = 0.0
-
-    def reset(self) -> None:
-        self.x, self.v = None, 0.0
-
-    def update(self, z: float | None, dt: float) -> None:
-        """Predict over ``dt``; correct with the measurement ``z`` if there is one."""
-        if self.x is None:
-            self.x = z
-            return
-        self.x += self.v * dt
-        if z is not None:
-            r = z - self.x
-            self.x += self.alpha * r
-            self.v += self.beta * r / dt
-
-
-@dataclass
-class Measurement:
-    """One step's sensing in the level heading frame (x forward along the yaw, y left, z up)."""
-
-    rotation_level: NDArray[np.float64]  # level-from-body (roll and pitch only)
-    tag_xy: NDArray[np.float64] | None  # deck origin, horizontal, from IHRCF
-    tag_yaw: float | None  # deck yaw in the body frame (IHRCF)
-    tag_normal: NDArray[np.float64] | None  # deck normal, level frame (IHRCF)
-    tof_height: float | None  # vertical distance body origin -> deck plane below it
-    tof_normal: NDArray[np.float64] | None  # normal of the plane through the ToF hits, level frame
-    tof_full: bool  # all four beams valid and on one plane
-    accel_z: float  # world vertical acceleration (m/s^2, gravity removed)
-
-
-def _tilt(nx: float, ny: float) -> float:
-    """Angle between the vertical and a unit normal with horizontal components ``nx``, ``ny``."""
-    return math.asin(min(1.0, math.hypot(nx, ny)))
-
-
-class LandingController:
-    """Vision/ToF landing controller for ``action_mode="velocity"``; see the module docstring.
-
-    Args:
-        control_hz: the env's control rate (``env.unwrapped.config.control_hz``).
-        max_velocity: the env's action scale (m/s, m/s, m/s, rad/s).
-        rig: the ToF/camera geometry (the drone's own, not ground truth).
-        config: tunables.
-    """
-
-    def __init__(
-        self,
-        control_hz: int = 20,
-        max_velocity: Sequence[float] = (1.0, 1.0, 1.0, 1.0),
-        rig: SensorRig | None = None,
-        config: LandingConfig | None = None,
-    ) -> None:
-        self.dt = 1.0 / float(control_hz)
-        self.max_velocity = np.asarray(max_velocity, dtype=np.float64)
-        self.rig = rig if rig is not None else SensorRig()
-        self.sensors = self.rig.sensor_positions_body
-        self.cfg = config if config is not None else LandingConfig()
-        self.heave = AlphaBeta(self.cfg.heave_alpha, self.cfg.heave_beta)
-        self.nx = AlphaBeta(self.cfg.tilt_alpha, self.cfg.tilt_beta)
-        self.ny = AlphaBeta(self.cfg.tilt_alpha, self.cfg.tilt_beta)
-        self.reset()
-
-    def reset(self) -> None:
-        """Forget everything (call at every episode start)."""
-        self.phase = "approach"
-        self.t = 0.0
-        self.vz_drone = 0.0  # world vertical velocity, IMU-integrated
-        self.z_drone = 0.0  # altitude relative to the start, IMU-integrated
-        self.z_cmd = 0.0  # integral of the commanded vertical velocity (the autopilot tracks it)
-        self.prev_accel_z: float | None = None
-        self.heave.reset()
-        self.nx.reset()
-        self.ny.reset()
-        self.settled_for = 0.0
-        self.since_tag = 0.0
-        self.seen_tag = False
-        self.height: float | None = None
-        self.commit_time: float | None = None
-
-    # -- sensing ---------------------------------------------------------------------------
-    def measure(self, obs: Mapping[str, Any]) -> Measurement:
-        """Turn the observation (IHRCF, ranges, IMU) into level-frame quantities."""
-        R_wb = matrix_from_quat(np.asarray(obs["imu"]["quaternion"], dtype=np.float64))
-        yaw = math.atan2(R_wb[1, 0], R_wb[0, 0])
-        c, s = math.cos(yaw), math.sin(yaw)
-        Rz_T = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
-        R_lb = Rz_T @ R_wb
-        accel_z = float((R_wb @ np.asarray(obs["imu"]["linear_acceleration"], dtype=np.float64))[2] - GRAVITY)
-
-        tag_xy = tag_yaw = tag_normal = None
-        est = obs["ihrcf"]
-        if int(est["valid"]):
-            p_level = R_lb @ np.asarray(est["position"], dtype=np.float64)
-            tag_xy = p_level[:2]
-            roll, pitch, tag_yaw = (float(v) for v in est["euler"])
-            tag_normal = R_lb @ matrix_from_euler(roll, pitch, tag_yaw)[:, 2]
-
-        ranges = np.asarray(obs["ranges"], dtype=np.float64)
-        valid = np.asarray(obs["ranges_valid"]).astype(bool)
-        tof_height = tof_normal = None
-        tof_full = False
-        if valid.sum() >= 3:
-            # beams run along the optical axis (body -z) from the sensors
-            hits = self.sensors[valid] + ranges[valid, None] * np.array([0.0, 0.0, -1.0])
-            q = hits @ R_lb.T
-            # plane n.x = d in the level frame (unit n, n_z >= 0): least squares on 4, exact on 3
-            tof_normal, d = fit_plane(q)
-            tof_height = -d / float(tof_normal[2])  # depth of the plane below the body origin
-            resid = q @ tof_normal - d
-            tof_full = bool(valid.all() and np.max(np.abs(resid)) < 0.05)
-        elif valid.any():
-            tof_height = float(np.mean(ranges[valid])) - float(self.sensors[0, 2])
-        return Measurement(R_lb, tag_xy, tag_yaw, tag_normal, tof_height, tof_normal, tof_full, accel_z)
-
-    def _update_state(self, m: Measurement) -> None:
-        c, dt = self.cfg, self.dt
-        a_prev = m.accel_z if self.prev_accel_z is None else self.prev_accel_z
-        v_new = self.vz_drone + 0.5 * (a_prev + m.accel_z) * dt
-        self.z_drone += 0.5 * (self.vz_drone + v_new) * dt
-        self.vz_drone = v_new
-        # complementary correction towards the commanded altitude: removes the integration drift
-        e = self.z_cmd - self.z_drone
-        self.z_drone += c.drift_k1 * e * dt
-        self.vz_drone += c.drift_k2 * e * dt
-        self.prev_accel_z = m.accel_z
-        self.height = m.tof_height
-        deck_z = None if m.tof_height is None else self.z_drone - m.tof_height
-        self.heave.update(deck_z, dt)
-        n = m.tag_normal if m.tag_normal is not None else m.tof_normal
-        self.nx.update(None if n is None else float(n[0]), dt)
-        self.ny.update(None if n is None else float(n[1]), dt)
-        if m.tag_xy is not None:
-            self.seen_tag = True
-            self.since_tag = 0.0
-        else:
-            self.since_tag += dt
-
-    # -- decisions -------------------------------------------------------------------------
-    @property
-    def deck_velocity(self) -> float:
-        """Estimated vertical velocity of the deck below the drone (m/s, up positive)."""
-        return self.heave.v if self.heave.x is not None else 0.0
-
-    def predicted_tilt(self, horizon: float) -> float | None:
-        """Deck tilt from the vertical (rad; the relative tilt once the drone is level at touchdown),
-        extrapolated ``horizon`` seconds ahead from the filtered deck normal."""
-        if self.nx.x is None or self.ny.x is None:
-            return None
-        return _tilt(self.nx.x + self.nx.v * horizon, self.ny.x + self.ny.v * horizon)
-
-    def drop_duration(self) -> float:
-        """Expected time (s) from the commit to touchdown."""
-        c = self.cfg
-        clearance = max((self.height or c.hold_height) - c.leg_length, 0.0)
-        fast = max(clearance - c.slow_zone, 0.0)
-        return fast / c.drop_speed + min(clearance, c.slow_zone) / c.touch_speed + c.drop_lag
-
-    def _ready_to_commit(self, m: Measurement) -> bool:
-        c = self.cfg
-        if self.settled_for < c.settle_time:
-            return False
-        horizon = self.drop_duration()
-        now, later = self.predicted_tilt(0.0), self.predicted_tilt(horizon)
-        if now is None or later is None:
-            return False
-        mid = self.predicted_tilt(0.5 * horizon)
-        # the tilt that matters is the one at touchdown; the mid-point guards against a bad extrapolation
-        tilt_ok = max(later, mid if mid is not None else later) < c.commit_tilt and now < c.max_tilt_now
-        heave_ok = abs(self.deck_velocity) < c.max_deck_speed
-        return tilt_ok and heave_ok
-
-    def act(self, obs: Mapping[str, Any]) -> NDArray[np.float32]:
-        """Velocity action in [-1, 1]^4 for this observation."""
-        c = self.cfg
-        m = self.measure(obs)
-        self._update_state(m)
-        self.t += self.dt
-        vx = vy = yaw_rate = 0.0
-        h = self.height
-
-        if self.phase in ("approach", "hold"):
-            if m.tag_xy is not None:
-                vx, vy = (float(np.clip(c.k_xy * v, -c.max_xy_speed, c.max_xy_speed)) for v in m.tag_xy)
-                if m.tag_yaw is not None and c.k_yaw > 0:
-                    yaw_rate = c.k_yaw * math.remainder(m.tag_yaw, math.pi / 2)
-            if h is None:
-                vz = 0.0  # nothing below: hold
-            elif not self.seen_tag:
-                # creep down on the ranges until a detection (a new scale often brings the tag back)
-                vz = -0.15 if h > c.hold_height else 0.0
-            else:  # height on the ranges, riding the heave
-                vz = float(np.clip(-c.k_z * (h - c.hold_height), -c.approach_speed, c.approach_speed))
-                vz += self.deck_velocity
-            centred = m.tag_xy is not None and float(np.hypot(*m.tag_xy)) < c.centred_tolerance
-            near = h is not None and abs(h - c.hold_height) < c.height_tolerance
-            if self.phase == "approach" and near:
-                self.phase = "hold"
-            if self.phase == "hold":
-                # without the tag for a while, all four beams on one plane say "over the deck" enough
-                blind = self.since_tag > c.tag_timeout and m.tof_full
-                self.settled_for = self.settled_for + self.dt if ((centred or blind) and near) else 0.0
-                if self._ready_to_commit(m):
-                    self.phase = "drop"
-                    self.commit_time = self.t
-
-        if self.phase == "drop":
-            clearance = (h - c.leg_length) if h is not None else c.slow_zone
-            speed = c.drop_speed if clearance > c.slow_zone else c.touch_speed
-            vz = self.deck_velocity - speed
-            if m.tag_xy is not None:  # keep centring while the tag is still in view
-                vx, vy = (float(np.clip(c.k_xy * v, -c.max_xy_speed, c.max_xy_speed)) for v in m.tag_xy)
-
-        cmd = np.clip(np.array([vx, vy, vz, yaw_rate]) / self.max_velocity, -1.0, 1.0)
-        self.z_cmd += float(cmd[2] * self.max_velocity[2]) * self.dt  # the autopilot's altitude set-point
-        return cmd.astype(np.float32)
-
-
-# -- evaluation ------------------------------------------------------------------------------
-@dataclass
-class EpisodeResult:
-    """How one episode ended (read from ``info`` after the fact, never used for control)."""
-
-    profile: str
-    seed: int
-    outcome: str  # "success", "crash" or "timeout"
-    reason: str = ""
-    time: float = 0.0  # simulated s at the end
-    speed: float | None = None  # |relative vertical speed| at touchdown (m/s)
-    tilt: float | None = None  # relative tilt at touchdown (rad)
-    commit_time: float | None = None
-
-
-def run_episode(env: gym.Env, controller: LandingController, seed: int, profile: str = "") -> EpisodeResult:
-    """Run one episode with ``controller``; returns its outcome from ``info``."""
-    obs, info = env.reset(seed=seed)
-    controller.reset()
-    while True:
-        obs, _, terminated, truncated, info = env.step(controller.act(obs))
-        if terminated or truncated:
-            break
-    td = info.get("touchdown")
-    outcome = info.get("outcome", "flying")
-    res = EpisodeResult(
-        profile=profile,
-        seed=seed,
-        outcome="timeout" if outcome == "flying" else outcome,
-        reason=info.get("crash_reason", "") if outcome == "crash" else "",
-        time=float(info["time"]),
-        commit_time=controller.commit_time,
-    )
-    if td is not None:
-        res.speed = abs(float(td["relative_vertical_speed"]))
-        res.tilt = float(td["relative_tilt"])
-    return res
-
-
-def summarize(results: Sequence[EpisodeResult]) -> dict[str, Any]:
-    """Success rate, touchdown speed/tilt statistics, time to land, crash reasons."""
-    n = len(results)
-    ok = [r for r in results if r.outcome == "success"]
-    touched = [r for r in results if r.speed is not None]
-    reasons: dict[str, int] = {}
-    for r in results:
-        if r.outcome != "success":
-            key = r.reason or r.outcome  # group "... 0.63 m/s at touchdown" style reasons
-            if key.startswith("vertical speed"):
-                key = "vertical speed >= 0.5 m/s at touchdown"
-            elif key.startswith("tilt") and key.endswith("at touchdown"):
-                key = "tilt >= 10 deg at touchdown"
-            reasons[key] = reasons.get(key, 0) + 1
-    speeds = [r.speed for r in touched if r.speed is not None]
-    tilts = [math.degrees(r.tilt) for r in touched if r.tilt is not None]
-    return {
-        "episodes": n,
-        "successes": len(ok),
-        "success_rate": len(ok) / n if n else 0.0,
-        "speed_mean": float(np.mean(speeds)) if speeds else float("nan"),
-        "speed_max": float(np.max(speeds)) if speeds else float("nan"),
-        "tilt_mean_deg": float(np.mean(tilts)) if tilts else float("nan"),
-        "tilt_max_deg": float(np.max(tilts)) if tilts else float("nan"),
-        "time_mean": float(np.mean([r.time for r in ok])) if ok else float("nan"),
-        "time_max": float(np.max([r.time for r in ok])) if ok else float("nan"),
-        "reasons": reasons,
-    }
-
-
-def evaluate(
-    profile: str,
-    episodes: int,
-    seed: int = 0,
-    tof_noise: str = "ideal",
-    max_seconds: float = 30.0,
-    verbose: bool = True,
-    env_kwargs: Mapping[str, Any] | None = None,
-) -> list[EpisodeResult]:
-    """Run ``episodes`` landings (seeds ``seed .. seed + episodes - 1``) on one deck profile."""
-    kwargs = dict(env_kwargs or {})
-    hz = int(kwargs.get("control_hz", 20))
-    env = gym.make(
-        "ihrcf_env/DeckLanding-v0",
-        deck_profile=profile,
-        tof_noise=tof_noise,
-        keep_image=False,
-        max_episode_steps=max(1, int(round(max_seconds * hz))),
-        **kwargs,
-    )
-    base = env.unwrapped
-    ctrl = LandingController(control_hz=hz, max_velocity=base.max_velocity, rig=base.rig)
-    results = []
-    try:
-        for i in range(episodes):
-            r = run_episode(env, ctrl, seed + i, profile)
-            results.append(r)
-            if verbose:
-                spd = "-" if r.speed is None else f"{r.speed:.2f}"
-                tilt = "-" if r.tilt is None else f"{math.degrees(r.tilt):.1f}"
-                commit = "-" if r.commit_time is None else f"{r.commit_time:.1f}"
-                print(
-                    f"  {profile:9s} seed {r.seed:3d}: {r.outcome:7s} t={r.time:5.1f} s "
-                    f"commit={commit:>5s} s speed={spd:>4s} m/s tilt={tilt:>4s} deg {r.reason}",
-                    flush=True,
-                )
-    finally:
-        env.close()
-    return results
-
-
-def format_summary(profile: str, s: Mapping[str, Any]) -> str:
-    """One block of the printed report."""
-    reasons = ", ".join(f"{k}: {v}" for k, v in sorted(s["reasons"].items())) or "none"
-    return (
-        f"{profile}: success {s['successes']}/{s['episodes']} ({100 * s['success_rate']:.0f} %)\n"
-        f"  touchdown |relative vertical speed| mean {s['speed_mean']:.3f} max {s['speed_max']:.3f} m/s\n"
-        f"  touchdown relative tilt mean {s['tilt_mean_deg']:.2f} max {s['tilt_max_deg']:.2f} deg\n"
-        f"  time to land (successes) mean {s['time_mean']:.1f} max {s['time_max']:.1f} s\n"
-        f"  failures: {reasons}"
-    )
+from ihrcf_env.core.metrics import LandingSummary, format_episode, format_landing_summary, summarize_landings
+from ihrcf_env.experiments.landing import PROFILES, evaluate
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -455,7 +49,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not (math.isfinite(args.max_seconds) and args.max_seconds > 0):
         ap.error("--max-seconds must be positive")
 
-    summaries: dict[str, dict[str, Any]] = {}
+    summaries: dict[str, LandingSummary] = {}
     t0 = time.perf_counter()
     for profile in args.profiles:
         results = evaluate(
@@ -464,17 +58,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.seed,
             args.tof_noise,
             args.max_seconds,
-            verbose=not args.quiet,
             env_kwargs={"control_hz": args.control_hz, "random_deck_start": args.deck_start == "random"},
+            on_episode=None if args.quiet else lambda r: print(format_episode(r), flush=True),
         )
-        summaries[profile] = summarize(results)
+        summaries[profile] = summarize_landings(results)
     wall = time.perf_counter() - t0
     print(
         f"\nlanding report ({args.episodes} episodes per profile, tof_noise={args.tof_noise}, "
         f"deck start {args.deck_start}, wall {wall:.0f} s)"
     )
     for profile, s in summaries.items():
-        print(format_summary(profile, s))
+        print(format_landing_summary(profile, s))
     return 0
 
 

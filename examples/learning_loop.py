@@ -45,6 +45,7 @@ def tracker(obs: np.ndarray) -> np.ndarray:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Command line entry point; returns the exit code."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--steps", type=int, default=100, help="vector steps")
     ap.add_argument("--num-envs", type=int, default=2)

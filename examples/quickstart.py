@@ -15,12 +15,13 @@ import numpy as np
 import ihrcf_env  # noqa: F401  (registers ihrcf_env/DeckLanding-v0)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
+    """Command line entry point; returns the exit code."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seconds", type=float, default=5.0, help="simulated seconds (default 5)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", type=Path, default=Path("out/quickstart"), help="folder for the PNG frames")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
 
     env = gym.make("ihrcf_env/DeckLanding-v0", render_mode="rgb_array", raw=True, chase_size=(640, 480))
@@ -42,7 +43,8 @@ def main() -> None:
     cv2.imwrite(str(args.out / "chase.png"), cv2.cvtColor(env.render(), cv2.COLOR_RGB2BGR))
     env.close()
     print(f"saved {args.out / 'camera.png'} and {args.out / 'chase.png'}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -23,6 +23,7 @@ import argparse
 import contextlib
 import os
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -30,6 +31,8 @@ import gymnasium as gym
 import numpy as np
 
 import ihrcf_env  # noqa: F401  (registers the envs)
+from ihrcf_env.core.metrics import table2_markdown
+from ihrcf_env.experiments.accuracy import accuracy
 
 
 def speed(size: int, steps: int, control_hz: int = 20) -> tuple[float, float]:
@@ -61,13 +64,10 @@ def estimation_ms(frames: int) -> float | None:
     env = gym.make("ihrcf_env/DeckLanding-v0", max_episode_steps=frames + 10)
     try:
         obs, _ = env.reset(seed=0)
-        wrapper = env
-        while not hasattr(wrapper, "estimator"):
-            wrapper = wrapper.env
-        est = wrapper.estimator
+        est = env.get_wrapper_attr("estimator")
         samples = []
         for _ in range(frames):
-            raw = env.unwrapped._get_obs()
+            raw = env.unwrapped._get_obs()  # type: ignore[attr-defined]  # the raw obs, image included
             t0 = time.perf_counter()
             est.estimate(raw["image"], raw["ranges"], raw["ranges_valid"].astype(bool))
             samples.append(time.perf_counter() - t0)
@@ -77,86 +77,23 @@ def estimation_ms(frames: int) -> float | None:
     return 1e3 * float(np.mean(samples))
 
 
-PAPER_TABLE2 = {
-    "ATDA": np.array([0.0162, 0.0134, 0.0697, 2.9843, 1.657, 1.7743]),
-    "IHRCF": np.array([0.0035, 0.0039, 0.0041, 0.98, 1.3731, 1.180]),
-}
 MILD_DISTORTION = (-0.05, 0.0)
 
 
-def accuracy(
-    frames: int, tof_noise: str = "ideal", distortion: tuple[float, float] = (0.0, 0.0), seed: int = 0
-) -> dict[str, dict[str, np.ndarray | int]]:
-    """Per estimator: ``mae`` and ``peak`` (6,) = x, y, z (m), roll, pitch, yaw (deg), and ``invalid``."""
-    calibration = None
-    if tuple(distortion) != (0.0, 0.0):
-        import tempfile
+def calibration_for(distortion: tuple[float, float]) -> str | None:
+    """Calibration file for a camera with radial ``distortion`` (k1, k2), made by the calibrate CLI
+    in a temporary folder; ``None`` (the shipped file) for the undistorted camera."""
+    if tuple(distortion) == (0.0, 0.0):
+        return None
+    from ihrcf_env.cli.calibrate import main as calibrate
 
-        from ihrcf_env.cli.calibrate import main as calibrate
-
-        tmp = tempfile.mkdtemp(prefix="ihrcf_bench_")
-        calibration = str(Path(tmp) / "calibration.json")
-        k1, k2 = distortion
-        argv = ["--k1", str(k1), "--k2", str(k2), "--quiet", "--output", calibration]
-        with open(os.devnull, "w") as sink, contextlib.redirect_stdout(sink):
-            if calibrate(argv) != 0:
-                raise RuntimeError(f"calibration for distortion {distortion} failed")
-    env = gym.make(
-        "ihrcf_env/DeckLanding-v0",
-        calibration=calibration,
-        keep_image=False,
-        tof_noise=tof_noise,
-        camera_distortion=distortion,
-        max_episode_steps=frames + 10,
-        horizon_s=frames / 20 + 2,
-    )
-    errs: dict[str, list[np.ndarray]] = {"IHRCF": [], "ATDA": []}
-    invalid = {"IHRCF": 0, "ATDA": 0}
-    try:
-        env.reset(seed=seed, options={"altitude": 1.0, "offset": (0.0, 0.0), "yaw": 0.0})
-        a = np.zeros(4, dtype=np.float32)
-        for _ in range(frames):
-            obs, *_ = env.step(a)
-            gt = obs["ground_truth"]
-            for name, key in (("IHRCF", "ihrcf"), ("ATDA", "atda")):
-                e = obs[key]
-                if not e["valid"]:
-                    invalid[name] += 1
-                    continue
-                d_ang = (e["euler"].astype(np.float64) - gt["euler"] + np.pi) % (2 * np.pi) - np.pi
-                errs[name].append(np.r_[e["position"] - gt["position"], np.degrees(d_ang)])
-    finally:
-        env.close()
-    out: dict[str, dict[str, np.ndarray | int]] = {}
-    for name, rows in errs.items():
-        a_err = np.abs(np.array(rows)) if rows else np.full((1, 6), np.nan)
-        out[name] = {"mae": a_err.mean(axis=0), "peak": a_err.max(axis=0), "invalid": invalid[name]}
-    return out
-
-
-def table2(result: dict[str, dict[str, np.ndarray | int]], title: str, frames: int) -> str:
-    """Markdown table in the layout of the paper's Table 2 (plus peaks and the paper's values)."""
-    lines = [
-        f"**{title}** ({frames} frames, mean absolute error; peak in brackets)",
-        "",
-        "| | ATDA | | | IHRCF | | | paper ATDA | | | paper IHRCF | | |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    for label, sl, fmt in (
-        ("Translations (m) X/Y/Z", slice(0, 3), "{:.4f}"),
-        ("Angles (deg) roll/pitch/yaw", slice(3, 6), "{:.3f}"),
-    ):
-        cells = []
-        for name in ("ATDA", "IHRCF"):
-            mae, peak = result[name]["mae"][sl], result[name]["peak"][sl]
-            cells += [f"{fmt.format(m)} ({fmt.format(p)})" for m, p in zip(mae, peak, strict=True)]
-        for name in ("ATDA", "IHRCF"):
-            cells += [fmt.format(v) for v in PAPER_TABLE2[name][sl]]
-        lines.append(f"| {label} | " + " | ".join(cells) + " |")
-    lines.append(
-        f"| invalid frames | {result['ATDA']['invalid']} | | | {result['IHRCF']['invalid']} | | | | | | | | |"
-    )
-    return "\n".join(lines)
+    path = str(Path(tempfile.mkdtemp(prefix="ihrcf_bench_")) / "calibration.json")
+    k1, k2 = distortion
+    argv = ["--k1", str(k1), "--k2", str(k2), "--quiet", "--output", path]
+    with open(os.devnull, "w") as sink, contextlib.redirect_stdout(sink):
+        if calibrate(argv) != 0:
+            raise RuntimeError(f"calibration for distortion {distortion} failed")
+    return path
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -196,9 +133,9 @@ def main(argv: list[str] | None = None) -> int:
         for noise in ("ideal", "realistic"):
             for dist in ((0.0, 0.0), MILD_DISTORTION):
                 t0 = time.perf_counter()
-                res = accuracy(args.accuracy_frames, noise, dist)
+                res = accuracy(args.accuracy_frames, noise, dist, calibration=calibration_for(dist))
                 kind = "no distortion" if dist == (0.0, 0.0) else f"distortion k1 = {dist[0]}"
-                text = table2(res, f"ToF {noise}, {kind}", args.accuracy_frames)
+                text = table2_markdown(res, f"ToF {noise}, {kind}")
                 print()
                 print(text)
                 print(f"({time.perf_counter() - t0:.0f} s)", flush=True)

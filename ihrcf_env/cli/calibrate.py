@@ -18,36 +18,44 @@ import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, TextIO
 
+from tqdm import tqdm
+
 from ihrcf_env.core.rig import SensorRig
 
 if TYPE_CHECKING:
     from ihrcf_env.sim.calibration_procedure import CalibrationRun
 
 
-class ProgressBar:
-    """A minimal text progress bar (one line, redrawn with carriage returns) for a text stream."""
+class PhaseProgress:
+    """The ``progress(phase, done, total)`` callback of
+    :func:`ihrcf_env.sim.calibration_procedure.run_calibration`, drawn with tqdm on ``stream``:
+    one bar per phase (``chessboard`` views, then ``ascent`` stages)."""
 
-    def __init__(self, stream: TextIO, width: int = 30) -> None:
+    def __init__(self, stream: TextIO) -> None:
         self.stream = stream
-        self.width = width
         self._phase: str | None = None
+        self._bar: tqdm | None = None
 
     def __call__(self, phase: str, done: int, total: int) -> None:
-        """Redraw for ``done`` of ``total`` steps of ``phase``; a new phase starts a new line."""
-        if self._phase is not None and phase != self._phase:
-            self.stream.write("\n")
-        self._phase = phase
-        frac = 0.0 if total <= 0 else min(1.0, done / total)
-        filled = int(round(frac * self.width))
-        bar = "#" * filled + "-" * (self.width - filled)
-        self.stream.write(f"\r{phase:<10} [{bar}] {done}/{total}")
-        self.stream.flush()
+        """Show ``done`` of ``total`` steps of ``phase``; a new phase starts a new bar."""
+        if self._bar is None or phase != self._phase or total != self._bar.total:
+            self.close()
+            self._phase = phase
+            self._bar = tqdm(
+                total=max(total, 0),
+                desc=f"{phase:<10}",
+                file=self.stream,
+                ascii=" #",
+                bar_format="{desc} [{bar:30}] {n_fmt}/{total_fmt} {elapsed}<{remaining}",
+                dynamic_ncols=False,
+            )
+        self._bar.update(min(done, total) - self._bar.n)
 
     def close(self) -> None:
-        if self._phase is not None:
-            self.stream.write("\n")
-            self.stream.flush()
-            self._phase = None
+        """Finish the current bar, if any."""
+        if self._bar is not None:
+            self._bar.close()
+            self._bar, self._phase = None, None
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -102,7 +110,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     out = args.output or f"calibration_{args.width}x{args.height}_fov{args.fov_deg:g}.json"
-    bar = ProgressBar(sys.stderr) if not args.quiet else None
+    bar = PhaseProgress(sys.stderr) if not args.quiet else None
     t0 = time.perf_counter()
     try:
         run = run_calibration(

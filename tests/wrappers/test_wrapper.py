@@ -9,6 +9,7 @@ from gymnasium.utils.env_checker import check_env
 
 import ihrcf_env  # noqa: F401
 from ihrcf_env.core.calibration import CalibrationError
+from ihrcf_env.experiments.accuracy import hover_rollout
 from ihrcf_env.wrappers.estimates import DeckPoseObservation
 
 ENV_ID = "ihrcf_env/DeckLanding-v0"
@@ -109,32 +110,15 @@ def test_camera_off_needs_raw():
         gym.make(ENV_ID, camera=False)
 
 
-def _errors(env, n, seed=0):
-    obs, _ = env.reset(seed=seed, options={"altitude": 1.0, "offset": (0.0, 0.0), "yaw": 0.0})
-    err = {"ihrcf": [], "atda": []}
-    invalid = {"ihrcf": 0, "atda": 0}
-    for _ in range(n):
-        obs, *_ = env.step(np.zeros(4))
-        gt = obs["ground_truth"]
-        for key in err:
-            e = obs[key]
-            if e["valid"]:
-                d_ang = (e["euler"] - gt["euler"] + np.pi) % (2 * np.pi) - np.pi
-                err[key].append(np.r_[e["position"] - gt["position"], np.degrees(d_ang)])
-            else:
-                invalid[key] += 1
-    return {k: np.abs(np.array(v)) for k, v in err.items()}, invalid
-
-
 def test_ihrcf_beats_the_paper_over_100_frames_and_atda_on_height():
     env = gym.make(ENV_ID, keep_image=False)
     try:
-        err, invalid = _errors(env, 120)
+        stats = hover_rollout(env, 120).error_stats()
     finally:
         env.close()
-    assert invalid["ihrcf"] == 0 and invalid["atda"] == 0
-    mae_ihrcf = err["ihrcf"].mean(axis=0)
-    mae_atda = err["atda"].mean(axis=0)
+    assert stats["ihrcf"].invalid == 0 and stats["atda"].invalid == 0
+    mae_ihrcf = stats["ihrcf"].mae
+    mae_atda = stats["atda"].mae
     assert np.all(mae_ihrcf < PAPER_IHRCF), mae_ihrcf
     # the target with ideal sensors: <= 1 mm per axis, <= 0.3 deg per angle
     assert np.all(mae_ihrcf[:3] <= 0.001) and np.all(mae_ihrcf[3:] <= 0.3), mae_ihrcf
@@ -144,11 +128,12 @@ def test_ihrcf_beats_the_paper_over_100_frames_and_atda_on_height():
 def test_realistic_tof_still_valid_and_finite():
     env = gym.make(ENV_ID, keep_image=False, tof_noise="realistic")
     try:
-        err, invalid = _errors(env, 60, seed=3)
+        rec = hover_rollout(env, 60, seed=3)
     finally:
         env.close()
-    assert len(err["ihrcf"]) >= 40  # a dropout may cost a frame, never the run
-    assert np.all(np.isfinite(err["ihrcf"]))
+    valid = rec.valid["ihrcf"]
+    assert valid.sum() >= 40  # a dropout may cost a frame, never the run
+    assert np.all(np.isfinite(rec.pose_errors("ihrcf")[valid]))
 
 
 def test_distorted_camera_needs_a_calibration_made_for_it(tmp_path):
