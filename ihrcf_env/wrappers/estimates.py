@@ -152,6 +152,13 @@ def check_wrapper_options(
     return check_estimator_names(estimators)
 
 
+def _load_calibration(calibration: Calibration | str | os.PathLike[str] | None) -> Calibration:
+    """The calibration itself, the file at a path, or the shipped file for None."""
+    if isinstance(calibration, Calibration):
+        return calibration
+    return Calibration.load(default_calibration_path() if calibration is None else calibration)
+
+
 def _pose_space() -> spaces.Dict:
     return spaces.Dict(
         {
@@ -236,12 +243,7 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
                 "camera=False leaves IHRCF and ATDA without an image: use camera=True, or raw=True "
                 "(gym.make) / the raw env for a camera-less simulation"
             )
-        if calibration is None:
-            cal = Calibration.load(default_calibration_path())
-        elif isinstance(calibration, Calibration):
-            cal = calibration
-        else:
-            cal = Calibration.load(calibration)
+        cal = _load_calibration(calibration)
         cal.check_matches(cam.width, cam.height, cam.fov, base.rig, distortion=cam.distortion)
         self.calibration = cal
         deck = base.config.deck
@@ -346,18 +348,20 @@ def make_deck_landing(
     """Entry point of ``ihrcf_env/DeckLanding-v0``: the env wrapped with :class:`DeckPoseObservation`,
     or the raw :class:`~ihrcf_env.envs.deck_landing.DeckLandingEnv` with ``raw=True``.
 
-    The wrapper's options are checked before the env is built; if the wrapper still fails, the env
-    is closed before the error propagates."""
+    The wrapper's options are checked and the calibration file is read before the env is built; if
+    the wrapper still fails (e.g. a calibration made for another camera), the env is closed before
+    the error propagates."""
     names = check_wrapper_options(calibration, keep_image, flatten, max_residual, estimators, raw)
     from ihrcf_env.envs.deck_landing import DeckLandingEnv
 
-    env = DeckLandingEnv(**env_kwargs)
     if raw:
-        return env
+        return DeckLandingEnv(**env_kwargs)
+    cal = _load_calibration(calibration)
+    env = DeckLandingEnv(**env_kwargs)
     try:
         return DeckPoseObservation(
             env,
-            calibration=calibration,
+            calibration=cal,
             keep_image=keep_image,
             flatten=flatten,
             max_residual=max_residual,
