@@ -8,12 +8,19 @@ scalar time is wrapped by :class:`CallableProfile`.
 
 from __future__ import annotations
 
+import functools
+import itertools
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from numbers import Real
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import minimize
+from scipy.spatial.transform import Rotation
+
+from ihrcf_env.core.stewart import StewartGeometry
 
 PoseArrays = tuple[NDArray[np.float64], NDArray[np.float64]]
 
@@ -95,6 +102,34 @@ SEA_STATE_AMPLITUDES: dict[str, float] = {
 }
 
 
+def sea_state_amplitudes(amplitudes: Mapping[str, float] | None = None) -> dict[str, float]:
+    """The full per-DOF amplitudes of a sea state: :data:`SEA_STATE_AMPLITUDES` updated by
+    ``amplitudes``. Raises TypeError (not a mapping of names to real numbers) or ValueError
+    (unknown degree of freedom, negative or non-finite amplitude), naming ``sea_state_amplitudes``."""
+    amps = dict(SEA_STATE_AMPLITUDES)
+    if amplitudes is None:
+        return amps
+    if not isinstance(amplitudes, Mapping):
+        raise TypeError(
+            f"sea_state_amplitudes must be a mapping {{dof: amplitude}} with dof in {DOFS}, "
+            f"got {type(amplitudes).__name__}"
+        )
+    unknown = set(amplitudes) - set(DOFS)
+    if unknown:
+        raise ValueError(
+            f"sea_state_amplitudes has unknown degrees of freedom {sorted(map(str, unknown))}; use {DOFS}"
+        )
+    for k, v in amplitudes.items():
+        if isinstance(v, bool | np.bool_) or not isinstance(v, Real):
+            raise TypeError(
+                f"sea_state_amplitudes[{k!r}] must be a real number (m or rad), got {type(v).__name__} {v!r}"
+            )
+        if not (math.isfinite(v) and v >= 0):
+            raise ValueError(f"sea_state_amplitudes[{k!r}] must be finite and >= 0, got {v!r}")
+        amps[k] = float(v)
+    return amps
+
+
 def sea_state_profile(
     rng: np.random.Generator,
     amplitudes: Mapping[str, float] | None = None,
@@ -104,18 +139,9 @@ def sea_state_profile(
     """Seeded sea-state-like motion: per DOF, ``n_components`` sinusoids with random periods in
     ``period_range`` (s) and random phases; their amplitudes are random weights normalised so the
     peak of the sum never exceeds the DOF's amplitude in ``amplitudes`` (defaults
-    :data:`SEA_STATE_AMPLITUDES`; unknown keys raise ValueError)."""
-    amps = dict(SEA_STATE_AMPLITUDES)
-    if amplitudes is not None:
-        unknown = set(amplitudes) - set(DOFS)
-        if unknown:
-            raise ValueError(
-                f"sea_state amplitudes has unknown degrees of freedom {sorted(unknown)}; use {DOFS}"
-            )
-        for k, v in amplitudes.items():
-            if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"sea_state amplitude {k!r} must be finite and >= 0, got {v!r}")
-            amps[k] = float(v)
+    :data:`SEA_STATE_AMPLITUDES`; see :func:`sea_state_amplitudes` for the errors). Whether the
+    legs can follow it for every seed is :func:`check_sea_state_amplitudes`' job."""
+    amps = sea_state_amplitudes(amplitudes)
     lo, hi = period_range
     if not (0 < lo <= hi):
         raise ValueError(f"period_range must satisfy 0 < lo <= hi, got {period_range}")
@@ -133,8 +159,101 @@ def sea_state_profile(
     return SumOfSines(components=tuple(comps), name="sea_state")
 
 
+#: Grid points per degree of freedom (including both ends) of the sea-state stroke check.
+SEA_STATE_CHECK_POINTS = 5
+
+
+def _leg_lengths_of_poses(geometry: StewartGeometry, poses: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Leg lengths (N, 6) of deck poses (N, 6) = (surge, sway, heave, roll, pitch, yaw) from home."""
+    R = Rotation.from_euler("ZYX", poses[:, 5:2:-1]).as_matrix()
+    return geometry.leg_lengths(geometry.home_position + poses[:, :3], R)
+
+
+@functools.lru_cache(maxsize=64)
+def _sea_state_leg_extremes(
+    amps: tuple[float, ...], geometry: StewartGeometry
+) -> tuple[float, NDArray[np.float64], int, float, NDArray[np.float64], int]:
+    """(min length, its pose, its leg, max length, its pose, its leg) over the box +-amps."""
+    a = np.asarray(amps)
+    axes = [np.linspace(-x, x, SEA_STATE_CHECK_POINTS) if x > 0 else np.zeros(1) for x in a]
+    corners = np.array(list(itertools.product(*[(-x, x) for x in a])))  # 64 (with repeats if x = 0)
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 6)
+    poses = np.concatenate([corners, grid])
+    legs = _leg_lengths_of_poses(geometry, poses)
+    bounds = [(-x, x) for x in a]
+    lo = (np.inf, poses[0], 0)
+    hi = (-np.inf, poses[0], 0)
+    for leg in range(6):
+        for sign in (1.0, -1.0):  # +1: minimise the length, -1: maximise it
+            x0 = poses[int(np.argmin(sign * legs[:, leg]))]
+
+            def f(x: NDArray[np.float64], leg: int = leg, sign: float = sign) -> float:
+                return float(sign * _leg_lengths_of_poses(geometry, x[None, :])[0, leg])
+
+            res = minimize(f, x0, method="L-BFGS-B", bounds=bounds)
+            x = np.clip(res.x if res.fun < f(x0) else x0, -a, a)
+            length = float(_leg_lengths_of_poses(geometry, x[None, :])[0, leg])
+            if sign > 0 and length < lo[0]:
+                lo = (length, x, leg)
+            if sign < 0 and length > hi[0]:
+                hi = (length, x, leg)
+    return lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+
+
+def check_sea_state_amplitudes(
+    amplitudes: Mapping[str, float] | None, geometry: StewartGeometry | None = None
+) -> None:
+    """Raise ValueError naming ``sea_state_amplitudes`` unless the legs of ``geometry`` can follow
+    every sea state with these amplitudes, for every seed and for all time.
+
+    A sea state keeps each DOF within +-its amplitude, and its sinusoids' random periods can line
+    up any combination of values in that box. So the whole box (offset from the home pose, roll/
+    pitch/yaw) is checked against the stroke: its 64 corners, a grid of
+    :data:`SEA_STATE_CHECK_POINTS` points per DOF, and a local (bounded L-BFGS-B) refinement of
+    each leg's shortest and longest grid pose (leg length is not convex in the pose, so the corners
+    alone do not suffice in general).
+    """
+    amps = sea_state_amplitudes(amplitudes)
+    g = geometry if geometry is not None else StewartGeometry()
+    lo, lo_pose, lo_leg, hi, hi_pose, hi_leg = _sea_state_leg_extremes(tuple(amps[d] for d in DOFS), g)
+    for length, pose, leg in ((lo, lo_pose, lo_leg), (hi, hi_pose, hi_leg)):
+        if not (g.min_leg <= length <= g.max_leg):
+            where = ", ".join(
+                f"{d} {v:+.3f} {'m' if k < 3 else 'rad'}"
+                for k, (d, v) in enumerate(zip(DOFS, pose, strict=True))
+            )
+            given = dict(amplitudes) if amplitudes is not None else {}
+            raise ValueError(
+                f"sea_state_amplitudes {given} can drive the deck out of the Stewart legs' stroke: "
+                f"a sea state may reach any pose with every degree of freedom within +-its amplitude "
+                f"({', '.join(f'{d} {amps[d]:.3f}' for d in DOFS)}), and at ({where}) leg {leg + 1} "
+                f"would be {length:.4f} m, allowed [{g.min_leg:.4f}, {g.max_leg:.4f}] m; reduce the "
+                f"amplitudes (the defaults, SEA_STATE_AMPLITUDES, fit)"
+            )
+
+
+class UnusablePoseError(ValueError):
+    """A profile gave no usable pose at ``time`` (s): the callable raised, or returned the wrong
+    shape or a non-finite value. ``offset`` and ``rpy`` hold the poses sampled before it (the first
+    ``index`` times asked for)."""
+
+    def __init__(
+        self, message: str, time: float, index: int, offset: NDArray[np.float64], rpy: NDArray[np.float64]
+    ) -> None:
+        super().__init__(message)
+        self.time = time
+        self.index = index
+        self.offset = offset
+        self.rpy = rpy
+
+
 class CallableProfile(MotionProfile):
-    """Wraps a user function ``t -> pose`` where pose is ``(offset (3,), rpy (3,))`` or a (6,) array."""
+    """Wraps a user function ``t -> pose`` where pose is ``(offset (3,), rpy (3,))`` or a (6,) array.
+
+    :meth:`sample` raises :class:`UnusablePoseError` (a ValueError naming the time) at the first
+    time whose pose is unusable: the function raised, or returned the wrong shape or a non-finite
+    value.
+    """
 
     name = "callable"
 
@@ -147,24 +266,47 @@ class CallableProfile(MotionProfile):
         t = np.asarray(t, dtype=np.float64)
         out = np.empty((t.shape[0], 6))
         for i, ti in enumerate(t):
-            v = self.fn(float(ti))
+            problem = ""
             try:
+                v = self.fn(float(ti))
                 arr = (
                     np.concatenate([np.ravel(np.asarray(x, dtype=np.float64)) for x in v])
                     if isinstance(v, tuple)
                     else np.ravel(np.asarray(v, dtype=np.float64))
                 )
-            except (TypeError, ValueError) as e:
-                raise ValueError(
-                    f"deck profile callable returned an unusable pose at t = {ti:.3f} s: {e}"
-                ) from e
-            if arr.shape != (6,) or not np.all(np.isfinite(arr)):
-                raise ValueError(
-                    f"deck profile callable must return (offset (3,), rpy (3,)) or a finite (6,) array; "
-                    f"got {arr.shape} / non-finite at t = {ti:.3f} s"
+            except Exception as e:  # the user's function failed, or its value is not numbers
+                problem = (
+                    f"deck profile callable gave no usable pose at t = {ti:.3f} s: {type(e).__name__}: {e}"
                 )
+                cause: Exception | None = e
+            else:
+                cause = None
+                if arr.shape != (6,) or not np.all(np.isfinite(arr)):
+                    problem = (
+                        f"deck profile callable must return (offset (3,), rpy (3,)) or a finite (6,) "
+                        f"array; got {arr.shape} / non-finite at t = {ti:.3f} s"
+                    )
+            if problem:
+                raise UnusablePoseError(
+                    problem, float(ti), i, out[:i, :3].copy(), out[:i, 3:].copy()
+                ) from cause
             out[i] = arr
         return out[:, :3], out[:, 3:]
+
+
+def sample_until_unusable(profile: MotionProfile, t: NDArray[np.float64]) -> PoseArrays:
+    """``profile.sample(t)``, but from the first unusable pose on (see :class:`UnusablePoseError`)
+    the rows are NaN instead of an exception: for sampling beyond a checked horizon, where the
+    deck then stops (a non-finite pose counts as leaving the legs' stroke)."""
+    try:
+        return profile.sample(t)
+    except UnusablePoseError as e:
+        n = np.asarray(t).shape[0]
+        offset = np.full((n, 3), np.nan)
+        rpy = np.full((n, 3), np.nan)
+        offset[: e.index] = e.offset
+        rpy[: e.index] = e.rpy
+        return offset, rpy
 
 
 class ShiftedProfile(MotionProfile):

@@ -31,8 +31,8 @@ Truncation only by ``max_episode_steps`` (TimeLimit).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, ClassVar, NoReturn, SupportsIndex
 
 import gymnasium as gym
 import numpy as np
@@ -41,16 +41,29 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from ihrcf_env.core.frames import euler_from_matrix, quat_from_matrix
-from ihrcf_env.core.profiles import PAPER_DURATION, MotionProfile, ShiftedProfile, make_profile
+from ihrcf_env.core.profiles import PAPER_DURATION, MotionProfile, ShiftedProfile
 from ihrcf_env.core.rig import SensorRig
-from ihrcf_env.sim.deck import DeckConfig
-from ihrcf_env.sim.sensors import CameraConfig, ToFConfig
-from ihrcf_env.sim.world import ACTION_MODES, Snapshot, Touchdown, World, WorldConfig
+from ihrcf_env.envs.config import (
+    ARENA_MARGIN,
+    MIN_START_ALTITUDE,
+    DeckLandingConfig,
+    TaskConfig,
+    check_real,
+    check_reals,
+    make_config,
+)
+from ihrcf_env.envs.display import require_gui_display
+from ihrcf_env.sim.disturbances import Disturbance
+from ihrcf_env.sim.sensors import CameraConfig
+from ihrcf_env.sim.world import Snapshot, Touchdown, World, WorldConfig
 
-SUCCESS_SPEED = 0.5  # m/s
-SUCCESS_TILT = math.radians(10.0)
-CRASH_TILT = math.radians(60.0)
-DEFAULT_HORIZON_S = 600.0
+RESET_OPTIONS = ("altitude", "offset", "yaw", "deck_time")
+
+_NO_COPY = (
+    "a DeckLandingEnv owns a live PyBullet physics client, which cannot be copied or pickled; make "
+    "another env with gym.make(...) and the same kwargs instead (vector envs: pass a function that "
+    "makes the env, as gym.vector.AsyncVectorEnv expects)"
+)
 
 
 class DeckLandingEnv(gym.Env):
@@ -59,9 +72,20 @@ class DeckLandingEnv(gym.Env):
     Frames and conventions: see :mod:`ihrcf_env.core.frames`. Ground truth is in ``info``: the deck
     pose in the drone body frame (``deck_position_body`` m, ``deck_euler_body`` roll/pitch/yaw rad),
     world poses of drone and deck, the six leg lengths and contact flags.
+
+    The keyword arguments are validated into a :class:`~ihrcf_env.envs.config.DeckLandingConfig`
+    (:func:`~ihrcf_env.envs.config.make_config`) before any PyBullet client exists; a bad one raises
+    TypeError or ValueError naming it. ``self.config`` is the world's
+    :class:`~ihrcf_env.sim.world.WorldConfig`, ``self.task`` the
+    :class:`~ihrcf_env.envs.config.TaskConfig`. ``disturbances`` (see
+    :mod:`ihrcf_env.sim.disturbances`) push the drone at every physics step; each env deep-copies
+    them. The env cannot be copied or pickled (it owns a physics client) and, once closed, raises
+    RuntimeError on use. Only one ``render_mode="human"`` env can be open per process (one PyBullet
+    GUI).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
+    _gui_owner: ClassVar[DeckLandingEnv | None] = None
 
     def __init__(
         self,
@@ -89,99 +113,60 @@ class DeckLandingEnv(gym.Env):
         arena_ceiling: float = 6.0,
         horizon_s: float | None = None,
         chase_size: tuple[int, int] = (640, 480),
+        disturbances: Sequence[Disturbance] = (),
     ) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
-                f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}"
-            )
-        if action_mode not in ACTION_MODES:
-            raise ValueError(f"action_mode must be one of {ACTION_MODES}, got {action_mode!r}")
-        if isinstance(deck_profile, str) and deck_profile not in ("paper", "sea_state", "static"):
-            raise ValueError(
-                f"deck_profile must be 'paper', 'sea_state', 'static' or a callable, got {deck_profile!r}"
-            )
-        if not isinstance(deck_profile, str | MotionProfile) and not callable(deck_profile):
-            raise ValueError(
-                f"deck_profile must be a name or a callable t -> pose, got {type(deck_profile).__name__}"
-            )
-        for name, val in (
-            ("start_altitude", start_altitude),
-            ("arena_half_width", arena_half_width),
-            ("arena_ceiling", arena_ceiling),
-        ):
-            if not (math.isfinite(val) and val > 0):
-                raise ValueError(f"{name} must be positive, got {val!r}")
-        for name, val in (
-            ("start_altitude_jitter", start_altitude_jitter),
-            ("start_offset", start_offset),
-            ("start_yaw", start_yaw),
-        ):
-            if not (math.isfinite(val) and val >= 0):
-                raise ValueError(f"{name} must be >= 0, got {val!r}")
-        mv = np.asarray(max_velocity, dtype=np.float64)
-        if mv.shape != (4,) or not np.all(np.isfinite(mv)) or np.any(mv <= 0):
-            raise ValueError(
-                f"max_velocity must be 4 positive numbers (m/s, m/s, m/s, rad/s), got {max_velocity!r}"
-            )
-        if horizon_s is not None and not (math.isfinite(horizon_s) and horizon_s > 0):
-            raise ValueError(f"horizon_s must be positive (s), got {horizon_s!r}")
-
-        cam_cfg = None
-        if camera:
-            k = np.asarray(camera_distortion, dtype=np.float64)
-            if k.shape != (2,):
-                raise ValueError(f"camera_distortion must be (k1, k2), got {camera_distortion!r}")
-            cam_cfg = CameraConfig(
-                width=camera_width,
-                height=camera_height,
-                fov=camera_fov,
-                distortion=(float(k[0]), float(k[1])),
-            )
-        self.config = WorldConfig(
-            control_hz=control_hz,
-            camera=cam_cfg,
-            tof=ToFConfig(max_range=tof_max_range, noise=tof_noise),
-            deck=DeckConfig(tag_id=tag_id, tag_size=tag_size),
+        self._closed = True  # until the world exists
+        cfg = make_config(
+            render_mode=render_mode,
             action_mode=action_mode,
+            control_hz=control_hz,
+            deck_profile=deck_profile,
+            sea_state_amplitudes=sea_state_amplitudes,
+            random_deck_start=random_deck_start,
+            camera=camera,
+            camera_width=camera_width,
+            camera_height=camera_height,
+            camera_fov=camera_fov,
+            camera_distortion=camera_distortion,
+            tof_noise=tof_noise,
+            tof_max_range=tof_max_range,
+            tag_id=tag_id,
+            tag_size=tag_size,
+            start_altitude=start_altitude,
+            start_altitude_jitter=start_altitude_jitter,
+            start_offset=start_offset,
+            start_yaw=start_yaw,
+            max_velocity=max_velocity,
+            arena_half_width=arena_half_width,
+            arena_ceiling=arena_ceiling,
+            horizon_s=horizon_s,
+            chase_size=chase_size,
+            disturbances=disturbances,
         )
-        self.render_mode = render_mode
-        self.metadata = {**self.metadata, "render_fps": control_hz}
-        self.deck_profile = deck_profile
-        self.sea_state_amplitudes = dict(sea_state_amplitudes) if sea_state_amplitudes is not None else None
-        if isinstance(deck_profile, str) and deck_profile == "sea_state":
-            make_profile(
-                "sea_state", np.random.default_rng(0), self.sea_state_amplitudes
-            )  # validate amplitudes now
-        self.start_altitude = float(start_altitude)
-        self.start_altitude_jitter = float(start_altitude_jitter)
-        self.start_offset = float(start_offset)
-        self.start_yaw = float(start_yaw)
-        self.max_velocity = mv
-        self.arena_half_width = float(arena_half_width)
-        self.arena_ceiling = float(arena_ceiling)
-        self.horizon_s = horizon_s
-        self.random_deck_start = bool(random_deck_start)
-        self.chase_size = (int(chase_size[0]), int(chase_size[1]))
-
-        tof_max = np.float32(tof_max_range)
-        obs: dict[str, spaces.Space] = {}
-        if cam_cfg is not None:
-            obs["image"] = spaces.Box(0, 255, (camera_height, camera_width, 3), np.uint8)
-        obs["ranges"] = spaces.Box(np.float32(0.0), tof_max, (4,), np.float32)
-        obs["ranges_valid"] = spaces.MultiBinary(4)
-        obs["imu"] = spaces.Dict(
-            {
-                "quaternion": spaces.Box(-1.0, 1.0, (4,), np.float32),
-                "angular_velocity": spaces.Box(-50.0, 50.0, (3,), np.float32),
-                "linear_acceleration": spaces.Box(-200.0, 200.0, (3,), np.float32),
-            }
-        )
-        self.observation_space = spaces.Dict(obs)
+        gui = cfg.render_mode == "human"
+        if gui:
+            self._claim_gui()
+        self.settings: DeckLandingConfig = cfg
+        self.config: WorldConfig = cfg.world
+        self.task: TaskConfig = cfg.task
+        self.render_mode = cfg.render_mode
+        self.chase_size = cfg.chase_size
+        self.metadata = {**self.metadata, "render_fps": cfg.world.control_hz}
+        self.observation_space = _observation_space(cfg.world)
         self.action_space = spaces.Box(-1.0, 1.0, (4,), np.float32)
+        self._profile: MotionProfile | None = None  # None: no episode yet (reset() first)
+        self._episode_over = False
+        self._last_touchdown: Touchdown | None = None
 
-        self.world = World(self.config, gui=render_mode == "human")
-        self._state_id = p.saveState(physicsClientId=self.world.client)
-        self._profile: MotionProfile | None = None
+        self.world = World(self.config, gui=gui)  # releases its client itself if it fails
+        self._closed = False
+        try:
+            for d in cfg.disturbances:
+                self.world.add_disturbance(d)
+            self._state_id = p.saveState(physicsClientId=self.world.client)
+        except BaseException:
+            self.close()
+            raise
 
     # -- gymnasium API -------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict, dict]:
@@ -191,46 +176,22 @@ class DeckLandingEnv(gym.Env):
         above the deck origin, a horizontal offset uniform in ``+-start_offset`` per axis (m) and a
         yaw uniform in ``+-start_yaw`` (rad). With ``random_deck_start`` the deck's motion starts at a
         time uniform in [0, 130) s of its profile instead of at t = 0. ``options`` may fix
-        ``altitude`` (m), ``offset`` ((x, y) m, world), ``yaw`` (rad) and ``deck_time`` (s).
+        ``altitude`` (m, in [0.3 m, the highest start allowed by arena_ceiling]), ``offset``
+        ((x, y) m, world), ``yaw`` (rad) and ``deck_time`` (s).
         """
+        self._check_open()
         super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = set(options) - {"altitude", "offset", "yaw", "deck_time"}
-        if unknown:
-            raise ValueError(
-                f"reset options has unknown keys {sorted(unknown)}; known: altitude, offset, yaw, deck_time"
-            )
-        rng = self.np_random
-        alt = self.start_altitude + rng.uniform(-1, 1) * self.start_altitude_jitter
-        off = rng.uniform(-1, 1, 2) * self.start_offset
-        yaw = rng.uniform(-1, 1) * self.start_yaw
-        if "altitude" in options:
-            alt = float(options["altitude"])
-            if not (math.isfinite(alt) and 0.15 < alt < self.arena_ceiling):
-                raise ValueError(
-                    f"options['altitude'] must be in (0.15, {self.arena_ceiling}) m, got {alt!r}"
-                )
-        if "offset" in options:
-            off = np.asarray(options["offset"], dtype=np.float64)
-            if off.shape != (2,) or not np.all(np.isfinite(off)):
-                raise ValueError(f"options['offset'] must be 2 finite numbers (m), got {options['offset']!r}")
-        if "yaw" in options:
-            yaw = float(options["yaw"])
-            if not math.isfinite(yaw):
-                raise ValueError(f"options['yaw'] must be finite (rad), got {yaw!r}")
-
-        deck_time = rng.uniform(0.0, PAPER_DURATION) if self.random_deck_start else 0.0
-        if "deck_time" in options:
-            deck_time = float(options["deck_time"])
-            if not (math.isfinite(deck_time) and deck_time >= 0):
-                raise ValueError(f"options['deck_time'] must be a finite time >= 0 (s), got {deck_time!r}")
-        profile = make_profile(self.deck_profile, rng, self.sea_state_amplitudes)
-        self._profile = ShiftedProfile(profile, deck_time) if deck_time else profile
+        alt, off, yaw, deck_time = self._draw_start(dict(options or {}))
+        profile = self.task.deck.make_profile(self.np_random)
+        if deck_time:
+            profile = ShiftedProfile(profile, deck_time)
+        self._profile = None  # no episode while the world is being reset (or if that fails)
         p.restoreState(stateId=self._state_id, physicsClientId=self.world.client)
-        self.world.reset(
-            self._profile, self._horizon(), altitude=alt, offset_xy=(float(off[0]), float(off[1])), yaw=yaw
-        )
-        self._last_touchdown: Touchdown | None = None
+        self.world.reset(profile, self.task.deck.horizon_s, altitude=alt, offset_xy=off, yaw=yaw)
+        self.world.reset_random(self.np_random)
+        self._profile = profile
+        self._episode_over = False
+        self._last_touchdown = None
         obs = self._get_obs()
         info = self._get_info(self.world.snapshot())
         if self.render_mode == "human":
@@ -238,13 +199,16 @@ class DeckLandingEnv(gym.Env):
         return obs, info
 
     def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:
+        self._check_open()
+        if self._profile is None:
+            raise RuntimeError("call reset() before step()")
+        if self._episode_over:
+            raise RuntimeError("episode is over (terminated): call reset() before stepping again")
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (4,):
             raise ValueError(f"action must have shape (4,), got {a.shape}")
         if not np.all(np.isfinite(a)):
             raise ValueError(f"action contains NaN or inf: {a.tolist()}")
-        if self._profile is None:
-            raise RuntimeError("call reset() before step()")
         a = np.clip(a, -1.0, 1.0)
         if self.config.action_mode == "velocity":
             self.world.set_velocity_setpoint(a * self.max_velocity)
@@ -256,6 +220,7 @@ class DeckLandingEnv(gym.Env):
         snap = self.world.snapshot()
         outcome, reason = self._outcome(touchdown, snap)
         terminated = outcome != "flying"
+        self._episode_over = terminated
         obs = self._get_obs()
         reward, terms = self._get_rew(a, outcome, snap)
         info = self._get_info(snap)
@@ -275,71 +240,140 @@ class DeckLandingEnv(gym.Env):
         return obs, reward, terminated, False, info
 
     def render(self) -> NDArray[np.uint8] | None:
+        self._check_open()
         if self.render_mode == "rgb_array":
             return self._chase_view()
         return None
 
     def close(self) -> None:
-        if getattr(self, "world", None) is not None:
-            self.world.close()
+        """Disconnect the physics client; safe to call twice. The env is unusable afterwards."""
+        if getattr(self, "_closed", True):
+            return
+        self._closed = True
+        if DeckLandingEnv._gui_owner is self:
+            DeckLandingEnv._gui_owner = None
+        self.world.close()
+
+    # -- no copies: one env, one physics client -------------------------------------------
+    def __copy__(self) -> NoReturn:
+        raise TypeError(_NO_COPY)
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> NoReturn:
+        raise TypeError(_NO_COPY)
+
+    def __reduce_ex__(self, protocol: SupportsIndex) -> NoReturn:
+        raise TypeError(_NO_COPY)
+
+    def __getstate__(self) -> NoReturn:
+        raise TypeError(_NO_COPY)
 
     # -- pieces --------------------------------------------------------------------------
-    def _horizon(self) -> float:
-        """Seconds over which reset checks the deck profile against the legs' stroke."""
-        return self.horizon_s if self.horizon_s is not None else DEFAULT_HORIZON_S
+    @property
+    def max_velocity(self) -> NDArray[np.float64]:
+        """Velocity action scale (m/s, m/s, m/s, rad/s)."""
+        return np.asarray(self.task.max_velocity, dtype=np.float64)
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("env is closed (close() was called): make a new one with gym.make")
+
+    def _claim_gui(self) -> None:
+        """PyBullet allows one GUI per process, and its GUI needs a display: check both first."""
+        owner = DeckLandingEnv._gui_owner
+        if owner is not None and not owner._closed:
+            raise RuntimeError(
+                'only one render_mode="human" env can be open per process (PyBullet allows one GUI '
+                'connection): close the other one, or use render_mode="rgb_array"'
+            )
+        require_gui_display()
+        DeckLandingEnv._gui_owner = self
+
+    def _draw_start(self, options: dict[str, Any]) -> tuple[float, tuple[float, float], float, float]:
+        """(altitude m, offset (x, y) m, yaw rad, deck start time s) of a new episode: drawn from
+        ``np_random`` (always, so ``options`` do not shift the random stream), then ``options``."""
+        unknown = set(options) - set(RESET_OPTIONS)
+        if unknown:
+            raise ValueError(
+                f"reset options has unknown keys {sorted(unknown)}; known: {', '.join(RESET_OPTIONS)}"
+            )
+        start, rng = self.task.start, self.np_random
+        alt = start.altitude + rng.uniform(-1, 1) * start.altitude_jitter
+        off = rng.uniform(-1, 1, 2) * start.offset
+        yaw = rng.uniform(-1, 1) * start.yaw
+        deck_time = rng.uniform(0.0, PAPER_DURATION) if self.task.deck.random_start else 0.0
+        if "altitude" in options:
+            alt = check_real("options['altitude']", options["altitude"], " (m)")
+            top = self.settings.max_start_altitude
+            if not MIN_START_ALTITUDE <= alt <= top:
+                raise ValueError(
+                    f"options['altitude'] must be in [{MIN_START_ALTITUDE}, {top:.3f}] m above the deck "
+                    f"(legs clear of the deck, {self.task.arena.ceiling:g} m arena_ceiling), got {alt!r}"
+                )
+        if "offset" in options:
+            off = np.array(check_reals("options['offset']", options["offset"], 2, " (m)"))
+            limit = self.task.arena.half_width - ARENA_MARGIN
+            if np.max(np.abs(off)) > limit:
+                raise ValueError(
+                    f"options['offset'] must be within +-{limit:g} m (arena), got {off.tolist()}"
+                )
+        if "yaw" in options:
+            yaw = check_real("options['yaw']", options["yaw"], " (rad)")
+        if "deck_time" in options:
+            deck_time = check_real("options['deck_time']", options["deck_time"], " (s)")
+            if deck_time < 0:
+                raise ValueError(f"options['deck_time'] must be a finite time >= 0 (s), got {deck_time!r}")
+        return float(alt), (float(off[0]), float(off[1])), float(yaw), float(deck_time)
 
     def _get_obs(self) -> dict[str, Any]:
-        w = self.world
-        ranges, valid = w.read_tof(self.np_random)
-        imu = w.imu()
+        r = self.world.read_sensors(self.np_random)
         obs: dict[str, Any] = {}
-        if w.camera is not None:
-            obs["image"] = w.render_camera()
-        obs["ranges"] = ranges
-        obs["ranges_valid"] = valid
+        if "image" in r:
+            obs["image"] = r["image"]
+        obs["ranges"] = r["ranges"]
+        obs["ranges_valid"] = r["ranges_valid"]
         obs["imu"] = {
-            "quaternion": np.clip(imu["quaternion"], -1, 1).astype(np.float32),
-            "angular_velocity": np.clip(imu["angular_velocity"], -50, 50).astype(np.float32),
-            "linear_acceleration": np.clip(imu["acceleration"], -200, 200).astype(np.float32),
+            "quaternion": np.clip(r["quaternion"], -1, 1).astype(np.float32),
+            "angular_velocity": np.clip(r["angular_velocity"], -50, 50).astype(np.float32),
+            "linear_acceleration": np.clip(r["linear_acceleration"], -200, 200).astype(np.float32),
         }
         return obs
 
     def _outcome(self, touchdown: Touchdown | None, s: Snapshot) -> tuple[str, str]:
         """("flying" | "success" | "crash", reason)."""
+        th, arena = self.task.thresholds, self.task.arena
         if touchdown is not None:
             if touchdown.body != "deck":
                 return "crash", f"hit the {touchdown.body}"
             if not touchdown.on_deck:
                 return "crash", "touched down outside the deck"
-            if abs(touchdown.relative_vertical_speed) >= SUCCESS_SPEED:
+            if abs(touchdown.relative_vertical_speed) >= th.success_speed:
                 return (
                     "crash",
                     f"vertical speed {abs(touchdown.relative_vertical_speed):.2f} m/s at touchdown",
                 )
-            if touchdown.relative_tilt >= SUCCESS_TILT:
+            if touchdown.relative_tilt >= th.success_tilt:
                 return "crash", f"tilt {math.degrees(touchdown.relative_tilt):.1f} deg at touchdown"
             return "success", ""
         pos, R = s.drone_position, s.drone_rotation
-        if math.acos(max(-1.0, min(1.0, R[2, 2]))) > CRASH_TILT:
-            return "crash", "tilt over 60 deg"
-        if (
-            abs(pos[0]) > self.arena_half_width
-            or abs(pos[1]) > self.arena_half_width
-            or pos[2] > self.arena_ceiling
-        ):
+        if math.acos(max(-1.0, min(1.0, R[2, 2]))) > th.crash_tilt:
+            return "crash", f"tilt over {math.degrees(th.crash_tilt):.0f} deg"
+        if abs(pos[0]) > arena.half_width or abs(pos[1]) > arena.half_width or pos[2] > arena.ceiling:
             return "crash", "left the arena"
         return "flying", ""
 
     def _get_rew(
         self, action: NDArray[np.float64], outcome: str, s: Snapshot
     ) -> tuple[float, dict[str, float]]:
+        w = self.task.reward
         e = s.drone_position - s.deck_position
         terms = {
-            "reward_position": -math.hypot(e[0], e[1]) - 0.2 * max(float(e[2]), 0.0),
-            "reward_velocity": -0.1 * float(np.linalg.norm(s.relative_velocity)),
-            "reward_attitude": -0.1 * s.relative_tilt,
-            "reward_action": -0.01 * float(action @ action),
-            "reward_terminal": 100.0 if outcome == "success" else (-100.0 if outcome == "crash" else 0.0),
+            "reward_position": -w.position_xy * math.hypot(e[0], e[1]) - w.position_z * max(float(e[2]), 0.0),
+            "reward_velocity": -w.velocity * float(np.linalg.norm(s.relative_velocity)),
+            "reward_attitude": -w.attitude * s.relative_tilt,
+            "reward_action": -w.action * float(action @ action),
+            "reward_terminal": w.success
+            if outcome == "success"
+            else (-w.crash if outcome == "crash" else 0.0),
         }
         return float(sum(terms.values())), terms
 
@@ -394,7 +428,30 @@ class DeckLandingEnv(gym.Env):
     def camera_config(self) -> CameraConfig | None:
         return self.config.camera
 
+    def add_disturbance(self, disturbance: Disturbance) -> None:
+        """Push the drone with ``disturbance`` (world-frame force, N) at every physics step from now
+        on; it draws its random state from ``np_random`` at each reset."""
+        self._check_open()
+        self.world.add_disturbance(disturbance)
+
     def deck_pose_body(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Ground-truth deck (position m, euler rad) in the body frame."""
+        self._check_open()
         s = self.world.snapshot()
         return s.deck_position_body, euler_from_matrix(s.deck_rotation_body)
+
+
+def _observation_space(world: WorldConfig) -> spaces.Dict:
+    obs: dict[str, spaces.Space] = {}
+    if world.camera is not None:
+        obs["image"] = spaces.Box(0, 255, (world.camera.height, world.camera.width, 3), np.uint8)
+    obs["ranges"] = spaces.Box(np.float32(0.0), np.float32(world.tof.max_range), (4,), np.float32)
+    obs["ranges_valid"] = spaces.MultiBinary(4)
+    obs["imu"] = spaces.Dict(
+        {
+            "quaternion": spaces.Box(-1.0, 1.0, (4,), np.float32),
+            "angular_velocity": spaces.Box(-50.0, 50.0, (3,), np.float32),
+            "linear_acceleration": spaces.Box(-200.0, 200.0, (3,), np.float32),
+        }
+    )
+    return spaces.Dict(obs)

@@ -23,7 +23,7 @@ from scipy.spatial.transform import Rotation
 
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.frames import matrix_from_quat, quat_from_matrix
-from ihrcf_env.core.profiles import MotionProfile
+from ihrcf_env.core.profiles import MotionProfile, sample_until_unusable
 from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.sim.assets import asset_path, tag_texture
 
@@ -58,7 +58,8 @@ class DeckTrajectory:
     The profile is checked against the legs' stroke on a 20 Hz grid over ``check_horizon_s`` when
     the trajectory is made (ValueError naming the time and the leg). Physics-rate poses are
     computed in chunks of ``chunk_s`` seconds as the simulation reaches them; should a chunk
-    beyond the checked horizon leave the stroke, the deck stops at its last reachable pose
+    beyond the checked horizon leave the stroke (or the profile give no usable pose, see
+    :func:`~ihrcf_env.core.profiles.sample_until_unusable`), the deck stops at its last reachable pose
     (``stalled_at`` gives the time) instead of failing mid-episode.
     """
 
@@ -99,7 +100,7 @@ class DeckTrajectory:
         while tick >= len(self.times) and self.stalled_at is None:
             k0 = len(self.times)
             t = (k0 + np.arange(self._chunk, dtype=np.float64)) * self.dt
-            offset, rpy = self.profile.sample(t)
+            offset, rpy = sample_until_unusable(self.profile, t)  # unusable pose: NaN, stalls
             rot = Rotation.from_euler("ZYX", rpy[:, ::-1])
             position = self.geometry.home_position + offset
             matrices = rot.as_matrix()
