@@ -1,6 +1,7 @@
 """The estimator observation wrapper and the estimators end to end in the simulator."""
 
 import math
+import warnings
 
 import gymnasium as gym
 import numpy as np
@@ -9,8 +10,9 @@ from gymnasium.utils.env_checker import check_env
 
 import ihrcf_env  # noqa: F401
 from ihrcf_env.core.calibration import CalibrationError
+from ihrcf_env.envs.deck_landing import DeckLandingEnv
 from ihrcf_env.experiments.accuracy import hover_rollout
-from ihrcf_env.wrappers.estimates import DeckPoseObservation
+from ihrcf_env.wrappers.estimates import DeckPoseObservation, flat_slices
 
 ENV_ID = "ihrcf_env/DeckLanding-v0"
 
@@ -39,14 +41,32 @@ def _chain(env):
         env = env.env
 
 
-def test_check_env_on_wrapped_env():
-    env = gym.make(ENV_ID, keep_image=False)
+# check_env on a wrapper always says it is not the unwrapped env: that is the point here.
+WRAPPED_WARNING = "is different from the unwrapped version"
+
+
+@pytest.mark.parametrize(
+    ("flatten", "keep_image"),
+    [(False, True), (False, False), (True, False)],
+    ids=["dict", "dict-no-image", "flat"],
+)
+def test_check_env_on_wrapped_env(flatten, keep_image):
+    # the outermost env is the wrapper (no TimeLimit / OrderEnforcing / PassiveEnvChecker from gym.make)
+    env = DeckPoseObservation(DeckLandingEnv(), keep_image=keep_image, flatten=flatten)
     try:
-        check_env(env.unwrapped, skip_render_check=True)
-        # check the wrapper's spaces too: reset/step outputs belong to them
+        assert env.unwrapped is not env
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            # the render check would open render_mode="human" (a PyBullet GUI) through env.spec
+            check_env(env, skip_render_check=True)
+        unexpected = [str(w.message) for w in caught if WRAPPED_WARNING not in str(w.message)]
+        assert unexpected == [], unexpected
+        assert [w for w in caught if WRAPPED_WARNING in str(w.message)], "check_env did not see the wrapper"
+        # reset/step outputs belong to the wrapper's space
         obs, _ = env.reset(seed=1)
         assert env.observation_space.contains(obs)
-        assert "image" not in obs
+        if not flatten:
+            assert ("image" in obs) == keep_image
         obs, *_ = env.step(env.action_space.sample())
         assert env.observation_space.contains(obs)
     finally:
@@ -56,13 +76,58 @@ def test_check_env_on_wrapped_env():
 def test_flat_observation_for_rl_libraries():
     env = gym.make(ENV_ID, flatten=True)
     try:
+        s = env.get_wrapper_attr("flat_slices")
+        assert s == flat_slices()
+        # DeckLanding-v0's layout: 18 sensor values, then ihrcf, atda, ground_truth blocks of 7
+        assert (s["ihrcf"], s["atda"], s["ground_truth"]) == (slice(18, 25), slice(25, 32), slice(32, 39))
+        assert s["all"] == slice(0, 39)
         obs, _ = env.reset(seed=2)
         assert obs.shape == (39,) and obs.dtype == np.float32
         assert env.observation_space.contains(obs)
         obs, *_ = env.step(np.zeros(4))
         assert np.all(np.isfinite(obs))
-        # the three valid flags are the 19th value of each 7-value pose block
-        assert obs[18 + 6] == 1.0 and obs[18 + 13] == 1.0 and obs[18 + 20] == 1.0
+        for key in ("ihrcf", "atda", "ground_truth"):
+            assert obs[s[f"{key}.valid"]] == [1.0]
+        np.testing.assert_allclose(obs[s["ihrcf.position"]], obs[s["ground_truth.position"]], atol=0.005)
+        assert np.all(obs[s["ranges_valid"]] == 1.0)
+        np.testing.assert_allclose(np.linalg.norm(obs[s["imu.quaternion"]]), 1.0, atol=1e-5)
+    finally:
+        env.close()
+
+
+def test_flat_and_dict_observations_agree_block_by_block():
+    flat_env = DeckPoseObservation(DeckLandingEnv(), flatten=True)
+    dict_env = DeckPoseObservation(DeckLandingEnv(), keep_image=False)
+    try:
+        f, _ = flat_env.reset(seed=4)
+        d, _ = dict_env.reset(seed=4)
+        s = flat_env.flat_slices
+        assert list(flat_env.pose_keys) == ["ihrcf", "atda", "ground_truth"]
+        for key in flat_env.pose_keys:
+            for field in ("position", "euler"):
+                np.testing.assert_array_equal(f[s[f"{key}.{field}"]], d[key][field])
+            assert f[s[f"{key}.valid"]][0] == d[key]["valid"]
+        np.testing.assert_array_equal(f[s["ranges"]], d["ranges"])
+        np.testing.assert_array_equal(f[s["imu.linear_acceleration"]], d["imu"]["linear_acceleration"])
+    finally:
+        flat_env.close()
+        dict_env.close()
+
+
+def test_estimates_by_name_and_info_reasons():
+    env = gym.make(ENV_ID, keep_image=False)
+    try:
+        _, info = env.reset(seed=0)
+        wrapper = env.get_wrapper_attr("estimators")
+        assert list(wrapper) == ["ihrcf", "atda"]
+        last = env.get_wrapper_attr("last_estimates")
+        assert list(last) == ["ihrcf", "atda"]
+        for name, est in last.items():
+            assert info[f"{name}_reason"] == est.reason == ""
+            assert info[f"{name}_residual"] == est.residual
+        assert info["ihrcf_residual"] < 0.01
+        frame = env.get_wrapper_attr("last_frame")
+        assert frame.corners is not None and frame.imu is not None and frame.time == info["time"]
     finally:
         env.close()
 
