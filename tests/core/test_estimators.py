@@ -10,11 +10,21 @@ import pytest
 
 from ihrcf_env.core.estimators import (
     APRILTAG_CORNER_OFFSET_PX,
+    DEFAULT_ESTIMATORS,
+    ESTIMATORS,
     R_DECK_MARKER,
+    TAG_NOT_FOUND,
+    ATDAEstimator,
     DeckPoseEstimator,
+    DeckPoseSource,
+    EstimatorConfig,
+    IHRCFEstimator,
+    ImuSample,
     PoseEstimate,
+    SensorFrame,
     TagDetector,
     atda_estimate,
+    build_estimators,
     ihrcf_estimate,
 )
 from ihrcf_env.core.frames import (
@@ -339,3 +349,141 @@ def test_deck_pose_estimator(rendered) -> None:
     assert np.array_equal(dpe.prior_rotation, atda.rotation)  # kept across a lost frame
     dpe.reset()
     assert dpe.prior_rotation is None
+
+
+# ------------------------------------------------------------------------- the estimator interface
+
+
+def _frame(corners, ranges, t: float = 0.0, **kw) -> SensorFrame:
+    return SensorFrame(time=t, corners=corners, ranges=ranges, ranges_valid=np.ones(4, bool), **kw)
+
+
+def test_sensor_frame_is_read_only_and_checked() -> None:
+    R_bd, p_bd = matrix_from_euler(0.05, -0.03, 0.4), np.array([0.02, 0.01, -1.0])
+    corners, ranges, *_ = scene(R_bd, p_bd)
+    imu = ImuSample([0, 0, 0, 1], np.zeros(3), [0, 0, 9.81])
+    f = _frame(corners, ranges, 1.25, imu=imu)
+    assert f.time == 1.25 and f.corners_reason == "" and f.image is None
+    assert f.ranges.dtype == np.float64 and f.ranges_valid.dtype == bool
+    with pytest.raises(ValueError):
+        f.corners[0, 0] = 0.0
+    with pytest.raises(ValueError):
+        imu.specific_force[2] = 0.0
+    assert _frame(None, ranges).corners_reason == TAG_NOT_FOUND
+    assert (
+        _frame(None, ranges, corners_reason="tag outside the image").corners_reason == "tag outside the image"
+    )
+    assert math.isnan(_frame(None, ranges, math.nan).time)  # unknown time
+    with pytest.raises(ValueError, match="corners"):
+        _frame(np.zeros((3, 2)), ranges)
+    with pytest.raises(ValueError, match="ranges"):
+        _frame(corners, np.ones(3))
+    with pytest.raises(ValueError, match="time"):
+        _frame(corners, ranges, math.inf)
+    with pytest.raises(TypeError, match="imu"):
+        _frame(corners, ranges, imu={"quaternion": [0, 0, 0, 1]})
+    with pytest.raises(ValueError, match="quaternion"):
+        ImuSample([0, 0, 1], np.zeros(3), np.zeros(3))
+
+
+def test_estimator_classes_match_the_pure_functions() -> None:
+    rng = np.random.default_rng(5)
+    ihrcf = IHRCFEstimator(None, RIG, TAG)  # touch_pixels set per scene below
+    atda = ATDAEstimator(K, None, TAG, RIG)
+    assert isinstance(ihrcf, DeckPoseSource) and isinstance(atda, DeckPoseSource)
+    assert (ihrcf.name, atda.name) == ("ihrcf", "atda")
+    for _ in range(5):
+        R_bd, p_bd = random_pose(rng, tilt=0.2)
+        corners, ranges, tp, _, _ = scene(R_bd, p_bd)
+        ihrcf.touch_pixels = tp
+        frame = _frame(corners + rng.normal(0, 0.2, (4, 2)), ranges)
+        a = ihrcf.update(frame)
+        b = ihrcf_estimate(frame.corners, ranges, np.ones(4, bool), tp, RIG, TAG)
+        np.testing.assert_array_equal(a.position, b.position)
+        np.testing.assert_array_equal(a.rotation, b.rotation)
+        prior = atda.prior_rotation
+        c = atda.update(frame)
+        d = atda_estimate(frame.corners, K, None, TAG, RIG, prior)
+        np.testing.assert_array_equal(c.rotation, d.rotation)
+        assert c.valid and np.array_equal(atda.prior_rotation, c.rotation)
+    lost = _frame(None, ranges, corners_reason="no image")
+    assert_invalid(ihrcf.update(lost), "no image")
+    assert_invalid(atda.update(lost), "no image")
+    assert atda.prior_rotation is not None  # kept across a lost frame
+    atda.reset()
+    assert atda.prior_rotation is None
+    with pytest.raises(ValueError, match="max_residual"):
+        IHRCFEstimator(None, RIG, TAG, max_residual=0.0)
+
+
+def test_registry_builds_named_estimators_in_order(monkeypatch: pytest.MonkeyPatch) -> None:
+    _, _, tp, _, _ = scene(np.eye(3), np.array([0.0, 0.0, -1.0]))
+    cfg = EstimatorConfig(rig=RIG, tag_size=TAG, K=K, dist=None, touch_pixels=tp)
+    assert DEFAULT_ESTIMATORS == ("ihrcf", "atda")
+    built = build_estimators(cfg)
+    assert list(built) == ["ihrcf", "atda"]
+    assert list(build_estimators(cfg, ["atda", "ihrcf"])) == ["atda", "ihrcf"]
+    for bad, err, match in [
+        (["ihrcf", "ihrcf"], ValueError, "twice"),
+        (["fused"], ValueError, "unknown name 'fused'"),
+        (["ground_truth"], ValueError, "reserved"),
+        ([], ValueError, "at least one"),
+        ("ihrcf", TypeError, "sequence of names"),
+        ([1], TypeError, "names"),
+    ]:
+        with pytest.raises(err, match=match):
+            build_estimators(cfg, bad)
+
+    class Named:
+        def __init__(self, name: str) -> None:
+            self.name = name
+
+        def reset(self) -> None:
+            pass
+
+        def update(self, frame: SensorFrame) -> PoseEstimate:
+            return PoseEstimate.invalid("never")
+
+    monkeypatch.setitem(ESTIMATORS, "liar", lambda c: Named("other"))
+    with pytest.raises(ValueError, match="calls itself 'other'"):
+        build_estimators(cfg, ["liar"])
+
+
+def test_pipeline_detects_once_and_feeds_every_estimator(rendered, monkeypatch: pytest.MonkeyPatch) -> None:
+    image, _, R_bd, p_bd, _ = rendered
+    _, ranges, tp, _, _ = scene(R_bd, p_bd)
+    seen: list[SensorFrame] = []
+
+    class Recorder:
+        name = "recorder"
+
+        def reset(self) -> None:
+            seen.clear()
+
+        def update(self, frame: SensorFrame) -> PoseEstimate:
+            seen.append(frame)
+            return PoseEstimate.invalid(frame.corners_reason or "recorded")
+
+    monkeypatch.setitem(ESTIMATORS, "recorder", lambda c: Recorder())
+    dpe = DeckPoseEstimator(RIG, TAG, 0, K, None, tp, estimators=("ihrcf", "recorder", "atda"))
+    calls = []
+    detect = dpe.detector.detect
+    monkeypatch.setattr(dpe.detector, "detect", lambda img: calls.append(1) or detect(img))
+    imu = ImuSample([0, 0, 0, 1], np.zeros(3), [0, 0, 9.81])
+    frame = dpe.frame(image, ranges, np.ones(4, bool), time=0.05, imu=imu)
+    assert len(calls) == 1 and frame.corners is not None and frame.time == 0.05 and frame.imu is imu
+    out = dpe.update(frame)
+    assert list(out) == ["ihrcf", "recorder", "atda"] == list(dpe.names)
+    assert out["ihrcf"].valid and out["atda"].valid and seen == [frame]
+    assert len(calls) == 1  # the estimators share the frame's corners
+    lost = dpe.update(dpe.frame(np.full((512, 512), 255, np.uint8), ranges, np.ones(4, bool), time=0.1))
+    assert seen[-1].corners is None and seen[-1].time == 0.1  # a lost frame still reaches every estimator
+    assert all(e.reason == TAG_NOT_FOUND for e in lost.values())
+    ihrcf, atda = dpe.estimate(image, ranges, np.ones(4, bool))  # the compatibility shortcut
+    np.testing.assert_array_equal(ihrcf.position, out["ihrcf"].position)
+    dpe.reset()
+    assert seen == [] and dpe.prior_rotation is None
+    only_ihrcf = DeckPoseEstimator(RIG, TAG, 0, K, None, tp, estimators=("ihrcf",))
+    assert only_ihrcf.prior_rotation is None
+    with pytest.raises(RuntimeError, match="atda"):
+        only_ihrcf.estimate(image, ranges, np.ones(4, bool))
