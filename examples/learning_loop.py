@@ -18,8 +18,9 @@ import gymnasium as gym
 import numpy as np
 
 import ihrcf_env  # noqa: F401  (registers the envs)
+from ihrcf_env.wrappers.estimates import flat_slices
 
-IHRCF = slice(18, 25)  # position (3), euler (3), valid (1) inside the flat observation
+IHRCF = flat_slices()["ihrcf"]  # position (3), euler (3), valid (1) inside the flat observation
 
 
 def make_env(max_episode_steps: int) -> Callable[[], gym.Env]:
