@@ -217,6 +217,9 @@ class Calibration:
             )
         try:
             tables = RangePixelTable.from_dict(d["tables"])
+        except (ValueError, TypeError) as e:
+            raise CalibrationError(f"{source}: bad 'tables': {e}") from e
+        try:
             return cls(
                 image_width=d["image_width"],
                 image_height=d["image_height"],
@@ -234,10 +237,7 @@ class Calibration:
                 source=source,
             )
         except (ValueError, TypeError) as e:
-            msg = str(e)
-            if msg.startswith(("ps1", "ps2", "ps3", "ps4")):
-                msg = f"tables.{msg}"
-            raise CalibrationError(f"{source}: {msg}") from e
+            raise CalibrationError(f"{source}: {e}") from e
 
     @classmethod
     def load(cls, path: str | os.PathLike[str] | Traversable) -> Calibration:
