@@ -25,7 +25,11 @@ Reward per step (each term also in ``info`` as ``reward_<name>``): ``position = 
 (rad), ``action = -0.01 |a|^2``, and ``terminal = +100`` on a successful touchdown, ``-100`` on a
 crash. Termination: touchdown (success if the relative vertical speed < 0.5 m/s, the relative tilt
 < 10 deg and the drone is over the deck; a crash otherwise), a tilt > 60 deg, or leaving the arena.
-Truncation only by ``max_episode_steps`` (TimeLimit).
+Truncation only by ``max_episode_steps`` (TimeLimit). The weights and thresholds are the defaults of
+:class:`~ihrcf_env.envs.config.RewardWeights` and :class:`~ihrcf_env.envs.config.Thresholds`.
+
+Misuse raises: a bad option TypeError/ValueError naming it (before any PyBullet client exists),
+``step`` after a terminated episode or after ``close`` RuntimeError, copying or pickling TypeError.
 """
 
 from __future__ import annotations
