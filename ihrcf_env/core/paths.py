@@ -19,7 +19,7 @@ def assets_dir() -> Path:
             return d
     except ModuleNotFoundError:
         pass
-    d = Path(__file__).resolve().parent.parent / "assets"
+    d = Path(__file__).resolve().parents[2] / "assets"  # ihrcf_env/core/paths.py -> repo root
     if d.is_dir():
         return d
     raise FileNotFoundError("ihrcf_env assets not found: reinstall the package (pip install .)")
