@@ -111,7 +111,8 @@ def rollout(
     ended_early = ""
     k = 0
     obs, info = env.reset(seed=seed, options=dict(options) if options is not None else None)
-    with tqdm(total=n, disable=not progress, unit="step", dynamic_ncols=True, leave=True) as bar:
+    # disable=None: no bar when stderr is not a terminal (logs, CI), where it would print every update
+    with tqdm(total=n, disable=None if progress else True, unit="step", dynamic_ncols=True) as bar:
         t0 = time.perf_counter()
         for k in range(n):
             action = np.zeros(4) if policy is None else np.asarray(policy(obs), dtype=np.float64)
