@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -73,3 +76,20 @@ def test_hover_rollout_is_the_paper_start() -> None:
         env.close()
     assert rec.n == 2
     assert rec.position["gt"][0] == pytest.approx([0.0, 0.0, -1.0], abs=0.02)
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+@pytest.mark.parametrize(("stream", "shown"), [(_Terminal, True), (io.StringIO, False)])
+def test_progress_bar_only_on_a_terminal(stream: type[io.StringIO], shown: bool) -> None:
+    env = gym.make("ihrcf_env/DeckLanding-v0", deck_profile="static", keep_image=False)
+    err = stream()
+    try:
+        with contextlib.redirect_stderr(err):
+            rollout(env, 2, seed=0, options=HOVER_START, progress=True)
+    finally:
+        env.close()
+    assert ("100%" in err.getvalue()) is shown
