@@ -104,6 +104,7 @@ class LandingController:
         max_velocity: the env's action scale (m/s, m/s, m/s, rad/s).
         rig: the ToF/camera geometry (the drone's own, not ground truth).
         config: tunables.
+        estimator: the observation key of the deck-pose estimate to steer on ("ihrcf", "fused", ...).
     """
 
     def __init__(
@@ -112,7 +113,11 @@ class LandingController:
         max_velocity: Sequence[float] = (1.0, 1.0, 1.0, 1.0),
         rig: SensorRig | None = None,
         config: LandingConfig | None = None,
+        estimator: str = "ihrcf",
     ) -> None:
+        if estimator == "ground_truth":
+            raise ValueError("estimator: the landing controller flies on its own sensing, not ground truth")
+        self.estimator = estimator
         self.dt = 1.0 / float(control_hz)
         self.max_velocity = np.asarray(max_velocity, dtype=np.float64)
         self.rig = rig if rig is not None else SensorRig()
@@ -142,7 +147,7 @@ class LandingController:
 
     # -- sensing ---------------------------------------------------------------------------
     def measure(self, obs: Mapping[str, Any]) -> Measurement:
-        """Turn the observation (IHRCF, ranges, IMU) into level-frame quantities."""
+        """Turn the observation (the deck-pose estimate, ranges, IMU) into level-frame quantities."""
         R_wb = matrix_from_quat(np.asarray(obs["imu"]["quaternion"], dtype=np.float64))
         yaw = math.atan2(R_wb[1, 0], R_wb[0, 0])
         c, s = math.cos(yaw), math.sin(yaw)
@@ -151,7 +156,7 @@ class LandingController:
         accel_z = float((R_wb @ np.asarray(obs["imu"]["linear_acceleration"], dtype=np.float64))[2] - GRAVITY)
 
         tag_xy = tag_yaw = tag_normal = None
-        est = obs["ihrcf"]
+        est = obs[self.estimator]
         if int(est["valid"]):
             p_level = R_lb @ np.asarray(est["position"], dtype=np.float64)
             tag_xy = p_level[:2]

@@ -51,6 +51,7 @@ def evaluate(
     max_seconds: float = 30.0,
     env_kwargs: Mapping[str, Any] | None = None,
     on_episode: Callable[[EpisodeResult], None] | None = None,
+    estimator: str = "ihrcf",
 ) -> list[EpisodeResult]:
     """Run ``episodes`` landings (seeds ``seed .. seed + episodes - 1``) on one deck profile.
 
@@ -62,6 +63,7 @@ def evaluate(
         max_seconds: episode limit (simulated s).
         env_kwargs: further ``gym.make`` arguments (e.g. ``control_hz``, ``random_deck_start``).
         on_episode: called with each result as soon as its episode ends (e.g. to print it).
+        estimator: the deck-pose estimate the controller steers on (``"ihrcf"`` or ``"fused"``).
     """
     kwargs = dict(env_kwargs or {})
     hz = int(kwargs.get("control_hz", 20))
@@ -74,7 +76,12 @@ def evaluate(
         **kwargs,
     )
     base = env.unwrapped
-    ctrl = LandingController(control_hz=hz, max_velocity=base.max_velocity, rig=base.rig)  # type: ignore[attr-defined]
+    ctrl = LandingController(
+        control_hz=hz,
+        max_velocity=base.max_velocity,  # type: ignore[attr-defined]
+        rig=base.rig,  # type: ignore[attr-defined]
+        estimator=estimator,
+    )
     results = []
     try:
         for i in range(episodes):
