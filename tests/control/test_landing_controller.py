@@ -69,3 +69,14 @@ def test_heading_alignment_is_modulo_the_square_deck() -> None:
     ctrl = LandingController()
     a = ctrl.act(_obs(1.0, (0.0, 0.0, math.radians(80.0))))
     assert a[3] == pytest.approx(math.radians(-10.0), abs=1e-6)
+
+
+def test_steers_on_the_chosen_estimate_never_ground_truth() -> None:
+    obs = _obs(1.0, (0.0, 0.0, 0.0))
+    obs["fused"] = {**obs["ihrcf"], "position": np.array([0.2, 0.0, -1.0], np.float32)}
+    obs["ihrcf"] = {**obs["ihrcf"], "valid": 0}
+    m = LandingController(estimator="fused").measure(obs)
+    assert m.tag_xy == pytest.approx([0.2, 0.0], abs=1e-6)
+    assert LandingController().measure(obs).tag_xy is None  # "ihrcf" (default) is invalid here
+    with pytest.raises(ValueError, match="estimator"):
+        LandingController(estimator="ground_truth")
