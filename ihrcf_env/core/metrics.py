@@ -16,10 +16,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from ihrcf_env.core.frames import wrap_angle
 
-#: The two estimators compared in Table 2, in the table's column order.
+#: The two estimators of the paper's Table 2, in the table's column order.
 ESTIMATORS: tuple[str, ...] = ("atda", "ihrcf")
+#: Column order of estimators in the tables (others follow in the order given).
+TABLE_ORDER: tuple[str, ...] = ("atda", "ihrcf", "fused")
 #: Printed names of the estimators and of ground truth.
-LABELS: dict[str, str] = {"gt": "GT", "ihrcf": "IHRCF", "atda": "ATDA"}
+LABELS: dict[str, str] = {"gt": "GT", "ihrcf": "IHRCF", "atda": "ATDA", "fused": "fused"}
 #: Columns of a pose-error row (m, m, m, deg, deg, deg).
 POSE_AXES: tuple[str, ...] = ("X", "Y", "Z", "roll", "pitch", "yaw")
 
@@ -86,54 +88,60 @@ def error_stats(errors: ArrayLike) -> ErrorStats:
     return ErrorStats(mae=mae, peak=peak, invalid=int(e.shape[0] - ok.sum()), frames=int(e.shape[0]))
 
 
+def table_columns(stats: Mapping[str, ErrorStats]) -> tuple[str, ...]:
+    """Estimators of ``stats`` in table order (:data:`TABLE_ORDER` first, then the rest)."""
+    known = [k for k in TABLE_ORDER if k in stats]
+    return tuple(known + [k for k in stats if k not in known])
+
+
+def _label(key: str) -> str:
+    return LABELS.get(key, key)
+
+
 def table2_text(stats: Mapping[str, ErrorStats]) -> str:
     """Table 2 as plain text in the paper's layout (a row per axis): MAE over valid frames, peaks,
-    the paper's values and the invalid-frame counts, for ``stats["atda"]`` and ``stats["ihrcf"]``."""
-    cols = tuple(LABELS[k] for k in ESTIMATORS)
+    the paper's values (ATDA, IHRCF) and the invalid-frame counts, for every estimator in ``stats``."""
+    cols = table_columns(stats)
     w = 9
+    groups_cols = (cols, cols, ESTIMATORS)
     titles = ("Mean absolute error", "Peak absolute error", "Paper Table 2 (MAE)")
-    head1 = f"{'':<22}" + "   ".join(f"{s:^{2 * w}}" for s in titles)
-    head2 = f"{'':<22}" + "   ".join("".join(f"{c:>{w}}" for c in cols) for _ in range(3))
+    head1 = f"{'':<22}" + "   ".join(f"{t:^{len(g) * w}}" for t, g in zip(titles, groups_cols, strict=True))
+    head2 = f"{'':<22}" + "   ".join("".join(f"{_label(c):>{w}}" for c in g) for g in groups_cols)
     lines = [head1, head2, "-" * len(head2)]
     for i, name in enumerate(POSE_AXES):
         group = "Translations (m)" if i == 0 else ("Angles (degree)" if i == 3 else "")
         groups = (
-            [stats[k].mae[i] for k in ESTIMATORS],
-            [stats[k].peak[i] for k in ESTIMATORS],
+            [stats[k].mae[i] for k in cols],
+            [stats[k].peak[i] for k in cols],
             [PAPER_TABLE2[k][i] for k in ESTIMATORS],
         )
         cells = "   ".join("".join(f"{v:>{w}.4f}" for v in g) for g in groups)
         lines.append(f"{group:<16}{name:>6}{cells}")
     lines.append("-" * len(head2))
-    inv = "   ".join(f"{LABELS[k]} {stats[k].invalid}/{stats[k].frames}" for k in ESTIMATORS)
+    inv = "   ".join(f"{_label(k)} {stats[k].invalid}/{stats[k].frames}" for k in cols)
     lines.append(f"Invalid frames (excluded from the statistics): {inv}")
     return "\n".join(lines)
 
 
 def table2_markdown(stats: Mapping[str, ErrorStats], title: str) -> str:
-    """Table 2 as a Markdown table (a row per translation / angle group, peaks in brackets, then the
-    paper's values), for ``stats["atda"]`` and ``stats["ihrcf"]``; ``title`` heads it in bold."""
+    """Table 2 as a Markdown table in the paper's layout (a row per axis; MAE with the peak in
+    brackets for every estimator in ``stats``, then the paper's ATDA and IHRCF MAE); ``title`` heads
+    it in bold. Translations in m, angles in degrees."""
+    cols = table_columns(stats)
     frames = max(s.frames for s in stats.values())
+    head = [_label(c) for c in cols] + [f"paper {_label(c)}" for c in ESTIMATORS]
     lines = [
         f"**{title}** ({frames} frames, mean absolute error; peak in brackets)",
         "",
-        "| | ATDA | | | IHRCF | | | paper ATDA | | | paper IHRCF | | |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| | " + " | ".join(head) + " |",
+        "|---|" + "---|" * len(head),
     ]
-    for label, sl, fmt in (
-        ("Translations (m) X/Y/Z", slice(0, 3), "{:.4f}"),
-        ("Angles (deg) roll/pitch/yaw", slice(3, 6), "{:.3f}"),
-    ):
-        cells = []
-        for key in ESTIMATORS:
-            mae, peak = stats[key].mae[sl], stats[key].peak[sl]
-            cells += [f"{fmt.format(m)} ({fmt.format(p)})" for m, p in zip(mae, peak, strict=True)]
-        for key in ESTIMATORS:
-            cells += [fmt.format(v) for v in PAPER_TABLE2[key][sl]]
-        lines.append(f"| {label} | " + " | ".join(cells) + " |")
-    lines.append(
-        f"| invalid frames | {stats['atda'].invalid} | | | {stats['ihrcf'].invalid} | | | | | | | | |"
-    )
+    for i, name in enumerate(POSE_AXES):
+        unit, fmt = ("m", "{:.4f}") if i < 3 else ("deg", "{:.3f}")
+        cells = [f"{fmt.format(stats[k].mae[i])} ({fmt.format(stats[k].peak[i])})" for k in cols]
+        cells += [fmt.format(PAPER_TABLE2[k][i]) for k in ESTIMATORS]
+        lines.append(f"| {name} ({unit}) | " + " | ".join(cells) + " |")
+    lines.append("| invalid frames | " + " | ".join(str(stats[k].invalid) for k in cols) + " | | |")
     return "\n".join(lines)
 
 

@@ -10,6 +10,7 @@ a CSV time series (:func:`save_csv`) and the figures (:func:`ihrcf_env.experimen
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import gymnasium as gym
@@ -17,8 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ihrcf_env.control.hover import HoverTracker
-from ihrcf_env.core.metrics import ESTIMATORS
-from ihrcf_env.experiments.rollout import SOURCES, Recording, rollout
+from ihrcf_env.experiments.rollout import Recording, rollout
 
 #: Agent/camera rate of the run (Hz), the env's default.
 CONTROL_HZ = 20
@@ -81,12 +81,13 @@ def tracking_summary(rec: Recording) -> str:
     )
 
 
-def csv_header() -> list[str]:
-    """Column names of :func:`save_csv` (units in the names; angles in radians)."""
+def csv_header(estimators: Sequence[str] = ("ihrcf", "atda")) -> list[str]:
+    """Column names of :func:`save_csv` for a recording of ``estimators`` (units in the names; angles
+    in radians)."""
     cols = ["time_s"]
-    for src in SOURCES:
+    for src in ("gt", *estimators):
         cols += [f"{src}_{a}_m" for a in "xyz"] + [f"{src}_{a}_rad" for a in ("roll", "pitch", "yaw")]
-        if src in ESTIMATORS:
+        if src != "gt":
             cols.append(f"{src}_valid")
     cols += [f"range{i}_m" for i in range(1, 5)] + [f"range{i}_valid" for i in range(1, 5)]
     cols += ["cmd_vx_mps", "cmd_vy_mps", "cmd_vz_mps", "cmd_yaw_rate_radps"]
@@ -100,12 +101,14 @@ def save_csv(rec: Recording, path: Path) -> Path:
     (zeros with ``valid = 0`` when invalid), the ranges and the velocity command.
     """
     blocks: list[NDArray[np.float64]] = [rec.time[:, None]]
-    for src in SOURCES:
+    for src in rec.sources:
         blocks += [rec.position[src], rec.euler[src]]
-        if src in ESTIMATORS:
+        if src != "gt":
             blocks.append(rec.valid[src][:, None].astype(float))
     blocks += [rec.ranges, rec.ranges_valid.astype(float), rec.command]
     data = np.hstack(blocks)
     path.parent.mkdir(parents=True, exist_ok=True)
-    np.savetxt(path, data, delimiter=",", header=",".join(csv_header()), comments="", fmt="%.6g")
+    np.savetxt(
+        path, data, delimiter=",", header=",".join(csv_header(rec.estimators)), comments="", fmt="%.6g"
+    )
     return path

@@ -18,12 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 from tqdm import tqdm
 
 from ihrcf_env.core.frames import euler_from_matrix, matrix_from_quat, wrap_angle
-from ihrcf_env.core.metrics import ESTIMATORS, ErrorStats, error_stats, pose_errors
-
-#: Recorded deck-pose sources: ground truth, then the estimators.
-SOURCES: tuple[str, ...] = ("gt", "ihrcf", "atda")
-#: Observation key of each source.
-OBS_KEYS: dict[str, str] = {"gt": "ground_truth", "ihrcf": "ihrcf", "atda": "atda"}
+from ihrcf_env.core.metrics import ErrorStats, error_stats, pose_errors
 
 #: A policy: the env's observation -> normalised action in [-1, 1]^4.
 Policy = Callable[[Mapping[str, Any]], ArrayLike]
@@ -49,6 +44,12 @@ class Recording:
     wall_time: float  # s, the simulation loop
     settings: dict[str, Any] = field(default_factory=dict)
     ended_early: str = ""  # why the episode ended before the requested steps ("" if it did not)
+    estimators: tuple[str, ...] = ("ihrcf", "atda")  # recorded estimators, in observation order
+
+    @property
+    def sources(self) -> tuple[str, ...]:
+        """Recorded deck-pose sources: ``"gt"`` (ground truth), then the estimators."""
+        return ("gt", *self.estimators)
 
     @property
     def n(self) -> int:
@@ -67,8 +68,8 @@ class Recording:
         )
 
     def error_stats(self) -> dict[str, ErrorStats]:
-        """Per estimator (``"atda"``, ``"ihrcf"``): MAE, peak and invalid count over the run."""
-        return {k: error_stats(self.pose_errors(k)) for k in ESTIMATORS}
+        """Per recorded estimator: MAE, peak and invalid count over the run."""
+        return {k: error_stats(self.pose_errors(k)) for k in self.estimators}
 
 
 def _yaw(quaternion: ArrayLike) -> float:
@@ -99,10 +100,16 @@ def rollout(
     hz = float(base.config.control_hz)  # type: ignore[attr-defined]
     max_velocity = np.asarray(base.max_velocity, dtype=np.float64)  # type: ignore[attr-defined]
     n = int(steps)
+    obs, info = env.reset(seed=seed, options=dict(options) if options is not None else None)
+    # every deck-pose estimate in the observation (a Dict with "valid"), in observation order
+    estimators = tuple(
+        key for key, v in obs.items() if key != "ground_truth" and isinstance(v, Mapping) and "valid" in v
+    )
+    obs_key = {"gt": "ground_truth", **{e: e for e in estimators}}
     t = np.zeros(n)
-    pos = {k: np.zeros((n, 3)) for k in SOURCES}
-    eul = {k: np.zeros((n, 3)) for k in SOURCES}
-    valid = {k: np.zeros(n, dtype=bool) for k in ESTIMATORS}
+    pos = {k: np.zeros((n, 3)) for k in obs_key}
+    eul = {k: np.zeros((n, 3)) for k in obs_key}
+    valid = {k: np.zeros(n, dtype=bool) for k in estimators}
     ranges = np.zeros((n, 4))
     ranges_valid = np.zeros((n, 4), dtype=bool)
     command = np.zeros((n, 4))
@@ -110,7 +117,6 @@ def rollout(
     heading = np.zeros(n)
     ended_early = ""
     k = 0
-    obs, info = env.reset(seed=seed, options=dict(options) if options is not None else None)
     # disable=None: no bar when stderr is not a terminal (logs, CI), where it would print every update
     with tqdm(total=n, disable=None if progress else True, unit="step", dynamic_ncols=True) as bar:
         t0 = time.perf_counter()
@@ -118,10 +124,10 @@ def rollout(
             action = np.zeros(4) if policy is None else np.asarray(policy(obs), dtype=np.float64)
             obs, _, terminated, truncated, info = env.step(action.astype(np.float32))
             t[k] = info["time"]
-            for src in SOURCES:
-                pos[src][k] = obs[OBS_KEYS[src]]["position"]
-                eul[src][k] = obs[OBS_KEYS[src]]["euler"]
-            for src in ESTIMATORS:
+            for src, key in obs_key.items():
+                pos[src][k] = obs[key]["position"]
+                eul[src][k] = obs[key]["euler"]
+            for src in estimators:
                 valid[src][k] = bool(obs[src]["valid"])
             ranges[k] = obs["ranges"]
             ranges_valid[k] = np.asarray(obs["ranges_valid"]).astype(bool)
@@ -155,4 +161,5 @@ def rollout(
         wall_time=wall_time,
         settings={"control_hz": int(hz), "seed": seed},
         ended_early=ended_early,
+        estimators=estimators,
     )

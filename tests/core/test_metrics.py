@@ -67,13 +67,17 @@ def test_table2_layouts_carry_the_papers_values() -> None:
     md = table2_markdown(stats, "ToF ideal, no distortion")
     lines = md.splitlines()
     assert lines[0] == "**ToF ideal, no distortion** (5 frames, mean absolute error; peak in brackets)"
-    assert lines[4].startswith(
-        "| Translations (m) X/Y/Z | 0.0000 (0.0000) | 0.0000 (0.0000) | 0.0020 (0.0020) |"
-    )
-    assert lines[4].endswith(" | 0.0162 | 0.0134 | 0.0697 | 0.0035 | 0.0039 | 0.0041 |")
-    assert lines[5].endswith(" | 2.984 | 1.657 | 1.774 | 0.980 | 1.373 | 1.180 |")
-    assert lines[6] == "| invalid frames | 0 | | | 0 | | | | | | | | |"
-    assert all(line.count("|") == 14 for line in lines[2:])
+    assert lines[2] == "| | ATDA | IHRCF | paper ATDA | paper IHRCF |"
+    assert lines[6] == "| Z (m) | 0.0020 (0.0020) | 0.0020 (0.0020) | 0.0697 | 0.0041 |"
+    assert lines[8] == "| pitch (deg) | 0.000 (0.000) | 0.000 (0.000) | 1.657 | 1.373 |"
+    assert lines[10] == "| invalid frames | 0 | 0 | | |"
+    assert all(line.count("|") == 6 for line in lines[2:])
+    # more estimators: each gets a column, in table order, in both layouts
+    three = {"fused": error_stats(e), **stats}
+    md3 = table2_markdown(three, "t").splitlines()
+    assert md3[2] == "| | ATDA | IHRCF | fused | paper ATDA | paper IHRCF |"
+    assert all(line.count("|") == 7 for line in md3[2:])
+    assert "fused" in table2_text(three).splitlines()[1]
     assert PAPER_TABLE2["ihrcf"][2] == 0.0041
 
 

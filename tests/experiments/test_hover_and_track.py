@@ -52,7 +52,17 @@ def test_csv_and_figures(short_run: tuple[Recording, str], tmp_path: Path) -> No
     with open(path, newline="") as f:
         rows = list(csv.reader(f))
     header, body = rows[0], rows[1:]
-    assert header == csv_header()
+    assert header == csv_header(rec.estimators)
+    assert header[:8] == [
+        "time_s",
+        "gt_x_m",
+        "gt_y_m",
+        "gt_z_m",
+        "gt_roll_rad",
+        "gt_pitch_rad",
+        "gt_yaw_rad",
+        "ihrcf_x_m",
+    ]
     assert len(body) == int(SECONDS * HZ)
     data = np.array(body, dtype=float)
     assert np.all(np.isfinite(data))
