@@ -20,10 +20,12 @@ from ihrcf_env.experiments.rollout import Recording, rollout
 HOVER_START: dict[str, Any] = {"altitude": 1.0, "offset": (0.0, 0.0), "yaw": 0.0}
 
 
-def hover_rollout(env: gym.Env, frames: int, seed: int = 0) -> Recording:
-    """Reset ``env`` (``ihrcf_env/DeckLanding-v0``) to :data:`HOVER_START` and record ``frames``
-    control steps of the motionless hover; score it with :meth:`Recording.error_stats`."""
-    return rollout(env, frames, None, seed=seed, options=HOVER_START)
+def hover_rollout(env: gym.Env, frames: int, seed: int = 0, altitude: float = 1.0) -> Recording:
+    """Reset ``env`` (``ihrcf_env/DeckLanding-v0``) to :data:`HOVER_START` (at ``altitude`` m above
+    the deck) and record ``frames`` control steps of the motionless hover (zero velocity commands: the
+    autopilot holds position, on its own navigation estimate under the realistic preset); score it
+    with :meth:`Recording.error_stats`."""
+    return rollout(env, frames, None, seed=seed, options={**HOVER_START, "altitude": float(altitude)})
 
 
 def make_accuracy_env(
@@ -65,14 +67,16 @@ def accuracy(
     seed: int = 0,
     calibration: str | Path | None = None,
     env_kwargs: Mapping[str, Any] | None = None,
+    altitude: float = 1.0,
 ) -> dict[str, ErrorStats]:
-    """Run the paper's hover for ``frames`` steps; per estimator (``"atda"``, ``"ihrcf"``): MAE and
-    peak (6,) = X, Y, Z (m), roll, pitch, yaw (deg), and the invalid-frame count.
+    """Run the paper's hover (``altitude`` m above the deck, 1 m in the paper) for ``frames`` steps;
+    per estimator in the observation: MAE and peak (6,) = X, Y, Z (m), roll, pitch, yaw (deg), and
+    the invalid-frame count.
 
-    See :func:`make_accuracy_env` for the arguments.
+    See :func:`make_accuracy_env` for the other arguments.
     """
     env = make_accuracy_env(frames, tof_noise, distortion, calibration, **dict(env_kwargs or {}))
     try:
-        return hover_rollout(env, frames, seed).error_stats()
+        return hover_rollout(env, frames, seed, altitude).error_stats()
     finally:
         env.close()

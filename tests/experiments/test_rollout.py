@@ -78,6 +78,16 @@ def test_hover_rollout_is_the_paper_start() -> None:
     assert rec.position["gt"][0] == pytest.approx([0.0, 0.0, -1.0], abs=0.02)
 
 
+def test_hover_rollout_at_another_altitude() -> None:
+    env = gym.make("ihrcf_env/DeckLanding-v0", deck_profile="static", keep_image=False)
+    try:
+        rec = hover_rollout(env, 2, altitude=2.0)
+    finally:
+        env.close()
+    assert rec.position["gt"][0] == pytest.approx([0.0, 0.0, -2.0], abs=0.02)
+    assert rec.valid["ihrcf"].all()  # the tag is seen and estimated from 2 m too
+
+
 class _Terminal(io.StringIO):
     def isatty(self) -> bool:
         return True
