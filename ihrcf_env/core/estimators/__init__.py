@@ -17,7 +17,14 @@ from ihrcf_env.core.estimators.base import (
     SensorFrame,
 )
 from ihrcf_env.core.estimators.detector import APRILTAG_CORNER_OFFSET_PX, TagDetector
-from ihrcf_env.core.estimators.ihrcf import IHRCFEstimator, TouchPixels, ihrcf_estimate
+from ihrcf_env.core.estimators.ihrcf import (
+    IHRCFCorners,
+    IHRCFEstimator,
+    TouchPixels,
+    ihrcf_corners,
+    ihrcf_estimate,
+    ihrcf_fit,
+)
 from ihrcf_env.core.estimators.pipeline import DeckPoseEstimator
 from ihrcf_env.core.estimators.registry import (
     DEFAULT_ESTIMATORS,
@@ -39,6 +46,7 @@ __all__ = [
     "DeckPoseEstimator",
     "DeckPoseSource",
     "EstimatorConfig",
+    "IHRCFCorners",
     "IHRCFEstimator",
     "ImuSample",
     "PoseEstimate",
@@ -48,5 +56,7 @@ __all__ = [
     "atda_estimate",
     "build_estimators",
     "check_estimator_names",
+    "ihrcf_corners",
     "ihrcf_estimate",
+    "ihrcf_fit",
 ]

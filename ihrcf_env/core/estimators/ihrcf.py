@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -26,6 +27,90 @@ from ihrcf_env.core.geometry import (
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 
 TouchPixels = Callable[[NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.bool_]]]
+
+
+@dataclass(frozen=True, eq=False)
+class IHRCFCorners:
+    """The intermediate result of IHRCF (paper sections 2.4-2.6), before the rigid fit.
+
+    Attributes:
+        corners_cam: (4, 3) the tag corners on the fitted deck plane, camera frame (m), in the
+            order of :func:`tag_corners_deck`. Each lies on the camera ray of its pixel (the ray is
+            defined by the range-to-pixel table, never by K), so ``corners_cam[i] / corners_cam[i, 2]``
+            is that ray; a filter may intersect the rays with another plane (see
+            :mod:`~ihrcf_env.core.estimators.fused`).
+        normal: (3,) unit normal of the deck plane through the touch points (camera frame, n_z > 0).
+        offset: plane offset, ``normal . x = offset`` (m).
+        ranges_used: (4,) bool, the ranges that defined the plane (the others were predicted).
+    """
+
+    corners_cam: NDArray[np.float64]
+    normal: NDArray[np.float64]
+    offset: float
+    ranges_used: NDArray[np.bool_]
+
+
+def ihrcf_corners(
+    corners_px: ArrayLike,
+    ranges: ArrayLike,
+    ranges_valid: ArrayLike,
+    touch_pixels: TouchPixels,
+    rig: SensorRig,
+) -> IHRCFCorners | str:
+    """IHRCF up to the 3-D tag corners (paper sections 2.4-2.6): an :class:`IHRCFCorners`, or the
+    reason (str) why there are none. Arguments as :func:`ihrcf_estimate`."""
+    corners = _shape_checked(corners_px, (4, 2), "corners_px")
+    r = _shape_checked(ranges, (4,), "ranges")
+    rv = _shape_checked(ranges_valid, (4,), "ranges_valid", dtype=bool)
+    if not np.all(np.isfinite(corners)):
+        return "non-finite tag corners"
+    sensor_xy = rig.sensor_xy_cam  # (4, 2) ps1..ps4, camera frame, m
+
+    # Section 2.6: the deck plane (camera frame) through the valid touch points (x_i, y_i, d_i).
+    with np.errstate(invalid="ignore"):
+        valid = rv & np.isfinite(r) & (r > 0)
+    if int(valid.sum()) < 3:
+        return "fewer than 3 valid ranges"
+    touch = np.column_stack([sensor_xy[valid], r[valid]])
+    try:
+        normal, offset = fit_plane(touch)  # least squares on 4 points, eq. (20) on 3
+        predicted = plane_z(normal, offset, sensor_xy)
+    except ValueError as e:
+        return f"deck plane undefined: {e}"
+    full_ranges = np.where(valid, r, predicted)  # missing ranges predicted from the plane
+    if not (np.all(np.isfinite(full_ranges)) and np.all(full_ranges > 0)):
+        return "predicted range not positive"
+
+    # Touch pixels from the calibration table (paper section 2.2).
+    tp, inside = touch_pixels(full_ranges.copy())
+    tp = _shape_checked(tp, (4, 2), "touch_pixels()[0]")
+    inside = _shape_checked(inside, (4,), "touch_pixels()[1]", dtype=bool)
+    if not np.all(inside):
+        return "range outside calibration table"
+    if not np.all(np.isfinite(tp)):
+        return "non-finite touch pixels"
+    if quad_is_degenerate(sensor_xy, DEGENERATE_REL_TOL):
+        return "degenerate sensor layout"
+    if quad_is_degenerate(tp, DEGENERATE_REL_TOL):
+        return "degenerate touch pixels"
+
+    # Section 2.4: homography sensor XY (camera frame, m) -> touch pixel. Row i of both arrays is
+    # sensor ps_i (eq. 17-18 reorder both sides to ps1, ps2, ps4, ps3; only the row correspondence
+    # matters, which is kept explicit here).
+    try:
+        H = homography_from_points(sensor_xy, tp)
+        H_inv = np.linalg.inv(H)
+    except (ValueError, np.linalg.LinAlgError) as e:
+        return f"homography failed: {e}"
+    # Section 2.5: inverse homography of the tag corners -> camera-frame XY on the deck plane.
+    xy = apply_homography(H_inv, corners)
+    if not np.all(np.isfinite(xy)):
+        return "tag corner maps to infinity"
+    # Section 2.6, eq. (22): Z from the plane.
+    z = plane_z(normal, offset, xy)
+    if not np.all(z > 0):
+        return "tag corner behind the camera"
+    return IHRCFCorners(np.column_stack([xy, z]), normal, float(offset), valid)
 
 
 def ihrcf_estimate(
@@ -54,59 +139,19 @@ def ihrcf_estimate(
         A :class:`PoseEstimate`; invalid with a reason for any bad measurement (never raises for
         those). Raises ValueError only for wrongly shaped inputs.
     """
-    corners = _shape_checked(corners_px, (4, 2), "corners_px")
-    r = _shape_checked(ranges, (4,), "ranges")
-    rv = _shape_checked(ranges_valid, (4,), "ranges_valid", dtype=bool)
-    if not np.all(np.isfinite(corners)):
-        return PoseEstimate.invalid("non-finite tag corners")
-    sensor_xy = rig.sensor_xy_cam  # (4, 2) ps1..ps4, camera frame, m
+    measured = ihrcf_corners(corners_px, ranges, ranges_valid, touch_pixels, rig)
+    if isinstance(measured, str):
+        return PoseEstimate.invalid(measured)
+    return ihrcf_fit(measured.corners_cam, rig, tag_size, max_residual)
 
-    # Section 2.6: the deck plane (camera frame) through the valid touch points (x_i, y_i, d_i).
-    with np.errstate(invalid="ignore"):
-        valid = rv & np.isfinite(r) & (r > 0)
-    if int(valid.sum()) < 3:
-        return PoseEstimate.invalid("fewer than 3 valid ranges")
-    touch = np.column_stack([sensor_xy[valid], r[valid]])
-    try:
-        normal, offset = fit_plane(touch)  # least squares on 4 points, eq. (20) on 3
-        predicted = plane_z(normal, offset, sensor_xy)
-    except ValueError as e:
-        return PoseEstimate.invalid(f"deck plane undefined: {e}")
-    full_ranges = np.where(valid, r, predicted)  # missing ranges predicted from the plane
-    if not (np.all(np.isfinite(full_ranges)) and np.all(full_ranges > 0)):
-        return PoseEstimate.invalid("predicted range not positive")
 
-    # Touch pixels from the calibration table (paper section 2.2).
-    tp, inside = touch_pixels(full_ranges.copy())
-    tp = _shape_checked(tp, (4, 2), "touch_pixels()[0]")
-    inside = _shape_checked(inside, (4,), "touch_pixels()[1]", dtype=bool)
-    if not np.all(inside):
-        return PoseEstimate.invalid("range outside calibration table")
-    if not np.all(np.isfinite(tp)):
-        return PoseEstimate.invalid("non-finite touch pixels")
-    if quad_is_degenerate(sensor_xy, DEGENERATE_REL_TOL):
-        return PoseEstimate.invalid("degenerate sensor layout")
-    if quad_is_degenerate(tp, DEGENERATE_REL_TOL):
-        return PoseEstimate.invalid("degenerate touch pixels")
-
-    # Section 2.4: homography sensor XY (camera frame, m) -> touch pixel. Row i of both arrays is
-    # sensor ps_i (eq. 17-18 reorder both sides to ps1, ps2, ps4, ps3; only the row correspondence
-    # matters, which is kept explicit here).
-    try:
-        H = homography_from_points(sensor_xy, tp)
-        H_inv = np.linalg.inv(H)
-    except (ValueError, np.linalg.LinAlgError) as e:
-        return PoseEstimate.invalid(f"homography failed: {e}")
-    # Section 2.5: inverse homography of the tag corners -> camera-frame XY on the deck plane.
-    xy = apply_homography(H_inv, corners)
-    if not np.all(np.isfinite(xy)):
-        return PoseEstimate.invalid("tag corner maps to infinity")
-    # Section 2.6, eq. (22): Z from the plane.
-    z = plane_z(normal, offset, xy)
-    if not np.all(z > 0):
-        return PoseEstimate.invalid("tag corner behind the camera")
-    measured = np.column_stack([xy, z])
-
+def ihrcf_fit(
+    corners_cam: ArrayLike, rig: SensorRig, tag_size: float, max_residual: float = 0.01
+) -> PoseEstimate:
+    """Section 2.7-2.8: the rigid fit (det = +1) of the tag model to (4, 3) measured corners in the
+    camera frame (m), converted to the body frame; invalid when the RMS residual exceeds
+    ``max_residual`` (m) or the fit fails."""
+    measured = _shape_checked(corners_cam, (4, 3), "corners_cam")
     # Section 2.7: rigid transform deck model -> measured corners (camera frame).
     try:
         R_cd, t_cd, rms = rigid_fit(tag_corners_deck(tag_size), measured)
