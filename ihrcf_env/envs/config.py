@@ -20,6 +20,17 @@ Each dataclass checks its own fields in ``__post_init__`` (messages name the ``g
 deck's highest reach and the arena's ceiling, the arena against the deck, the sea-state amplitudes
 against the Stewart legs' stroke, the tag id.
 
+Sensor realism: ``sensor_preset`` (``"ideal"``, the default and every result before the option
+existed, bit for bit; or ``"realistic"``) chooses together the camera (``camera_quality``), the ToF
+sensors (``tof_noise``: one ray, or the VL53L1X cone model), the IMU (``imu_noise``: BMI088
+noise, biases and attitude-filter error) and the autopilot's feedback (``autopilot_feedback``:
+``"truth"`` or a drifting GNSS/INS ``"estimated"`` state); see :data:`SENSOR_PRESETS`. Each of those
+options, given, overrides the preset; ``tof_noise``, ``imu_noise`` and ``autopilot_feedback`` also
+take their model's parameter dataclass (:class:`~ihrcf_env.sim.sensors.tof.VL53L1X`,
+:class:`~ihrcf_env.sim.sensors.imu.IMUNoise`, :class:`~ihrcf_env.sim.navigation.NavigationErrors`)
+or a dict of some of its parameters (overriding the realistic defaults, e.g.
+``tof_noise={"ambient": 1.0}``); a bad parameter raises naming the option and the key.
+
 Start altitude bounds: the drone's landing legs reach 0.10 m below its centre, and a tilted,
 moving deck rises under a drone that is off its centre, so the lowest start (``start_altitude -
 start_altitude_jitter``, or ``reset(options={"altitude": ...})``) must be at least
@@ -53,7 +64,10 @@ from ihrcf_env.core.profiles import (
 )
 from ihrcf_env.sim.deck import DeckConfig
 from ihrcf_env.sim.disturbances import Disturbance
+from ihrcf_env.sim.navigation import FEEDBACK_MODES, NavigationConfig, NavigationErrors
 from ihrcf_env.sim.sensors import TOF_PRESETS, CameraConfig, ToFConfig
+from ihrcf_env.sim.sensors.imu import IMU_NOISE_PRESETS, IMUConfig, IMUNoise
+from ihrcf_env.sim.sensors.tof import VL53L1X
 from ihrcf_env.sim.world import ACTION_MODES, WorldConfig
 
 #: Seconds of deck motion checked against the legs' stroke at reset when ``horizon_s`` is None.
@@ -71,6 +85,24 @@ ARENA_MARGIN = 0.5
 #: Largest chase-view image side (px).
 MAX_CHASE_SIZE = 4096
 RENDER_MODES: tuple[str, ...] = ("human", "rgb_array")
+#: Camera qualities (``CameraConfig.quality``).
+CAMERA_QUALITIES: tuple[str, ...] = ("ideal", "realistic")
+#: ``sensor_preset``: the model each preset selects for ``camera_quality``, ``tof_noise``,
+#: ``imu_noise`` and ``autopilot_feedback`` (each option, given, overrides its preset).
+SENSOR_PRESETS: dict[str, dict[str, str]] = {
+    "ideal": {
+        "camera_quality": "ideal",
+        "tof_noise": "ideal",
+        "imu_noise": "ideal",
+        "autopilot_feedback": "truth",
+    },
+    "realistic": {
+        "camera_quality": "realistic",
+        "tof_noise": "realistic",
+        "imu_noise": "realistic",
+        "autopilot_feedback": "estimated",
+    },
+}
 
 
 # -- type checks (each names the option) ------------------------------------------------------------
@@ -385,6 +417,46 @@ def _build(cls: type[T], options: Mapping[str, tuple[str, object]], **fixed: obj
     return cls(**{attr: value for attr, value in options.values()}, **fixed)
 
 
+M = TypeVar("M")
+
+
+def model_option(
+    name: str,
+    value: object,
+    preset: str,
+    names: Sequence[str],
+    cls: type[M],
+    default: M,
+) -> str | M:
+    """A sensor-model option: None (the ``sensor_preset``'s choice ``preset``), one of ``names``, an
+    instance of the parameter dataclass ``cls``, or a mapping of some of its parameters (overrides of
+    ``default``, the realistic model). Bad names or parameters raise naming ``name`` (and the key)."""
+    if value is None:
+        return preset
+    if isinstance(value, str):
+        return check_str(name, value, names)
+    if isinstance(value, cls):
+        return value
+    if isinstance(value, Mapping):
+        known = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
+        for key, v in value.items():
+            if key not in known:
+                raise ValueError(f"{name} has no parameter {key!r}; known: {', '.join(known)}")
+            try:
+                dataclasses.replace(default, **{key: v})  # type: ignore[type-var]
+            except (TypeError, ValueError) as e:
+                raise type(e)(f"{name}[{key!r}]: {e}") from None
+        return dataclasses.replace(default, **value)  # type: ignore[type-var]
+    raise TypeError(
+        f"{name} must be one of {tuple(names)}, a {cls.__name__} or a dict of its parameters, "
+        f"got {type(value).__name__} {value!r}"
+    )
+
+
+def _camera_has_quality() -> bool:
+    return "quality" in {f.name for f in dataclasses.fields(CameraConfig)}
+
+
 def make_config(
     *,
     render_mode: str | None = None,
@@ -398,7 +470,11 @@ def make_config(
     camera_height: int = 512,
     camera_fov: float = math.radians(60.0),
     camera_distortion: tuple[float, float] = (0.0, 0.0),
-    tof_noise: str = "ideal",
+    sensor_preset: str = "ideal",
+    camera_quality: str | None = None,
+    tof_noise: str | Mapping[str, Any] | VL53L1X | None = None,
+    imu_noise: str | Mapping[str, Any] | IMUNoise | None = None,
+    autopilot_feedback: str | Mapping[str, Any] | NavigationErrors | None = None,
     tof_max_range: float = 4.0,
     tag_id: int = 0,
     tag_size: float = 0.4,
@@ -423,23 +499,52 @@ def make_config(
             f"camera_distortion {camera_distortion!r} has no effect with camera=False: drop it or "
             "turn the camera on"
         )
+    preset = SENSOR_PRESETS[check_str("sensor_preset", sensor_preset, tuple(SENSOR_PRESETS))]
+    quality = (
+        preset["camera_quality"]
+        if camera_quality is None
+        else check_str("camera_quality", camera_quality, CAMERA_QUALITIES)
+    )
+    if camera_quality is not None and camera_quality != "ideal" and not has_camera:
+        raise ValueError(
+            f"camera_quality {camera_quality!r} has no effect with camera=False: drop it or turn the "
+            "camera on"
+        )
     cam = None
     if has_camera:
-        cam = _build(
-            CameraConfig,
-            {
-                "camera_width": ("width", check_int("camera_width", camera_width)),
-                "camera_height": ("height", check_int("camera_height", camera_height)),
-                "camera_fov": ("fov", check_real("camera_fov", camera_fov, " (rad)")),
-                "camera_distortion": ("distortion", distortion),
-            },
-        )
+        cam_options: dict[str, tuple[str, object]] = {
+            "camera_width": ("width", check_int("camera_width", camera_width)),
+            "camera_height": ("height", check_int("camera_height", camera_height)),
+            "camera_fov": ("fov", check_real("camera_fov", camera_fov, " (rad)")),
+            "camera_distortion": ("distortion", distortion),
+        }
+        if _camera_has_quality():
+            cam_options["camera_quality"] = ("quality", quality)
+        elif camera_quality not in (None, "ideal"):
+            raise ValueError(f"camera_quality {camera_quality!r} is not supported by this camera model")
+        cam = _build(CameraConfig, cam_options)
+    tof_model = model_option(
+        "tof_noise", tof_noise, preset["tof_noise"], tuple(TOF_PRESETS), VL53L1X, VL53L1X()
+    )
     tof = _build(
         ToFConfig,
         {
             "tof_max_range": ("max_range", check_real("tof_max_range", tof_max_range, " (m)")),
-            "tof_noise": ("noise", check_str("tof_noise", tof_noise, tuple(TOF_PRESETS))),
+            "tof_noise": ("noise", tof_model),
         },
+    )
+    imu = IMUConfig(
+        model_option("imu_noise", imu_noise, preset["imu_noise"], IMU_NOISE_PRESETS, IMUNoise, IMUNoise())
+    )
+    navigation = NavigationConfig(
+        model_option(
+            "autopilot_feedback",
+            autopilot_feedback,
+            preset["autopilot_feedback"],
+            FEEDBACK_MODES,
+            NavigationErrors,
+            NavigationErrors(),
+        )
     )
     deck = _build(
         DeckConfig,
@@ -456,6 +561,8 @@ def make_config(
         },
         camera=cam,
         tof=tof,
+        imu=imu,
+        navigation=navigation,
         deck=deck,
     )
     task = TaskConfig(

@@ -58,7 +58,10 @@ from ihrcf_env.envs.config import (
 )
 from ihrcf_env.envs.display import require_gui_display
 from ihrcf_env.sim.disturbances import Disturbance
+from ihrcf_env.sim.navigation import NavigationErrors
 from ihrcf_env.sim.sensors import CameraConfig
+from ihrcf_env.sim.sensors.imu import IMUNoise
+from ihrcf_env.sim.sensors.tof import VL53L1X
 from ihrcf_env.sim.world import Snapshot, Touchdown, World, WorldConfig
 
 RESET_OPTIONS = ("altitude", "offset", "yaw", "deck_time")
@@ -83,8 +86,11 @@ class DeckLandingEnv(gym.Env):
     :class:`~ihrcf_env.sim.world.WorldConfig`, ``self.task`` the
     :class:`~ihrcf_env.envs.config.TaskConfig`. ``disturbances`` (see
     :mod:`ihrcf_env.sim.disturbances`) push the drone at every physics step; each env deep-copies
-    them. The env cannot be copied or pickled (it owns a physics client) and, once closed, raises
-    RuntimeError on use. Only one ``render_mode="human"`` env can be open per process (one PyBullet
+    them. ``sensor_preset`` (``"ideal"`` or ``"realistic"``) sets the camera, ToF, IMU and autopilot
+    feedback models together; ``camera_quality``, ``tof_noise``, ``imu_noise`` and
+    ``autopilot_feedback`` override it one by one (see :mod:`ihrcf_env.envs.config`). The env
+    cannot be copied or pickled (it owns a physics client) and, once closed, raises RuntimeError
+    on use. Only one ``render_mode="human"`` env can be open per process (one PyBullet
     GUI).
     """
 
@@ -104,7 +110,11 @@ class DeckLandingEnv(gym.Env):
         camera_height: int = 512,
         camera_fov: float = math.radians(60.0),
         camera_distortion: tuple[float, float] = (0.0, 0.0),
-        tof_noise: str = "ideal",
+        sensor_preset: str = "ideal",
+        camera_quality: str | None = None,
+        tof_noise: str | Mapping[str, Any] | VL53L1X | None = None,
+        imu_noise: str | Mapping[str, Any] | IMUNoise | None = None,
+        autopilot_feedback: str | Mapping[str, Any] | NavigationErrors | None = None,
         tof_max_range: float = 4.0,
         tag_id: int = 0,
         tag_size: float = 0.4,
@@ -132,7 +142,11 @@ class DeckLandingEnv(gym.Env):
             camera_height=camera_height,
             camera_fov=camera_fov,
             camera_distortion=camera_distortion,
+            sensor_preset=sensor_preset,
+            camera_quality=camera_quality,
             tof_noise=tof_noise,
+            imu_noise=imu_noise,
+            autopilot_feedback=autopilot_feedback,
             tof_max_range=tof_max_range,
             tag_id=tag_id,
             tag_size=tag_size,

@@ -6,9 +6,12 @@ above) ``(+1, -1, +1, -1)``; a counter-clockwise rotor pushes the body with a cl
 Thrust ``kf w^2`` along body +z, reaction torque ``-dir * km w^2`` about body z, rotor speeds
 ``w`` follow the commanded speeds through a first-order lag ``motor_tau``.
 
-The controllers run at the physics rate (a flight controller's inner loop) on the true state,
-like a well-estimated autopilot; only the landing task's *relative* sensing (camera, ToF) is the
-subject of this simulator.
+The controllers run at the physics rate (a flight controller's inner loop) on the state they are
+given: :class:`VelocityController` closes its position and velocity loops on the ``pos`` and
+``vel`` passed to :meth:`VelocityController.compute` (the world passes the true state, or the
+autopilot's navigation estimate with ``autopilot_feedback="estimated"``, see
+:mod:`ihrcf_env.sim.navigation`) and its attitude loop on ``quat`` and ``omega`` (always the true
+attitude and body rates).
 """
 
 from __future__ import annotations
@@ -195,7 +198,9 @@ class VelocityController:
     ``vx, vy`` are horizontal velocities in the heading frame (x forward along the current yaw,
     y left), ``vz`` is the world vertical velocity, ``yaw_rate`` about world z. A position
     set-point integrates the commanded velocity, so a zero command holds position (as an
-    autopilot's position-hold mode does); the error to it is limited to ``leash``.
+    autopilot's position-hold mode does); the error to it is limited to ``leash``. The position
+    held is that of the ``pos`` given to :meth:`compute`: with a drifting navigation estimate the
+    drone drifts with it.
     """
 
     def __init__(self, quad: Quadrotor, gains: VelocityGains | None = None) -> None:

@@ -24,7 +24,9 @@ from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.sim.deck import Deck, DeckConfig, DeckTrajectory
 from ihrcf_env.sim.disturbances import Disturbance
 from ihrcf_env.sim.drone import QuadParams, Quadrotor, VelocityController, VelocityGains
+from ihrcf_env.sim.navigation import Navigation, NavigationConfig, make_navigation
 from ihrcf_env.sim.sensors import IMU, BodyState, CameraConfig, DownCamera, Sensor, ToFArray, ToFConfig
+from ihrcf_env.sim.sensors.imu import IMUConfig
 
 ACTION_MODES: tuple[str, ...] = ("velocity", "motors")
 
@@ -37,6 +39,8 @@ class WorldConfig:
     control_hz: int = 20
     camera: CameraConfig | None = field(default_factory=CameraConfig)  # None: no camera rendering
     tof: ToFConfig = field(default_factory=ToFConfig)
+    imu: IMUConfig = field(default_factory=IMUConfig)
+    navigation: NavigationConfig = field(default_factory=NavigationConfig)
     deck: DeckConfig = field(default_factory=DeckConfig)
     stewart: StewartGeometry = field(default_factory=StewartGeometry)
     quad: QuadParams = field(default_factory=QuadParams)
@@ -104,6 +108,11 @@ class World:
     order; :meth:`read_sensors` reads them all. Disturbances
     (:class:`~ihrcf_env.sim.disturbances.Disturbance`) added with :meth:`add_disturbance` push
     the drone at every physics step.
+
+    In velocity mode the autopilot closes its position and velocity loops on :attr:`navigation`'s
+    estimate (:mod:`ihrcf_env.sim.navigation`: the truth, or a GNSS/INS estimate with drifting
+    errors, per ``WorldConfig.navigation``); its attitude loop uses the true attitude and rates.
+    :meth:`nav_position` / :meth:`nav_velocity` give the estimate the autopilot flies on.
     """
 
     def __init__(self, config: WorldConfig | None = None, gui: bool = False) -> None:
@@ -144,7 +153,8 @@ class World:
         self.controller = VelocityController(self.quad, cfg.gains)
         self.camera = DownCamera(cid, cfg.camera, cfg.rig) if cfg.camera is not None else None
         self.tof = ToFArray(cid, cfg.tof, cfg.rig)
-        self.imu_sensor = IMU()
+        self.imu_sensor = IMU.from_config(cfg.imu)
+        self.navigation: Navigation = make_navigation(cfg.navigation, self.dt)
         self.sensors: dict[str, Sensor] = {}
         if self.camera is not None:
             self.sensors["camera"] = self.camera
@@ -189,11 +199,19 @@ class World:
         self.deck.update_visuals()
 
     def reset_random(self, rng: np.random.Generator) -> None:
-        """Let sensors and disturbances draw this episode's random state (biases, gusts) from ``rng``."""
+        """Let sensors, disturbances and the navigation estimate draw this episode's random state
+        (biases, gusts, navigation errors) from ``rng``, in that order. With an estimated navigation
+        the position hold then engages on the estimate (as an autopilot's does), not on the truth."""
         for sensor in self.sensors.values():
             sensor.reset(rng)
         for d in self.disturbances:
             d.reset(rng)
+        nav = self.navigation
+        nav.reset(rng)
+        if not nav.ideal:
+            pos, _, vel, _ = self.quad.state()
+            est, _ = nav.estimate(self.time, pos, vel)
+            self.controller.reset(np.asarray(est), self.controller.yaw_ref)
 
     def close(self) -> None:
         """Disconnect the client and remove temporary files; safe to call twice."""
@@ -235,6 +253,8 @@ class World:
         self._setpoint = tuple(sp.tolist())
         if not self._mode_velocity:  # coming from motor commands: hold from where the drone is now
             pos, R = self.drone_pose()
+            if not self.navigation.ideal:
+                pos = self.nav_position()
             self.controller.reset(pos, math.atan2(R[1, 0], R[0, 0]))
         self._mode_velocity = True
 
@@ -253,11 +273,19 @@ class World:
         first: Touchdown | None = None
         vel_mode = self._mode_velocity
         disturbances = self.disturbances
+        nav = self.navigation
+        truth = nav.ideal
         prev_vel: tuple[float, ...] = (0.0, 0.0, 0.0)
         for _ in range(self.config.substeps):
             deck.drive(self.tick)
             pos, quat, vel, omega = quad.state()
-            cmd = ctrl.compute(self._setpoint, dt, pos, quat, vel, omega) if vel_mode else self._motor_cmd
+            if not vel_mode:
+                cmd = self._motor_cmd
+            elif truth:
+                cmd = ctrl.compute(self._setpoint, dt, pos, quat, vel, omega)
+            else:  # position/velocity loops on the navigation estimate, attitude loop on the truth
+                pos_est, vel_est = nav.estimate(self.tick * dt, pos, vel)
+                cmd = ctrl.compute(self._setpoint, dt, pos_est, quat, vel_est, omega)
             quad.apply(cmd, dt, pos, quat, vel)
             if disturbances:
                 t = self.tick * dt
@@ -307,6 +335,20 @@ class World:
         """World position (m) and rotation matrix of the drone body frame."""
         pos, quat = p.getBasePositionAndOrientation(self.quad.body, physicsClientId=self.client)
         return np.asarray(pos), matrix_from_quat(quat)
+
+    def nav_position(self) -> NDArray[np.float64]:
+        """The autopilot's position estimate now (world, m): the truth, or the GNSS/INS estimate."""
+        self._check_open()
+        pos, _, vel, _ = self.quad.state()
+        est, _ = self.navigation.estimate(self.time, pos, vel)
+        return np.asarray(est, dtype=np.float64)
+
+    def nav_velocity(self) -> NDArray[np.float64]:
+        """The autopilot's velocity estimate now (world, m/s): the truth, or the GNSS/INS estimate."""
+        self._check_open()
+        pos, _, vel, _ = self.quad.state()
+        _, est = self.navigation.estimate(self.time, pos, vel)
+        return np.asarray(est, dtype=np.float64)
 
     def body_state(self) -> BodyState:
         """The drone's true state now, as sensors see it."""

@@ -1,15 +1,182 @@
-"""The drone's IMU: attitude, body rates and specific force, with pluggable noise per channel."""
+"""The drone's IMU: attitude, body rates and specific force, with pluggable noise per channel.
+
+Two presets (:class:`IMUConfig` ``noise``): ``"ideal"`` (the true values, nothing drawn) and
+``"realistic"`` (:class:`IMUNoise`, the figures of a Bosch BMI088, the IMU of many flight
+controllers, and of a commercial attitude filter). Per axis, sampled every ``dt`` s (the control
+period), ``n ~ N(0, 1)`` fresh each time:
+
+* gyro and accelerometer: ``y = x + b_on + b_gm + N / sqrt(dt) n`` with the turn-on bias
+  ``b_on ~ N(0, sigma_on^2)`` drawn at reset (:class:`~ihrcf_env.sim.noise.ConstantBias`), the bias
+  instability ``b_gm`` a first-order Gauss-Markov process of stationary std ``sigma_bi`` and
+  correlation time ``tau`` (:class:`~ihrcf_env.sim.noise.GaussMarkov`), and white noise of density
+  ``N`` discretised at the sample rate, ``sigma_d = N sqrt(rate)``
+  (:class:`~ihrcf_env.sim.noise.WhiteNoise`);
+* attitude quaternion (an onboard attitude filter's output, :class:`AttitudeError`):
+  ``R_meas = exp([e]_x) R_true`` with the world-frame error rotation ``e = (e_x, e_y, e_z)``: a tilt
+  error ``e_x, e_y`` Gauss-Markov (``tilt_sigma``, ``tilt_time_constant``), and a heading drift
+  ``e_z = r t``, ``r ~ N(0, yaw_drift_rate^2)`` drawn at reset.
+"""
 
 from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ihrcf_env.core.constants import GRAVITY
-from ihrcf_env.sim.noise import NoiseModel, NoNoise
+from ihrcf_env.sim.noise import (
+    Chain,
+    ConstantBias,
+    GaussMarkov,
+    NoiseModel,
+    NoNoise,
+    WhiteNoise,
+    check_param,
+)
 from ihrcf_env.sim.sensors.base import BodyState
 
 _GRAVITY_WORLD = np.array([0.0, 0.0, GRAVITY])
+
+#: IMU noise presets.
+IMU_NOISE_PRESETS: tuple[str, ...] = ("ideal", "realistic")
+
+_MG = 1e-3 * GRAVITY  # m/s^2 per milli-g
+_DEG = math.pi / 180.0
+
+
+@dataclass(frozen=True)
+class IMUNoise:
+    """Noise figures of the IMU and of its attitude filter. SI units: rad/s, m/s^2, rad, s.
+
+    Sensor: Bosch **BMI088** data sheet (BST-BMI088-DS001, rev. 1.x), typical values:
+
+    ========================  ===================================  ====================================
+    field                     value                                source
+    ========================  ===================================  ====================================
+    gyro_noise_density        0.014 deg/s/sqrt(Hz)                 BMI088 gyro output noise density
+    gyro_bias_instability     2 deg/h                              BMI088 gyro bias stability
+    gyro_bias_time_constant   100 s                                assumption (Allan minimum region)
+    gyro_turn_on_bias         1 deg/s (1 sigma)                    BMI088 zero-rate offset +-1 deg/s
+    accel_noise_density       160, 160, 190 ug/sqrt(Hz) (x, y, z)  BMI088 accel output noise density
+    accel_bias_instability    0.2 mg                               BMI088 TCO 0.2 mg/K x 1 K in flight
+                                                                   (no instability figure is given)
+    accel_bias_time_constant  100 s                                assumption
+    accel_turn_on_bias        20 mg (1 sigma)                      BMI088 zero-g offset +-20 mg
+    ========================  ===================================  ====================================
+
+    Attitude filter: Xsens MTi user manual (MT0605P, sec. 4.3), MTi-30 AHRS typical dynamic
+    roll/pitch error 0.5 deg (1 sigma RMS), and "based on the rate gyros the attitude and heading
+    estimates will degrade slowly (typically a degree every minute)" without a heading reference
+    (a magnetometer is unusable next to a steel deck): ``tilt_sigma`` 0.5 deg, ``tilt_time_constant``
+    5 s (assumption: the filter's accelerometer-correction time scale), ``yaw_drift_rate`` 1 deg/min
+    (1 sigma).
+
+    The datasheet's typical offsets are taken as one standard deviation (a flight controller that
+    calibrates its gyro at boot would leave less: set the turn-on fields to what it leaves).
+    """
+
+    gyro_noise_density: float = 0.014 * _DEG
+    gyro_bias_instability: float = 2.0 * _DEG / 3600.0
+    gyro_bias_time_constant: float = 100.0
+    gyro_turn_on_bias: float = 1.0 * _DEG
+    accel_noise_density: float | tuple[float, float, float] = (0.160 * _MG, 0.160 * _MG, 0.190 * _MG)
+    accel_bias_instability: float = 0.2 * _MG
+    accel_bias_time_constant: float = 100.0
+    accel_turn_on_bias: float = 20.0 * _MG
+    tilt_sigma: float = 0.5 * _DEG
+    tilt_time_constant: float = 5.0
+    yaw_drift_rate: float = 1.0 * _DEG / 60.0
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            positive = f.name.endswith("time_constant")
+            if f.name == "accel_noise_density" and isinstance(value, tuple | list | np.ndarray):
+                if len(value) != 3:
+                    raise ValueError(f"accel_noise_density must be one number or 3 (x, y, z), got {value!r}")
+                checked: object = tuple(
+                    check_param(f"accel_noise_density[{i}]", v) for i, v in enumerate(value)
+                )
+            else:
+                checked = check_param(f.name, value, positive=positive)
+            object.__setattr__(self, f.name, checked)
+
+
+@dataclass(frozen=True)
+class IMUConfig:
+    """``noise``: a key of :data:`IMU_NOISE_PRESETS` or an :class:`IMUNoise` (custom figures)."""
+
+    noise: str | IMUNoise = "ideal"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.noise, IMUNoise) and self.noise not in IMU_NOISE_PRESETS:
+            raise ValueError(
+                f"imu_noise must be one of {IMU_NOISE_PRESETS} or an IMUNoise, got {self.noise!r}"
+            )
+
+    @property
+    def model(self) -> IMUNoise | None:
+        """The noise figures, or None for the ideal IMU."""
+        if isinstance(self.noise, IMUNoise):
+            return self.noise
+        return None if self.noise == "ideal" else IMUNoise()
+
+
+def _quat_multiply(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Hamilton product ``a b`` of quaternions (x, y, z, w)."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return np.array(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by + ay * bw + az * bx - ax * bz,
+            aw * bz + az * bw + ax * by - ay * bx,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ]
+    )
+
+
+def _quat_from_rotvec(e: NDArray[np.float64]) -> NDArray[np.float64]:
+    angle = float(np.linalg.norm(e))
+    if angle < 1e-12:
+        return np.array([0.5 * e[0], 0.5 * e[1], 0.5 * e[2], 1.0])
+    s = math.sin(angle / 2) / angle
+    return np.array([e[0] * s, e[1] * s, e[2] * s, math.cos(angle / 2)])
+
+
+class AttitudeError:
+    """Error of an attitude filter's quaternion output (a :class:`~ihrcf_env.sim.noise.NoiseModel` on
+    the (4,) quaternion x, y, z, w, world from body): ``q_meas = q_err q_true`` with ``q_err`` the
+    rotation by the world-frame vector ``(e_x, e_y, e_z)``; ``e_x, e_y`` a Gauss-Markov tilt error
+    (``tilt_sigma`` rad, ``tilt_time_constant`` s), ``e_z = r t`` a heading drift at a rate
+    ``r ~ N(0, yaw_drift_rate^2)`` (rad/s) drawn at reset, ``t`` the time since reset."""
+
+    def __init__(self, tilt_sigma: float, tilt_time_constant: float, yaw_drift_rate: float) -> None:
+        self._tilt = GaussMarkov(tilt_sigma, tilt_time_constant, size=2)
+        self._rate_sigma = check_param("yaw_drift_rate", yaw_drift_rate)
+        self.yaw_rate = 0.0
+        self.yaw = 0.0
+
+    @property
+    def error(self) -> NDArray[np.float64]:
+        """The current world-frame error rotation vector (rad)."""
+        return np.array([self._tilt.bias[0], self._tilt.bias[1], self.yaw])
+
+    def reset(self, rng: np.random.Generator) -> None:
+        self._tilt.reset(rng)
+        self.yaw_rate = float(rng.standard_normal()) * self._rate_sigma if self._rate_sigma > 0 else 0.0
+        self.yaw = 0.0
+
+    def apply(
+        self, value: NDArray[np.float64], valid: NDArray[np.bool_], dt: float, rng: np.random.Generator
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        self._tilt.step(dt, rng)
+        self.yaw += self.yaw_rate * dt
+        q = _quat_multiply(_quat_from_rotvec(self.error), np.asarray(value, dtype=np.float64))
+        return q / np.linalg.norm(q), valid
 
 
 class IMU:
@@ -20,26 +187,59 @@ class IMU:
     * ``linear_acceleration`` (3,): specific force, m/s^2, body frame; +9.81 on z at hover
       (accelerometer).
 
-    ``gyro_noise`` and ``accel_noise`` corrupt the body-frame vectors (default: ideal).
+    ``gyro_noise``, ``accel_noise`` and ``attitude_noise`` corrupt the body-frame vectors and the
+    quaternion (default: ideal); :meth:`from_config` builds them from an :class:`IMUConfig`.
     """
 
     name = "imu"
 
-    def __init__(self, gyro_noise: NoiseModel | None = None, accel_noise: NoiseModel | None = None) -> None:
+    def __init__(
+        self,
+        gyro_noise: NoiseModel | None = None,
+        accel_noise: NoiseModel | None = None,
+        attitude_noise: NoiseModel | None = None,
+    ) -> None:
         self.gyro_noise: NoiseModel = gyro_noise if gyro_noise is not None else NoNoise()
         self.accel_noise: NoiseModel = accel_noise if accel_noise is not None else NoNoise()
+        self.attitude_noise: NoiseModel = attitude_noise if attitude_noise is not None else NoNoise()
         self._ok = np.ones(3, dtype=bool)
+        self._ok4 = np.ones(4, dtype=bool)
+
+    @classmethod
+    def from_config(cls, config: IMUConfig) -> IMU:
+        """The ideal IMU, or one with the :class:`IMUNoise` models described in the module docstring."""
+        m = config.model
+        if m is None:
+            return cls()
+        gyro = Chain(
+            (
+                ConstantBias(m.gyro_turn_on_bias),
+                GaussMarkov(m.gyro_bias_instability, m.gyro_bias_time_constant),
+                WhiteNoise(m.gyro_noise_density),
+            )
+        )
+        accel = Chain(
+            (
+                ConstantBias(m.accel_turn_on_bias),
+                GaussMarkov(m.accel_bias_instability, m.accel_bias_time_constant),
+                WhiteNoise(m.accel_noise_density),
+            )
+        )
+        attitude = AttitudeError(m.tilt_sigma, m.tilt_time_constant, m.yaw_drift_rate)
+        return cls(gyro, accel, attitude)
 
     def reset(self, rng: np.random.Generator) -> None:
         self.gyro_noise.reset(rng)
         self.accel_noise.reset(rng)
+        self.attitude_noise.reset(rng)
 
     def read(self, state: BodyState, dt: float, rng: np.random.Generator) -> dict[str, NDArray]:
         R = state.rotation
         gyro, _ = self.gyro_noise.apply(R.T @ state.angular_velocity, self._ok, dt, rng)
         accel, _ = self.accel_noise.apply(R.T @ (state.acceleration + _GRAVITY_WORLD), self._ok, dt, rng)
+        quat, _ = self.attitude_noise.apply(np.asarray(state.quaternion), self._ok4, dt, rng)
         return {
-            "quaternion": np.asarray(state.quaternion),
+            "quaternion": quat,
             "angular_velocity": gyro,
             "linear_acceleration": accel,
         }
