@@ -1,0 +1,222 @@
+"""sensor_preset and the per-model options at gym.make: plumbing, ideal = the default bit for bit,
+determinism with the realistic preset, finite observations and valid flags under every preset, and
+the drift of the autopilot's estimated feedback (a deck-relative controller keeps the drone over
+the deck)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import ihrcf_env  # noqa: F401  (registers the env)
+from ihrcf_env.envs.config import SENSOR_PRESETS, make_config
+from ihrcf_env.sim.navigation import NavigationErrors
+from ihrcf_env.sim.sensors import CameraConfig
+from ihrcf_env.sim.sensors.imu import IMUNoise
+from ihrcf_env.sim.sensors.tof import VL53L1X
+
+RAW = "ihrcf_env/DeckLandingRaw-v0"
+SMALL = {"camera_width": 96, "camera_height": 96}
+CAMERA_HAS_QUALITY = "quality" in {f.name for f in dataclasses.fields(CameraConfig)}
+
+
+def _models(**kwargs) -> tuple[str | None, VL53L1X | None, IMUNoise | None, NavigationErrors | None]:
+    world = make_config(**kwargs).world
+    quality = getattr(world.camera, "quality", None) if world.camera is not None else None
+    return quality, world.tof.model, world.imu.model, world.navigation.errors
+
+
+def test_presets_set_every_model_together() -> None:
+    assert set(SENSOR_PRESETS) == {"ideal", "realistic"}
+    q, tof, imu, nav = _models()
+    assert (tof, imu, nav) == (None, None, None)
+    q, tof, imu, nav = _models(sensor_preset="realistic")
+    assert tof == VL53L1X() and imu == IMUNoise() and nav == NavigationErrors()
+    if CAMERA_HAS_QUALITY:
+        assert q == "realistic"
+        assert _models()[0] == "ideal"
+
+
+@pytest.mark.parametrize(
+    "kwargs, expected",
+    [
+        ({"sensor_preset": "realistic", "tof_noise": "ideal"}, (False, True, True)),
+        ({"sensor_preset": "realistic", "imu_noise": "ideal"}, (True, False, True)),
+        ({"sensor_preset": "realistic", "autopilot_feedback": "truth"}, (True, True, False)),
+        ({"tof_noise": "realistic"}, (True, False, False)),
+        ({"imu_noise": "realistic"}, (False, True, False)),
+        ({"autopilot_feedback": "estimated"}, (False, False, True)),
+    ],
+)
+def test_each_option_overrides_its_preset(kwargs, expected) -> None:
+    _, tof, imu, nav = _models(**kwargs)
+    assert (tof is not None, imu is not None, nav is not None) == expected
+
+
+def test_camera_quality_overrides_the_preset() -> None:
+    if not CAMERA_HAS_QUALITY:
+        pytest.skip("CameraConfig has no quality field yet (the realistic camera is another change)")
+    assert _models(sensor_preset="realistic", camera_quality="ideal")[0] == "ideal"
+    assert _models(camera_quality="realistic")[0] == "realistic"
+    assert make_config(sensor_preset="realistic", camera=False).world.camera is None  # no camera: fine
+
+
+def test_parameter_dicts_and_dataclasses() -> None:
+    _, tof, imu, nav = _models(
+        tof_noise={"ambient": 0.5, "rays": 24},
+        imu_noise=IMUNoise(tilt_sigma=0.0),
+        autopilot_feedback={"horizontal_sigma": 1.5},
+    )
+    assert tof == VL53L1X(ambient=0.5, rays=24)
+    assert imu == IMUNoise(tilt_sigma=0.0)
+    assert nav == NavigationErrors(horizontal_sigma=1.5)
+    # a dict means the realistic model with those parameters, whatever the preset
+    assert _models(sensor_preset="ideal", imu_noise={})[2] == IMUNoise()
+
+
+def test_explicit_ideal_is_the_default() -> None:
+    explicit = {
+        "sensor_preset": "ideal",
+        "tof_noise": "ideal",
+        "imu_noise": "ideal",
+        "autopilot_feedback": "truth",
+    }
+    if CAMERA_HAS_QUALITY:
+        explicit["camera_quality"] = "ideal"
+    assert make_config(**explicit) == make_config()
+    envs = [gym.make(RAW, **SMALL), gym.make(RAW, **SMALL, **explicit)]
+    try:
+        runs = [_rollout(e, seed=3, n=20) for e in envs]
+        assert all(_equal(a, b) for a, b in zip(*runs, strict=True))
+    finally:
+        for e in envs:
+            e.close()
+
+
+def _rollout(env, seed: int, n: int, action_seed: int = 0) -> list:
+    rng = np.random.default_rng(action_seed)
+    obs, info = env.reset(seed=seed)
+    seq = [obs, info["drone_position_world"]]
+    for _ in range(n):
+        obs, r, term, trunc, info = env.step(rng.uniform(-0.3, 0.3, 4).astype(np.float32))
+        seq += [obs, info["drone_position_world"], r]
+        if term:
+            break
+    return seq
+
+
+def _equal(a, b) -> bool:
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
+    return bool(np.array_equal(a, b))
+
+
+def test_realistic_preset_is_bitwise_deterministic() -> None:
+    kw = dict(sensor_preset="realistic", deck_profile="sea_state", **SMALL)
+    e1, e2 = gym.make(RAW, **kw), gym.make(RAW, **kw)
+    try:
+        s1, s2 = _rollout(e1, 21, 30), _rollout(e2, 21, 30)
+        assert all(_equal(a, b) for a, b in zip(s1, s2, strict=True))
+        s3 = _rollout(e1, 21, 30)  # the same env, reset with the same seed
+        assert all(_equal(a, b) for a, b in zip(s1, s3, strict=True))
+        s4 = _rollout(e2, 22, 30)
+        assert not all(_equal(a, b) for a, b in zip(s1, s4, strict=True))
+    finally:
+        e1.close()
+        e2.close()
+
+
+PRESETS = [
+    {"sensor_preset": "ideal"},
+    {"sensor_preset": "realistic"},
+    {"tof_noise": "realistic"},
+    {"imu_noise": "realistic"},
+    {"autopilot_feedback": "estimated"},
+    {"sensor_preset": "realistic", "tof_noise": {"ambient": 0.05}, "deck_profile": "sea_state"},
+]
+
+
+@pytest.mark.parametrize("kwargs", PRESETS, ids=[str(k) for k in PRESETS])
+def test_observations_are_finite_in_space_and_flagged(kwargs) -> None:
+    env = gym.make(RAW, camera=False, **kwargs)
+    try:
+        obs, _ = env.reset(seed=5)
+        rng = np.random.default_rng(1)
+        max_range = np.float32(env.unwrapped.config.tof.max_range)
+        valid_count = steps = 0
+        for _ in range(60):
+            obs, _, term, _, _ = env.step(rng.uniform(-0.5, 0.5, 4))
+            assert env.observation_space.contains(obs)
+            for v in (obs["ranges"], *obs["imu"].values()):
+                assert np.all(np.isfinite(v))
+            ok = obs["ranges_valid"]
+            assert set(np.unique(ok)) <= {0, 1}
+            assert np.all(obs["ranges"][ok == 0] == max_range)
+            assert np.all(obs["ranges"][ok == 1] < max_range)
+            valid_count += int(ok.sum())
+            steps += 1
+            if term:
+                break
+        assert valid_count >= 0.8 * 4 * steps  # hovering ~1 m over the deck: the ranges are seen
+    finally:
+        env.close()
+
+
+def test_realistic_camera_observation_is_finite() -> None:
+    env = gym.make(RAW, sensor_preset="realistic", **SMALL)
+    try:
+        obs, _ = env.reset(seed=2)
+        for _ in range(5):
+            obs, *_ = env.step(np.zeros(4))
+            assert env.observation_space.contains(obs)
+            assert obs["image"].dtype == np.uint8
+    finally:
+        env.close()
+
+
+def test_strong_ambient_light_leaves_no_valid_range_at_1_m() -> None:
+    env = gym.make(RAW, camera=False, tof_noise={"ambient": 1.0})
+    try:
+        obs, _ = env.reset(seed=0)
+        for _ in range(5):
+            assert not obs["ranges_valid"].any()
+            assert np.all(obs["ranges"] == np.float32(4.0))
+            obs, *_ = env.step(np.zeros(4))
+    finally:
+        env.close()
+
+
+def test_estimated_feedback_drifts_and_a_deck_relative_controller_stays_over_the_deck() -> None:
+    """Zero command: the drone drifts with its GNSS/INS estimate (tens of cm in 30 s); steering on
+    the deck's position in the body frame (here the ground truth, standing in for an onboard deck
+    estimate) keeps it over the deck."""
+    seeds, steps = (1, 2), 600  # 30 s
+    env = gym.make(
+        RAW, camera=False, deck_profile="static", autopilot_feedback="estimated", max_episode_steps=None
+    )
+    try:
+        drift, held = [], []
+        for seed in seeds:
+            _, info = env.reset(seed=seed, options={"offset": (0.0, 0.0)})
+            p0 = info["drone_position_world"].copy()
+            for _ in range(steps):
+                _, _, term, _, info = env.step(np.zeros(4))
+                assert not term
+            drift.append(math.hypot(*(info["drone_position_world"] - p0)[:2]))
+            _, info = env.reset(seed=seed, options={"offset": (0.0, 0.0)})
+            errors = []
+            for _ in range(steps):
+                rel = info["deck_position_body"]
+                action = np.array([rel[0], rel[1], 0.0, 0.0])  # 1 m/s per m of offset
+                _, _, term, _, info = env.step(np.clip(action, -1, 1))
+                assert not term
+                errors.append(math.hypot(*(info["drone_position_world"] - info["deck_position_world"])[:2]))
+            held.append(max(errors[steps // 3 :]))
+        assert min(drift) > 0.05 and max(drift) < 2.0, drift
+        assert max(held) < 0.1, held  # the 0.8 m deck's edge is 0.4 m away
+    finally:
+        env.close()
