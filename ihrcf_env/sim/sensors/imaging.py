@@ -35,6 +35,9 @@ BACKGROUNDS: tuple[str, ...] = ("sea", "ground")
 #: 8-bit output: full scale in DN.
 FULL_SCALE_DN = 255.0
 
+#: The noise bank stores unit normals as int8 in steps of 1 / NOISE_BANK_SCALE (clipped at +-3.97).
+NOISE_BANK_SCALE = 32.0
+
 
 @dataclass(frozen=True)
 class ImagingParams:
@@ -294,32 +297,50 @@ def motion_blur(image: NDArray[np.uint8], du: float, dv: float, threshold_px: fl
 # -- sensor noise -----------------------------------------------------------------------------------
 
 
-def noise_sigma_lut(electrons_per_dn: float, read_noise_e: float) -> NDArray[np.float32]:
+def noise_sigma_lut(
+    electrons_per_dn: float, read_noise_e: float, bank_scale: float = 1.0
+) -> NDArray[np.float32]:
     """(1, 256) float32: temporal noise s.d. (DN) at each signal level S (DN),
-    ``sqrt((read / g)^2 + S / g)``; 0 at 255 (a saturated pixel reads full scale)."""
+    ``sqrt((read / g)^2 + S / g)``, divided by ``bank_scale`` (the scale of an integer noise bank);
+    0 at 255 (a saturated pixel reads full scale)."""
     g = float(electrons_per_dn)
     s = np.arange(256, dtype=np.float64)
-    sigma = np.sqrt((read_noise_e / g) ** 2 + s / g)
+    sigma = np.sqrt((read_noise_e / g) ** 2 + s / g) / bank_scale
     sigma[255] = 0.0
     return sigma.astype(np.float32).reshape(1, 256)
+
+
+def draw_noise_bank(rng: np.random.Generator, height: int, width: int) -> NDArray[np.int8]:
+    """(height, width, 3) int8: independent unit normals times :data:`NOISE_BANK_SCALE`, rounded
+    and clipped to int8 (s.d. 1.00004 after division; clipping beyond 3.97 s.d. affects 7e-5 of
+    the draws). A quarter of a float32 bank's memory, and faster to read."""
+    z = rng.standard_normal((height, width, 3), dtype=np.float32)
+    z *= NOISE_BANK_SCALE
+    np.rint(z, out=z)
+    np.clip(z, -127, 127, out=z)
+    return z.astype(np.int8)
 
 
 def add_sensor_noise(
     signal: NDArray[np.uint8],
     sigma_lut: NDArray[np.float32],
-    bank: NDArray[np.float32],
+    bank: NDArray[np.float32] | NDArray[np.int8],
     offset: tuple[int, int],
     sign: int,
 ) -> NDArray[np.uint8]:
     """``signal + sigma(signal) * n``, rounded and saturated to uint8.
 
-    ``n`` is the window of the unit-normal ``bank`` (H + m, W + m, C) at ``offset`` (row, col),
-    times ``sign`` (+1 or -1): independent standard normals per pixel and channel.
+    ``n`` is the window of the normal ``bank`` (H + m, W + m, C) at ``offset`` (row, col), times
+    ``sign`` (+1 or -1): independent normals per pixel and channel (``sigma_lut`` includes the
+    bank's scale, see :func:`noise_sigma_lut`). Cost at 512x512x3: ~1 ms (look-up, multiply, add),
+    where drawing fresh normals would cost ~9 ms. Successive frames use independent offsets, so a
+    pixel's noise is independent from frame to frame unless an offset and sign repeat (1 in
+    2 (m + 1)^2).
     """
     h, w = signal.shape[:2]
     oy, ox = offset
     sigma = cv2.LUT(signal, sigma_lut)
-    noise = cv2.multiply(sigma, bank[oy : oy + h, ox : ox + w])
+    noise = cv2.multiply(sigma, bank[oy : oy + h, ox : ox + w], dtype=cv2.CV_32F)
     op = cv2.add if sign > 0 else cv2.subtract
     return np.asarray(op(signal, noise, dtype=cv2.CV_8U), dtype=np.uint8)
 
@@ -406,25 +427,24 @@ class RealisticImager:
         self.episode: EpisodeImaging | None = None
         self._texture_lit: NDArray[np.uint8] = self.texture
         self._sky = np.zeros(3, np.uint8)
-        self._gain_map: NDArray[np.float32] = np.empty(0, np.float32)
+        vig = np.rint(self.vignetting * 255.0).astype(np.uint8)
+        self._vignetting_u8 = np.ascontiguousarray(np.repeat(vig[..., None], 3, axis=2))
         self._sigma_lut: NDArray[np.float32] = np.empty(0, np.float32)
-        self._bank: NDArray[np.float32] = np.empty(0, np.float32)
+        self._bank: NDArray[np.int8] = np.empty(0, np.int8)
 
     def reset(self, rng: np.random.Generator, episode: EpisodeImaging | None = None) -> EpisodeImaging:
         """Draw the episode's imaging state (unless ``episode`` fixes it) and noise bank from ``rng``."""
         p = self.params
         ep = draw_episode(p, rng) if episode is None else episode
         m = p.noise_margin_px
-        self._bank = rng.standard_normal((self.height + m, self.width + m, 3), dtype=np.float32)
+        self._bank = draw_noise_bank(rng, self.height + m, self.width + m)
         # the plane z = 0 under the same light as the renderer's: ambient + diffuse * cos(incidence)
         shade = min(1.0, ep.ambient + ep.diffuse * max(0.0, ep.light_direction[2]))
         self._texture_lit = np.asarray(cv2.convertScaleAbs(self.texture, alpha=shade), dtype=np.uint8)
         self._sky = np.clip(
             np.rint(np.array([200.0, 214.0, 228.0]) * min(1.0, ep.ambient + ep.diffuse)), 0, 255
         ).astype(np.uint8)
-        gain = np.repeat((self.vignetting * np.float32(ep.brightness))[..., None], 3, axis=2)
-        self._gain_map = np.ascontiguousarray(gain, dtype=np.float32)
-        self._sigma_lut = noise_sigma_lut(p.electrons_per_dn(ep.gain), p.read_noise_e)
+        self._sigma_lut = noise_sigma_lut(p.electrons_per_dn(ep.gain), p.read_noise_e, NOISE_BANK_SCALE)
         self.episode = ep
         return ep
 
@@ -475,7 +495,8 @@ class RealisticImager:
                 cv2.remap(img, self.maps[0], self.maps[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE),
                 np.uint8,
             )
-        signal = np.asarray(cv2.multiply(img, self._gain_map, dtype=cv2.CV_8U), np.uint8)
+        # vignetting (8-bit map) and the exposure error in one rounded, saturated multiply
+        signal = np.asarray(cv2.multiply(img, self._vignetting_u8, scale=ep.brightness / 255.0), np.uint8)
         m = self.params.noise_margin_px
         oy, ox = (int(x) for x in rng.integers(0, m + 1, 2))
         sign = 1 if rng.random() < 0.5 else -1
