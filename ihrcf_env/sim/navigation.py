@@ -179,7 +179,7 @@ class GNSSINSNavigation:
         self.position_error = [0.0, 0.0, 0.0]
         self.velocity_error = [0.0, 0.0, 0.0]  # correlated part e_v
         self._white = [0.0, 0.0, 0.0]
-        self._block = np.zeros((0, 6))
+        self._block: list[list[float]] = []
         self._i = 0
 
     def reset(self, rng: np.random.Generator) -> None:
@@ -187,7 +187,7 @@ class GNSSINSNavigation:
         their stationary distribution (``e_p`` and ``e_v`` jointly Gaussian, correlated)."""
         self._rng = np.random.default_rng(int(rng.integers(0, 2**63 - 1)))
         self._k = 0
-        self._block = np.zeros((0, 6))
+        self._block = []
         self._i = 0
         a = 1.0 / self.errors.position_time_constant
         b = 1.0 / self.errors.velocity_time_constant
@@ -204,7 +204,7 @@ class GNSSINSNavigation:
 
     def _step(self) -> None:
         if self._i >= len(self._block):
-            self._block = self._rng.standard_normal((self._BLOCK, 6))
+            self._block = self._rng.standard_normal((self._BLOCK, 6)).tolist()  # floats: fast scalar maths
             self._i = 0
         z = self._block[self._i]
         self._i += 1

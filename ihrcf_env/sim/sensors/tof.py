@@ -37,6 +37,7 @@ Two models (:class:`ToFConfig` ``noise``):
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 
@@ -93,30 +94,36 @@ class VL53L1X:
     def directions(self) -> NDArray[np.float64]:
         """(rays, 3) unit vectors in the sensor frame (beam axis +z), uniform over the cone's solid
         angle: a Vogel (golden-angle) spiral."""
+        return self._directions.copy()
+
+    @functools.cached_property
+    def _directions(self) -> NDArray[np.float64]:
         k = np.arange(self.rays) + 0.5
         cos_a = 1.0 - k / self.rays * (1.0 - math.cos(self.fov / 2))
         sin_a = np.sqrt(1.0 - cos_a**2)
         phi = k * math.pi * (3.0 - math.sqrt(5.0))
         return np.column_stack([sin_a * np.cos(phi), sin_a * np.sin(phi), cos_a])
 
-    @property
+    @functools.cached_property
+    def _mean_cos3(self) -> float:
+        return float(np.mean(self._directions[:, 2] ** 3))
+
+    @functools.cached_property
     def flat_gain(self) -> float:
         """Weighted mean ray length over distance for a perpendicular flat target (weights
         ``cos^3``): the reading is divided by it, so such a target reads its true distance."""
-        c = self.directions()[:, 2]
+        c = self._directions[:, 2]
         return float(np.sum(c**2) / np.sum(c**3))
 
-    @property
+    @functools.cached_property
     def snr_min(self) -> float:
         """SNR at the range limit (relative units: ``S = 1`` for a perpendicular rho = 1 target at 1 m)."""
-        c = self.directions()[:, 2]
-        return math.sqrt(REFERENCE_REFLECTANCE * float(np.mean(c**3)) / self.dark_range**2)
+        return math.sqrt(REFERENCE_REFLECTANCE * self._mean_cos3 / self.dark_range**2)
 
-    @property
+    @functools.cached_property
     def strong_ambient(self) -> float:
         """Ambient level ``A`` of strong ambient light (``ambient = 1``), same units as the signal."""
-        c = self.directions()[:, 2]
-        s = REFERENCE_REFLECTANCE * float(np.mean(c**3)) / self.ambient_range**2
+        s = REFERENCE_REFLECTANCE * self._mean_cos3 / self.ambient_range**2
         return (s / self.snr_min) ** 2 - s
 
     def sigma(self, signal: NDArray[np.float64] | float) -> NDArray[np.float64]:
