@@ -152,3 +152,26 @@ def test_closed_world_says_so() -> None:
     for call in (w.step, w.snapshot, w.body_state):
         with pytest.raises(RuntimeError, match="closed"):
             call()
+
+
+def test_imu_attitude_noise_is_pluggable(world: World) -> None:
+    from ihrcf_env.sim.sensors.imu import AttitudeError
+
+    world.imu_sensor.attitude_noise = AttitudeError(0.01, 1.0, 0.0)
+    world.imu_sensor.reset(np.random.default_rng(5))
+    q = world.read_sensors(np.random.default_rng(6), ("imu",))["quaternion"]
+    q_true = world.body_state().quaternion
+    assert np.linalg.norm(q) == pytest.approx(1.0)
+    assert 0 < 2 * np.arccos(min(1.0, abs(float(q @ q_true)))) < 0.1
+
+
+def test_realistic_tof_takes_extra_noise_too() -> None:
+    w = World(WorldConfig(camera=None, tof=ToFConfig(noise="realistic")))
+    try:
+        w.reset(StaticProfile(), 10.0, altitude=1.0)
+        assert isinstance(w.tof.noise, NoNoise)
+        w.tof.noise = Dropout(1.0)
+        _, valid = w.read_tof(np.random.default_rng(0))
+        assert not valid.any()
+    finally:
+        w.close()
