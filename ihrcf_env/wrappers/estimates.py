@@ -1,31 +1,38 @@
-"""Observation wrapper exposing the deck-pose estimates (IHRCF, ATDA) beside ground truth.
+"""Observation wrapper exposing the deck-pose estimates (IHRCF, ATDA, fused) beside ground truth.
 
-Each of ``obs["ihrcf"]``, ``obs["atda"]`` and ``obs["ground_truth"]`` is a Dict with
+Each of ``obs["ihrcf"]``, ``obs["atda"]``, ``obs["fused"]`` and ``obs["ground_truth"]`` is a Dict with
 
 * ``"position"``: (3,) float32, the deck frame origin (tag centre) in the drone body frame (m),
 * ``"euler"``: (3,) float32, roll, pitch, yaw of the deck in the body frame (rad, Z-Y-X),
 * ``"valid"``: int 0/1.
 
 While an estimate is invalid (tag not found, fewer than 3 valid ranges, degenerate geometry, range
-outside the calibration table, fit residual too large) it reports position (0, 0, 0) and euler
-(0, 0, 0) with ``valid = 0``; the reason is in ``info[f"{name}_reason"]`` (``info["ihrcf_reason"]``,
-``info["atda_reason"]``) and the fit residual in ``info[f"{name}_residual"]`` (IHRCF m, ATDA px);
+outside the calibration table, fit residual too large; for ``fused``: not converged yet, or the tag
+lost for longer than its timeout) it reports position (0, 0, 0) and euler (0, 0, 0) with
+``valid = 0``; the reason is in ``info[f"{name}_reason"]`` (``info["ihrcf_reason"]``,
+``info["atda_reason"]``, ``info["fused_reason"]``) and the fit residual in
+``info[f"{name}_residual"]`` (IHRCF m, ATDA px, fused: position 1-sigma m);
 the estimates themselves are on ``wrapper.last_estimates`` (name -> PoseEstimate). Values are
 clipped into the space's bounds; never NaN.
 
 The estimators are those of :data:`~ihrcf_env.core.estimators.DEFAULT_ESTIMATORS` (``ihrcf``,
-``atda``) unless ``estimators=`` names others of the registry
+``atda``, ``fused``) unless ``estimators=`` names others of the registry
 (:mod:`ihrcf_env.core.estimators.registry`); everything below loops over their names, in order.
+Every estimator gets the same :class:`~ihrcf_env.core.estimators.SensorFrame` per step: the tag
+corners (detected once), the ranges, the IMU sample and the simulated time (``info["time"]``), so
+a temporal filter (``fused``) sees the real frame interval. ``fused_params`` sets the fused
+filter's :class:`~ihrcf_env.core.estimators.FusedParams`.
 
 ``flatten=True`` gives one float32 Box for RL libraries, laid out as :func:`flat_slices` says (also
 ``wrapper.flat_slices``): ranges (4), ranges_valid (4), imu quaternion (4), angular velocity (3),
 linear acceleration (3), then for each estimator and finally ground_truth a 7-value block of
-position (3), euler (3), valid (1): 39 values by default. The image is not part of it. Use the
-named slices rather than numbers::
+position (3), euler (3), valid (1): 46 values by default (18 sensor values, then the ``ihrcf``,
+``atda``, ``fused`` and ``ground_truth`` blocks). The image is not part of it. Use the named slices
+rather than numbers::
 
     s = flat_slices()          # or env.get_wrapper_attr("flat_slices")
     obs[s["ihrcf"]]            # the IHRCF block, slice(18, 25)
-    obs[s["ihrcf.position"]]   # slice(18, 21)
+    obs[s["fused.position"]]   # slice(32, 35)
 """
 
 from __future__ import annotations
@@ -46,6 +53,7 @@ from ihrcf_env.core.estimators import (
     DEFAULT_ESTIMATORS,
     DeckPoseEstimator,
     DeckPoseSource,
+    FusedParams,
     ImuSample,
     PoseEstimate,
     SensorFrame,
@@ -81,7 +89,7 @@ def flat_slices(estimators: Iterable[str] = DEFAULT_ESTIMATORS) -> dict[str, sli
     ``"imu.linear_acceleration"``, then for each estimator name and ``"ground_truth"`` the whole
     7-value block under its name and its parts under ``f"{name}.position"``, ``f"{name}.euler"``,
     ``f"{name}.valid"``; ``"all"`` is the whole vector. For DeckLanding-v0: ``ihrcf`` 18:25,
-    ``atda`` 25:32, ``ground_truth`` 32:39.
+    ``atda`` 25:32, ``fused`` 32:39, ``ground_truth`` 39:46 (``all`` 0:46).
     """
     out: dict[str, slice] = {}
     i = 0
@@ -109,8 +117,10 @@ def estimator_from_calibration(
     tag_id: int,
     max_residual: float = 0.01,
     estimators: Iterable[str] = DEFAULT_ESTIMATORS,
+    fused_params: FusedParams | None = None,
 ) -> DeckPoseEstimator:
-    """A :class:`DeckPoseEstimator` using a calibration file's table (IHRCF) and chessboard K (ATDA)."""
+    """A :class:`DeckPoseEstimator` using a calibration file's table (IHRCF, fused) and chessboard K
+    (ATDA, fused)."""
     return DeckPoseEstimator(
         rig=_rig(calibration),
         tag_size=tag_size,
@@ -120,6 +130,7 @@ def estimator_from_calibration(
         touch_pixels=calibration.tables,
         max_residual=max_residual,
         estimators=estimators,
+        fused=fused_params,
     )
 
 
@@ -134,6 +145,7 @@ def check_wrapper_options(
     max_residual: Any = 0.01,
     estimators: Any = DEFAULT_ESTIMATORS,
     raw: Any = False,
+    fused_params: Any = None,
 ) -> tuple[str, ...]:
     """Type and value checks of the wrapper's options, before anything is built: TypeError (wrong
     type) or ValueError (bad value) naming the option. Returns the estimator names as a tuple."""
@@ -148,6 +160,11 @@ def check_wrapper_options(
         raise TypeError(
             "calibration must be a Calibration, a path (str or os.PathLike) to a calibration file, or "
             f"None for the shipped file; got {_describe(calibration)}"
+        )
+    if fused_params is not None and not isinstance(fused_params, FusedParams):
+        raise TypeError(
+            "fused_params must be an ihrcf_env.core.estimators.FusedParams or None, got "
+            f"{_describe(fused_params)}"
         )
     return check_estimator_names(estimators)
 
@@ -203,7 +220,9 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         keep_image: keep the raw camera image in the observation (bool).
         flatten: return one float32 Box (see :func:`flat_slices`); implies no image (bool).
         max_residual: IHRCF rigid-fit RMS (m) above which the estimate is declared invalid.
-        estimators: registered estimator names, in observation order (default ihrcf, atda).
+        estimators: registered estimator names, in observation order (default ihrcf, atda, fused).
+        fused_params: :class:`~ihrcf_env.core.estimators.FusedParams` of the fused estimator, or
+            None for the defaults.
 
     Bad options raise TypeError / ValueError naming the option before anything is built.
 
@@ -225,8 +244,11 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         flatten: bool = False,
         max_residual: float = 0.01,
         estimators: Iterable[str] = DEFAULT_ESTIMATORS,
+        fused_params: FusedParams | None = None,
     ) -> None:
-        names = check_wrapper_options(calibration, keep_image, flatten, max_residual, estimators)
+        names = check_wrapper_options(
+            calibration, keep_image, flatten, max_residual, estimators, fused_params=fused_params
+        )
         gym.utils.RecordConstructorArgs.__init__(
             self,
             calibration=calibration,
@@ -234,6 +256,7 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
             flatten=flatten,
             max_residual=max_residual,
             estimators=names,
+            fused_params=fused_params,
         )
         gym.ObservationWrapper.__init__(self, env)
         base = cast("DeckLandingEnv", env.unwrapped)
@@ -248,7 +271,7 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         self.calibration = cal
         deck = base.config.deck
         self.estimator = estimator_from_calibration(
-            cal, deck.tag_size, deck.tag_id, float(max_residual), estimators=names
+            cal, deck.tag_size, deck.tag_id, float(max_residual), estimators=names, fused_params=fused_params
         )
         self.estimators: dict[str, DeckPoseSource] = self.estimator.sources
         self.pose_keys: tuple[str, ...] = (*names, GROUND_TRUTH)
@@ -343,6 +366,7 @@ def make_deck_landing(
     flatten: bool = False,
     max_residual: float = 0.01,
     estimators: Iterable[str] = DEFAULT_ESTIMATORS,
+    fused_params: FusedParams | None = None,
     **env_kwargs: Any,
 ) -> gym.Env:
     """Entry point of ``ihrcf_env/DeckLanding-v0``: the env wrapped with :class:`DeckPoseObservation`,
@@ -351,7 +375,9 @@ def make_deck_landing(
     The wrapper's options are checked and the calibration file is read before the env is built; if
     the wrapper still fails (e.g. a calibration made for another camera), the env is closed before
     the error propagates."""
-    names = check_wrapper_options(calibration, keep_image, flatten, max_residual, estimators, raw)
+    names = check_wrapper_options(
+        calibration, keep_image, flatten, max_residual, estimators, raw, fused_params
+    )
     from ihrcf_env.envs.deck_landing import DeckLandingEnv
 
     if raw:
@@ -366,6 +392,7 @@ def make_deck_landing(
             flatten=flatten,
             max_residual=max_residual,
             estimators=names,
+            fused_params=fused_params,
         )
     except BaseException:
         env.close()

@@ -419,13 +419,13 @@ def test_estimator_classes_match_the_pure_functions() -> None:
 def test_registry_builds_named_estimators_in_order(monkeypatch: pytest.MonkeyPatch) -> None:
     _, _, tp, _, _ = scene(np.eye(3), np.array([0.0, 0.0, -1.0]))
     cfg = EstimatorConfig(rig=RIG, tag_size=TAG, K=K, dist=None, touch_pixels=tp)
-    assert DEFAULT_ESTIMATORS == ("ihrcf", "atda")
+    assert DEFAULT_ESTIMATORS == ("ihrcf", "atda", "fused")
     built = build_estimators(cfg)
-    assert list(built) == ["ihrcf", "atda"]
+    assert list(built) == ["ihrcf", "atda", "fused"]
     assert list(build_estimators(cfg, ["atda", "ihrcf"])) == ["atda", "ihrcf"]
     for bad, err, match in [
         (["ihrcf", "ihrcf"], ValueError, "twice"),
-        (["fused"], ValueError, "unknown name 'fused'"),
+        (["kalman"], ValueError, "unknown name 'kalman'"),
         (["ground_truth"], ValueError, "reserved"),
         ([], ValueError, "at least one"),
         ("ihrcf", TypeError, "sequence of names"),

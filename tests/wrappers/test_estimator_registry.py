@@ -45,7 +45,7 @@ def toy(monkeypatch: pytest.MonkeyPatch) -> None:
 def test_default_layout_is_untouched_by_a_registered_estimator(toy):
     env = gym.make(ENV_ID, flatten=True)
     try:
-        assert env.observation_space.shape == (39,)
+        assert env.observation_space.shape == (46,)  # ihrcf, atda, fused, ground_truth
         assert env.get_wrapper_attr("flat_slices") == flat_slices()
     finally:
         env.close()

@@ -24,7 +24,7 @@ def test_wrapped_is_default_and_raw_is_available():
     env = gym.make(ENV_ID)
     try:
         assert any(isinstance(w, DeckPoseObservation) for w in _chain(env))
-        for key in ("ihrcf", "atda", "ground_truth", "image", "ranges"):
+        for key in ("ihrcf", "atda", "fused", "ground_truth", "image", "ranges"):
             assert key in env.observation_space.spaces
     finally:
         env.close()
@@ -78,16 +78,19 @@ def test_flat_observation_for_rl_libraries():
     try:
         s = env.get_wrapper_attr("flat_slices")
         assert s == flat_slices()
-        # DeckLanding-v0's layout: 18 sensor values, then ihrcf, atda, ground_truth blocks of 7
-        assert (s["ihrcf"], s["atda"], s["ground_truth"]) == (slice(18, 25), slice(25, 32), slice(32, 39))
-        assert s["all"] == slice(0, 39)
+        # DeckLanding-v0's layout: 18 sensor values, then ihrcf, atda, fused, ground_truth blocks of 7
+        blocks = (s["ihrcf"], s["atda"], s["fused"], s["ground_truth"])
+        assert blocks == (slice(18, 25), slice(25, 32), slice(32, 39), slice(39, 46))
+        assert s["all"] == slice(0, 46)
         obs, _ = env.reset(seed=2)
-        assert obs.shape == (39,) and obs.dtype == np.float32
+        assert obs.shape == (46,) and obs.dtype == np.float32
         assert env.observation_space.contains(obs)
         obs, *_ = env.step(np.zeros(4))
         assert np.all(np.isfinite(obs))
         for key in ("ihrcf", "atda", "ground_truth"):
             assert obs[s[f"{key}.valid"]] == [1.0]
+        assert obs[s["fused.valid"]] == [0.0]  # still converging after two frames
+        np.testing.assert_array_equal(obs[s["fused.position"]], np.zeros(3))
         np.testing.assert_allclose(obs[s["ihrcf.position"]], obs[s["ground_truth.position"]], atol=0.005)
         assert np.all(obs[s["ranges_valid"]] == 1.0)
         np.testing.assert_allclose(np.linalg.norm(obs[s["imu.quaternion"]]), 1.0, atol=1e-5)
@@ -102,7 +105,7 @@ def test_flat_and_dict_observations_agree_block_by_block():
         f, _ = flat_env.reset(seed=4)
         d, _ = dict_env.reset(seed=4)
         s = flat_env.flat_slices
-        assert list(flat_env.pose_keys) == ["ihrcf", "atda", "ground_truth"]
+        assert list(flat_env.pose_keys) == ["ihrcf", "atda", "fused", "ground_truth"]
         for key in flat_env.pose_keys:
             for field in ("position", "euler"):
                 np.testing.assert_array_equal(f[s[f"{key}.{field}"]], d[key][field])
@@ -119,12 +122,14 @@ def test_estimates_by_name_and_info_reasons():
     try:
         _, info = env.reset(seed=0)
         wrapper = env.get_wrapper_attr("estimators")
-        assert list(wrapper) == ["ihrcf", "atda"]
+        assert list(wrapper) == ["ihrcf", "atda", "fused"]
         last = env.get_wrapper_attr("last_estimates")
-        assert list(last) == ["ihrcf", "atda"]
+        assert list(last) == ["ihrcf", "atda", "fused"]
         for name, est in last.items():
-            assert info[f"{name}_reason"] == est.reason == ""
+            assert info[f"{name}_reason"] == est.reason
             assert info[f"{name}_residual"] == est.residual
+        assert info["ihrcf_reason"] == info["atda_reason"] == ""
+        assert info["fused_reason"].startswith("converging")
         assert info["ihrcf_residual"] < 0.01
         frame = env.get_wrapper_attr("last_frame")
         assert frame.corners is not None and frame.imu is not None and frame.time == info["time"]
@@ -136,10 +141,11 @@ def test_tag_out_of_view_gives_invalid_zeros():
     env = gym.make(ENV_ID, deck_profile="static")
     try:
         obs, info = env.reset(seed=0, options={"altitude": 1.0, "offset": (2.5, 0.0)})
-        for key in ("ihrcf", "atda"):
+        for key in ("ihrcf", "atda", "fused"):
             assert obs[key]["valid"] == 0
             assert np.all(obs[key]["position"] == 0) and np.all(obs[key]["euler"] == 0)
         assert info["ihrcf_reason"] == "tag not found"
+        assert info["fused_reason"] == "not initialised: tag not found"
         assert obs["ground_truth"]["valid"] == 1
     finally:
         env.close()

@@ -3,8 +3,9 @@
 Every estimator reports the pose of the **deck** frame in the drone **body** frame as a
 :class:`PoseEstimate`, and implements :class:`DeckPoseSource` (``name``, ``reset()``,
 ``update(SensorFrame) -> PoseEstimate``). ``base`` (the shared records and the protocol), ``ihrcf``
-(the paper's method), ``atda`` (AprilTag + PnP baseline), ``detector`` (tag corners), ``registry``
-(name -> estimator: the one place to add one), ``pipeline`` (one frame through all of them).
+(the paper's method), ``atda`` (AprilTag + PnP baseline), ``fused`` (IHRCF + ATDA's attitude + the
+IMU in a causal Kalman filter), ``detector`` (tag corners), ``registry`` (name -> estimator: the one
+place to add one), ``pipeline`` (one frame through all of them).
 """
 
 from ihrcf_env.core.estimators.atda import AMBIGUITY_RATIO, R_DECK_MARKER, ATDAEstimator, atda_estimate
@@ -17,6 +18,7 @@ from ihrcf_env.core.estimators.base import (
     SensorFrame,
 )
 from ihrcf_env.core.estimators.detector import APRILTAG_CORNER_OFFSET_PX, TagDetector
+from ihrcf_env.core.estimators.fused import FusedEstimator, FusedParams
 from ihrcf_env.core.estimators.ihrcf import (
     IHRCFCorners,
     IHRCFEstimator,
@@ -46,6 +48,8 @@ __all__ = [
     "DeckPoseEstimator",
     "DeckPoseSource",
     "EstimatorConfig",
+    "FusedEstimator",
+    "FusedParams",
     "IHRCFCorners",
     "IHRCFEstimator",
     "ImuSample",

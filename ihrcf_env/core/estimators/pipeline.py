@@ -11,6 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 from ihrcf_env.core.estimators.atda import ATDAEstimator
 from ihrcf_env.core.estimators.base import DeckPoseSource, ImuSample, PoseEstimate, SensorFrame
 from ihrcf_env.core.estimators.detector import TagDetector
+from ihrcf_env.core.estimators.fused import FusedParams
 from ihrcf_env.core.estimators.ihrcf import TouchPixels
 from ihrcf_env.core.estimators.registry import DEFAULT_ESTIMATORS, EstimatorConfig, build_estimators
 from ihrcf_env.core.frames import as_array
@@ -18,8 +19,8 @@ from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 
 
 class DeckPoseEstimator:
-    """Tag detection + the registered estimators (default IHRCF and ATDA) for one camera frame and
-    one set of ToF ranges.
+    """Tag detection + the registered estimators (default IHRCF, ATDA and the fused filter) for one
+    camera frame, one set of ToF ranges and one IMU sample.
 
     :meth:`frame` detects the tag once and packs a :class:`SensorFrame`; :meth:`update` feeds it to
     every estimator of :attr:`sources` (an ordered mapping name -> :class:`DeckPoseSource`) and
@@ -30,7 +31,8 @@ class DeckPoseEstimator:
         rig, tag_size (m), K (3, 3), dist, touch_pixels, max_residual (m): see
             :class:`~ihrcf_env.core.estimators.registry.EstimatorConfig`.
         tag_id: AprilTag 36h11 id to detect. refine: the detector's corner refinement.
-        estimators: registered names, in order (default ``("ihrcf", "atda")``).
+        estimators: registered names, in order (default ``("ihrcf", "atda", "fused")``).
+        fused: parameters of the fused estimator (None: the defaults).
     """
 
     def __init__(
@@ -44,6 +46,7 @@ class DeckPoseEstimator:
         refine: str = "subpix",
         max_residual: float = 0.01,
         estimators: Iterable[str] = DEFAULT_ESTIMATORS,
+        fused: FusedParams | None = None,
     ) -> None:
         tag_corners_deck(tag_size)  # validates tag_size
         self.config = EstimatorConfig(
@@ -53,6 +56,7 @@ class DeckPoseEstimator:
             dist=None if dist is None else np.asarray(dist, dtype=np.float64).ravel().copy(),
             touch_pixels=touch_pixels,
             max_residual=float(max_residual),
+            fused=fused,
         )
         self.detector = TagDetector(tag_id, refine)
         self.sources: dict[str, DeckPoseSource] = build_estimators(self.config, estimators)

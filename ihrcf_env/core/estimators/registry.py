@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from ihrcf_env.core.estimators.atda import ATDAEstimator
 from ihrcf_env.core.estimators.base import DeckPoseSource
+from ihrcf_env.core.estimators.fused import FusedEstimator, FusedParams
 from ihrcf_env.core.estimators.ihrcf import IHRCFEstimator, TouchPixels
 from ihrcf_env.core.rig import SensorRig
 
@@ -35,6 +36,7 @@ class EstimatorConfig:
         dist: OpenCV distortion coefficients (k1, k2, p1, p2, k3), or None for none.
         touch_pixels: the range -> touch-pixel table (IHRCF).
         max_residual: IHRCF rigid-fit RMS above which the estimate is invalid, m.
+        fused: parameters of the fused estimator (None: :class:`FusedParams` defaults).
     """
 
     rig: SensorRig
@@ -43,6 +45,7 @@ class EstimatorConfig:
     dist: NDArray[np.float64] | None
     touch_pixels: TouchPixels
     max_residual: float = 0.01
+    fused: FusedParams | None = None
 
 
 EstimatorFactory = Callable[[EstimatorConfig], DeckPoseSource]
@@ -51,10 +54,13 @@ EstimatorFactory = Callable[[EstimatorConfig], DeckPoseSource]
 ESTIMATORS: dict[str, EstimatorFactory] = {
     "ihrcf": lambda c: IHRCFEstimator(c.touch_pixels, c.rig, c.tag_size, c.max_residual, name="ihrcf"),
     "atda": lambda c: ATDAEstimator(c.K, c.dist, c.tag_size, c.rig, name="atda"),
+    "fused": lambda c: FusedEstimator(
+        c.touch_pixels, c.rig, c.tag_size, c.K, c.dist, c.max_residual, params=c.fused, name="fused"
+    ),
 }
 
 #: The estimators of ``ihrcf_env/DeckLanding-v0`` (its observation layout), in order.
-DEFAULT_ESTIMATORS: tuple[str, ...] = ("ihrcf", "atda")
+DEFAULT_ESTIMATORS: tuple[str, ...] = ("ihrcf", "atda", "fused")
 
 #: Observation keys an estimator may not take.
 RESERVED_NAMES: frozenset[str] = frozenset({"ground_truth", "image", "ranges", "ranges_valid", "imu"})
