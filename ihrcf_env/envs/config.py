@@ -66,6 +66,7 @@ from ihrcf_env.sim.deck import DeckConfig
 from ihrcf_env.sim.disturbances import Disturbance
 from ihrcf_env.sim.navigation import FEEDBACK_MODES, NavigationConfig, NavigationErrors
 from ihrcf_env.sim.sensors import TOF_PRESETS, CameraConfig, ToFConfig
+from ihrcf_env.sim.sensors.camera import CAMERA_QUALITIES
 from ihrcf_env.sim.sensors.imu import IMU_NOISE_PRESETS, IMUConfig, IMUNoise
 from ihrcf_env.sim.sensors.tof import VL53L1X
 from ihrcf_env.sim.world import ACTION_MODES, WorldConfig
@@ -85,8 +86,6 @@ ARENA_MARGIN = 0.5
 #: Largest chase-view image side (px).
 MAX_CHASE_SIZE = 4096
 RENDER_MODES: tuple[str, ...] = ("human", "rgb_array")
-#: Camera qualities (``CameraConfig.quality``).
-CAMERA_QUALITIES: tuple[str, ...] = ("ideal", "realistic")
 #: ``sensor_preset``: the model each preset selects for ``camera_quality``, ``tof_noise``,
 #: ``imu_noise`` and ``autopilot_feedback`` (each option, given, overrides its preset).
 SENSOR_PRESETS: dict[str, dict[str, str]] = {
@@ -453,10 +452,6 @@ def model_option(
     )
 
 
-def _camera_has_quality() -> bool:
-    return "quality" in {f.name for f in dataclasses.fields(CameraConfig)}
-
-
 def make_config(
     *,
     render_mode: str | None = None,
@@ -512,17 +507,16 @@ def make_config(
         )
     cam = None
     if has_camera:
-        cam_options: dict[str, tuple[str, object]] = {
-            "camera_width": ("width", check_int("camera_width", camera_width)),
-            "camera_height": ("height", check_int("camera_height", camera_height)),
-            "camera_fov": ("fov", check_real("camera_fov", camera_fov, " (rad)")),
-            "camera_distortion": ("distortion", distortion),
-        }
-        if _camera_has_quality():
-            cam_options["camera_quality"] = ("quality", quality)
-        elif camera_quality not in (None, "ideal"):
-            raise ValueError(f"camera_quality {camera_quality!r} is not supported by this camera model")
-        cam = _build(CameraConfig, cam_options)
+        cam = _build(
+            CameraConfig,
+            {
+                "camera_width": ("width", check_int("camera_width", camera_width)),
+                "camera_height": ("height", check_int("camera_height", camera_height)),
+                "camera_fov": ("fov", check_real("camera_fov", camera_fov, " (rad)")),
+                "camera_distortion": ("distortion", distortion),
+                "camera_quality": ("quality", quality),
+            },
+        )
     tof_model = model_option(
         "tof_noise", tof_noise, preset["tof_noise"], tuple(TOF_PRESETS), VL53L1X, VL53L1X()
     )

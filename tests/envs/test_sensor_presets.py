@@ -5,7 +5,6 @@ the deck)."""
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import gymnasium as gym
@@ -15,18 +14,16 @@ import pytest
 import ihrcf_env  # noqa: F401  (registers the env)
 from ihrcf_env.envs.config import SENSOR_PRESETS, make_config
 from ihrcf_env.sim.navigation import NavigationErrors
-from ihrcf_env.sim.sensors import CameraConfig
 from ihrcf_env.sim.sensors.imu import IMUNoise
 from ihrcf_env.sim.sensors.tof import VL53L1X
 
 RAW = "ihrcf_env/DeckLandingRaw-v0"
 SMALL = {"camera_width": 96, "camera_height": 96}
-CAMERA_HAS_QUALITY = "quality" in {f.name for f in dataclasses.fields(CameraConfig)}
 
 
 def _models(**kwargs) -> tuple[str | None, VL53L1X | None, IMUNoise | None, NavigationErrors | None]:
     world = make_config(**kwargs).world
-    quality = getattr(world.camera, "quality", None) if world.camera is not None else None
+    quality = world.camera.quality if world.camera is not None else None
     return quality, world.tof.model, world.imu.model, world.navigation.errors
 
 
@@ -36,9 +33,8 @@ def test_presets_set_every_model_together() -> None:
     assert (tof, imu, nav) == (None, None, None)
     q, tof, imu, nav = _models(sensor_preset="realistic")
     assert tof == VL53L1X() and imu == IMUNoise() and nav == NavigationErrors()
-    if CAMERA_HAS_QUALITY:
-        assert q == "realistic"
-        assert _models()[0] == "ideal"
+    assert q == "realistic"
+    assert _models()[0] == "ideal"
 
 
 @pytest.mark.parametrize(
@@ -58,8 +54,6 @@ def test_each_option_overrides_its_preset(kwargs, expected) -> None:
 
 
 def test_camera_quality_overrides_the_preset() -> None:
-    if not CAMERA_HAS_QUALITY:
-        pytest.skip("CameraConfig has no quality field yet (the realistic camera is another change)")
     assert _models(sensor_preset="realistic", camera_quality="ideal")[0] == "ideal"
     assert _models(camera_quality="realistic")[0] == "realistic"
     assert make_config(sensor_preset="realistic", camera=False).world.camera is None  # no camera: fine
@@ -84,9 +78,8 @@ def test_explicit_ideal_is_the_default() -> None:
         "tof_noise": "ideal",
         "imu_noise": "ideal",
         "autopilot_feedback": "truth",
+        "camera_quality": "ideal",
     }
-    if CAMERA_HAS_QUALITY:
-        explicit["camera_quality"] = "ideal"
     assert make_config(**explicit) == make_config()
     envs = [gym.make(RAW, **SMALL), gym.make(RAW, **SMALL, **explicit)]
     try:
