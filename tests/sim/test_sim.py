@@ -75,7 +75,7 @@ def test_realistic_tof_noise_is_seeded():
         samples = np.array([w.read_tof(np.random.default_rng(k))[0] for k in range(300)])
         err = samples - true.astype(np.float32)
         ok = np.abs(err) < 0.1
-        assert 0.005 < err[ok].std() < 0.02
+        assert 0.0028 < err[ok].std() < 0.0046  # VL53L1X model: sigma 3.7 mm at 0.97 m in the dark
         assert np.all(np.isfinite(samples))
     finally:
         w.close()
