@@ -88,6 +88,7 @@ ToF -- fused within 20 % of IHRCF.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, fields
 from typing import Any, Literal
@@ -106,7 +107,6 @@ from ihrcf_env.core.frames import (
     euler_from_matrix,
     matrix_from_euler,
     matrix_from_quat,
-    wrap_angle,
 )
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 
@@ -143,9 +143,12 @@ class FusedParams:
     Motion models (white-noise spectral densities):
         accel_noise: accelerometer input noise, (m/s^2)/sqrt(Hz).
         accel_drift: random walk of the unmodelled relative acceleration ``b`` (deck acceleration,
-            accelerometer bias, gravity leak), (m/s^3)/sqrt(Hz).
+            accelerometer bias, gravity leak), (m/s^3)/sqrt(Hz): one level per model of the IMM
+            (default: a quiet, a moderate and an agile deck).
         angle_accel_noise: white angular acceleration of the deck, (rad/s^2)/sqrt(Hz).
-        angle_drift: random walk of the deck's angular acceleration, (rad/s^3)/sqrt(Hz).
+        angle_drift: random walk of the deck's angular acceleration, (rad/s^3)/sqrt(Hz), one level
+            per model.
+        model_switch_time: mean time (s) the IMM's Markov chain stays in one model.
         imu_attitude_walk: wander of the IMU attitude's tilt error, (rad/s)/sqrt(Hz): a random walk
             of the filtered roll and pitch, of the relative position (``e x r``) and, through the
             gravity leak, of the horizontal ``b`` (default: a Gauss-Markov tilt error of 0.5 deg
@@ -159,7 +162,8 @@ class FusedParams:
         gate_probability: chi-square probability of the Mahalanobis gate of each measurement.
         max_rejections: consecutive fully rejected frames that re-initialise the filter.
         min_updates: accepted frames before the output is valid.
-        valid_position_sigma (m), valid_angle_sigma (rad): largest 1-sigma of a valid output.
+        valid_position_sigma (m), valid_angle_sigma (rad): largest position and angle 1-sigma at
+            which a new state counts as converged (checked until it first does).
         lost_timeout: seconds without an accepted measurement before the output turns invalid and
             the state is dropped.
         nominal_dt: frame interval assumed when a frame's time is unknown (NaN), s.
@@ -182,9 +186,10 @@ class FusedParams:
     atda_depth_sigma: float = 0.002
     reference_depth: float = 1.0
     accel_noise: float = 0.003
-    accel_drift: float = 0.01
+    accel_drift: tuple[float, ...] = (0.001, 0.01, 0.1)
     angle_accel_noise: float = 0.002
-    angle_drift: float = 0.05
+    angle_drift: tuple[float, ...] = (0.005, 0.05, 0.5)
+    model_switch_time: float = 30.0
     imu_attitude_walk: float = 0.0055
     accel_hold: Literal["end", "trapezoid"] = "end"
     init_velocity_sigma: float = 0.5
@@ -195,7 +200,7 @@ class FusedParams:
     max_rejections: int = 10
     min_updates: int = 10
     valid_position_sigma: float = 0.01
-    valid_angle_sigma: float = 1.0 * _DEG
+    valid_angle_sigma: float = 3.0 * _DEG
     lost_timeout: float = 1.0
     nominal_dt: float = 0.05
 
@@ -205,6 +210,16 @@ class FusedParams:
             if f.name == "accel_hold":
                 if v not in ("end", "trapezoid"):
                     raise ValueError(f"accel_hold must be 'end' or 'trapezoid', got {v!r}")
+            elif f.name in ("accel_drift", "angle_drift"):
+                if not (
+                    isinstance(v, tuple)
+                    and v
+                    and all(
+                        isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) and x >= 0
+                        for x in v
+                    )
+                ):
+                    raise ValueError(f"{f.name} must be a non-empty tuple of finite numbers >= 0, got {v!r}")
             elif isinstance(f.default, bool):
                 if not isinstance(v, bool):
                     raise TypeError(f"{f.name} must be a bool, got {v!r}")
@@ -214,100 +229,199 @@ class FusedParams:
             else:
                 if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < 0:
                     raise ValueError(f"{f.name} must be a finite number >= 0, got {v!r}")
-        for name in ("tof_sigma", "tof_sigma_min", "reference_depth", "nominal_dt", "lost_timeout"):
+        for name in (
+            "tof_sigma",
+            "tof_sigma_min",
+            "reference_depth",
+            "nominal_dt",
+            "lost_timeout",
+            "model_switch_time",
+        ):
             if getattr(self, name) <= 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)!r}")
         if not 0.0 < self.gate_probability < 1.0:
             raise ValueError(f"gate_probability must be in (0, 1), got {self.gate_probability!r}")
 
 
-# -- the kinematic Kalman filter ------------------------------------------------------------------
+# -- the kinematic Kalman filter and its interacting multiple models ------------------------------
 
 
-@dataclass
-class _Kinematic:
-    """Three axes of ``[value, rate, rate of rate]``: state ``x`` (9,) ordered ``[values (3),
-    rates (3), accelerations (3)]``, covariance ``P`` (9, 9); counters for validity and re-init."""
+def _wrap(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Angles wrapped to (-pi, pi] (:func:`~ihrcf_env.core.frames.wrap_angle` without the checks)."""
+    return math.pi - np.mod(math.pi - a, 2 * math.pi)
 
-    x: NDArray[np.float64]
-    P: NDArray[np.float64]
-    angles: bool = False  # values are angles: wrapped innovations and state
-    frames: int = 0  # frames with at least one accepted measurement
-    rejected_run: int = 0  # consecutive frames whose every measurement was rejected
-    last_accepted: float = 0.0  # time of the last accepted measurement, s
 
-    @classmethod
-    def wide(cls, sigmas: tuple[float, float, float], time: float, angles: bool = False) -> _Kinematic:
-        """Zero state with 1-sigma ``sigmas`` of (values, rates, accelerations), created at ``time``."""
-        return cls(np.zeros(9), np.diag(np.repeat(np.square(sigmas), 3)), angles, last_accepted=time)
+@functools.lru_cache(maxsize=8)
+def _kinematics(dt: float) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Per-axis transition ``F1`` (3, 3) of ``[value, rate, acceleration]`` over ``dt`` s, and the
+    process-noise shapes of a white rate derivative ``Qw`` and a white acceleration derivative ``Qd``
+    (unit spectral density)."""
+    F1 = np.array([[1.0, dt, 0.5 * dt * dt], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
+    Qw = np.array([[dt**3 / 3, dt**2 / 2, 0.0], [dt**2 / 2, dt, 0.0], [0.0, 0.0, 0.0]])
+    Qd = np.array(
+        [[dt**5 / 20, dt**4 / 8, dt**3 / 6], [dt**4 / 8, dt**3 / 3, dt**2 / 2], [dt**3 / 6, dt**2 / 2, dt]]
+    )
+    for m in (F1, Qw, Qd):
+        m.setflags(write=False)
+    return F1, Qw, Qd
+
+
+def _per_axis(block: NDArray[np.float64], weights: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The (9, 9) matrix of a per-axis (3, 3) ``block`` scaled by ``weights`` (3,) per axis, in the
+    state order ``[values (3), rates (3), accelerations (3)]`` (``kron(block, diag(weights))``)."""
+    return (block[:, None, :, None] * np.diag(weights)[None, :, None, :]).reshape(9, 9)
+
+
+class _Imm:
+    """Kalman filters of three axes of ``[value, rate, rate of rate]`` (state (9,) ordered
+    ``[values (3), rates (3), accelerations (3)]``), as interacting multiple models (Blom and
+    Bar-Shalom): the same filter under several process-noise levels (``drifts``, one (3,) density of
+    the acceleration's derivative per model), mixed at every prediction through a Markov switch of
+    mean sojourn ``switch_time`` s and weighted by their measurement likelihoods. A slow deck selects
+    the quiet model (long averaging), a sea-state deck the agile one, without retuning. One model is
+    a plain Kalman filter. Gating uses the combined estimate; the counters serve the validity and
+    re-initialisation rules. All models are propagated and corrected at once (stacked arrays)."""
+
+    def __init__(
+        self,
+        sigmas: tuple[float, float, float],
+        drifts: list[NDArray[np.float64]],
+        switch_time: float,
+        time: float,
+        angles: bool = False,
+    ) -> None:
+        n = len(drifts)
+        self.X = np.zeros((n, 9))  # model states
+        self.Ps = np.repeat(np.diag(np.repeat(np.square(sigmas), 3))[None], n, axis=0)  # (n, 9, 9)
+        self.drifts = np.asarray(drifts, dtype=np.float64)  # (n, 3)
+        self.mu = np.full(n, 1.0 / n)
+        self.switch_time = switch_time
+        self.angles = angles  # values are angles: wrapped innovations and states
+        self.frames = 0  # frames with at least one accepted measurement
+        self.rejected_run = 0  # consecutive frames whose every measurement was rejected
+        self.last_accepted = time  # time of the last accepted measurement, s
+        self._combined: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+
+    def _mix(self, W: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Moment-matched states (m, 9) and covariances (m, 9, 9) of the mixtures with weights
+        ``W`` (m, n) over the models."""
+        ref = self.X[int(np.argmax(self.mu))]
+        D = self.X - ref  # (n, 9)
+        if self.angles:
+            D[:, 0:3] = _wrap(D[:, 0:3])
+        mean = W @ D  # (m, 9)
+        x = ref + mean
+        if self.angles:
+            x[:, 0:3] = _wrap(x[:, 0:3])
+        E = D[None, :, :] - mean[:, None, :]  # (m, n, 9)
+        P = np.einsum("mn,nij->mij", W, self.Ps) + np.einsum("mn,mni,mnj->mij", W, E, E)
+        return x, P
+
+    def combined(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The moment-matched estimate: state (9,) and covariance (9, 9)."""
+        if self._combined is None:
+            x, P = self._mix(self.mu[None, :])
+            self._combined = (x[0], P[0])
+        return self._combined
+
+    @property
+    def x(self) -> NDArray[np.float64]:
+        return self.combined()[0]
+
+    @property
+    def P(self) -> NDArray[np.float64]:
+        return self.combined()[1]
 
     def predict(
         self,
         dt: float,
         q_value: NDArray[np.float64],
         q_white: NDArray[np.float64],
-        q_drift: NDArray[np.float64],
         u: NDArray[np.float64] | None,
     ) -> None:
-        """Propagate ``dt`` s. White-noise spectral densities: ``q_value`` (3, 3) on the values'
-        derivative (value^2/s), ``q_white`` (3,) on the rates' derivative and ``q_drift`` (3,) on the
-        accelerations' derivative (1 sigma per sqrt(Hz)); ``u`` (3,) a known acceleration."""
+        """Mix the models, then propagate each ``dt`` s. White-noise spectral densities: ``q_value``
+        (3, 3) on the values' derivative (value^2/s), ``q_white`` (3,) on the rates' derivative (1
+        sigma per sqrt(Hz)), the model's drift on the accelerations' derivative; ``u`` (3,) a known
+        acceleration of the values."""
         if dt <= 0:
             return
-        F1 = np.array([[1.0, dt, 0.5 * dt * dt], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
-        Qw = np.array([[dt**3 / 3, dt**2 / 2, 0.0], [dt**2 / 2, dt, 0.0], [0.0, 0.0, 0.0]])
-        Qd = np.array(
-            [
-                [dt**5 / 20, dt**4 / 8, dt**3 / 6],
-                [dt**4 / 8, dt**3 / 3, dt**2 / 2],
-                [dt**3 / 6, dt**2 / 2, dt],
-            ]
+        n = len(self.mu)
+        if n > 1:
+            stay = math.exp(-dt / self.switch_time)
+            T = np.full((n, n), (1.0 - stay) / (n - 1))
+            np.fill_diagonal(T, stay)
+            c = self.mu @ T  # predicted model probabilities
+            W = (T * self.mu[:, None]).T / np.maximum(c, 1e-300)[:, None]  # W[j, i] = P(i | j)
+            self.X, self.Ps = self._mix(W / W.sum(axis=1, keepdims=True))
+            self.mu = c / c.sum()
+        F1, Qw, Qd = _kinematics(float(dt))
+        F = _per_axis(F1, np.ones(3))
+        Q = _per_axis(Qw, np.square(q_white))[None] + np.stack(
+            [_per_axis(Qd, np.square(d)) for d in self.drifts]
         )
-        F = np.kron(F1, np.eye(3))
-        Q = np.kron(Qw, np.diag(np.square(q_white))) + np.kron(Qd, np.diag(np.square(q_drift)))
-        Q[0:3, 0:3] += q_value * dt
-        self.x = F @ self.x
+        Q[:, 0:3, 0:3] += q_value * dt
+        self.X = self.X @ F.T
         if u is not None:
-            self.x[0:3] += 0.5 * dt * dt * u
-            self.x[3:6] += dt * u
-        self.P = F @ self.P @ F.T + Q
-        self.P = 0.5 * (self.P + self.P.T)
+            self.X[:, 0:3] += 0.5 * dt * dt * u
+            self.X[:, 3:6] += dt * u
+        self.Ps = F @ self.Ps @ F.T + Q
+        self.Ps = 0.5 * (self.Ps + self.Ps.transpose(0, 2, 1))
         if self.angles:
-            self.x[0:3] = wrap_angle(self.x[0:3])
+            self.X[:, 0:3] = _wrap(self.X[:, 0:3])
+        self._combined = None
 
     def update(
         self, z: NDArray[np.float64], rows: list[int], R: NDArray[np.float64], gate: float | None
     ) -> tuple[bool, float]:
-        """Measure the values ``rows`` (subset of 0, 1, 2) as ``z`` with covariance ``R``. Returns
-        (accepted, squared Mahalanobis distance); rejected (state untouched) beyond ``gate``."""
-        H = np.zeros((len(rows), 9))
-        H[np.arange(len(rows)), rows] = 1.0
-        nu = z - H @ self.x
+        """Measure the values ``rows`` (subset of 0, 1, 2) as ``z`` with covariance ``R``; gated on
+        the combined estimate (squared Mahalanobis distance beyond ``gate``: rejected, nothing
+        changes). Returns (accepted, squared distance)."""
+        k = len(rows)
+        x, P = self.combined()
+        nu = z - x[rows]
         if self.angles:
-            nu = wrap_angle(nu)
-        S = H @ self.P @ H.T + R
-        S = 0.5 * (S + S.T)
+            nu = _wrap(nu)
+        S = P[np.ix_(rows, rows)] + R
         try:
-            Sinv_nu = np.linalg.solve(S, nu)
+            d2 = float(nu @ np.linalg.solve(0.5 * (S + S.T), nu))
         except np.linalg.LinAlgError:
             return False, math.inf
-        d2 = float(nu @ Sinv_nu)
         if not math.isfinite(d2) or (gate is not None and d2 > gate):
             return False, d2
-        K = np.linalg.solve(S, H @ self.P).T  # P H^T S^-1 (S symmetric)
-        self.x = self.x + K @ nu
-        IKH = np.eye(9) - K @ H
-        self.P = IKH @ self.P @ IKH.T + K @ R @ K.T  # Joseph form
-        self.P = 0.5 * (self.P + self.P.T)
+        # every model: Kalman update (Joseph form) and the likelihood of its innovation
+        H = np.zeros((k, 9))
+        H[np.arange(k), rows] = 1.0
+        NU = z[None, :] - self.X[:, rows]  # (n, k)
         if self.angles:
-            self.x[0:3] = wrap_angle(self.x[0:3])
+            NU = _wrap(NU)
+        PHt = self.Ps[:, :, rows]  # (n, 9, k)
+        Ss = PHt[:, rows, :] + R  # (n, k, k)
+        Ss = 0.5 * (Ss + Ss.transpose(0, 2, 1))
+        Sinv = np.linalg.inv(Ss)
+        K = PHt @ Sinv  # (n, 9, k)
+        self.X = self.X + np.einsum("nik,nk->ni", K, NU)
+        IKH = np.eye(9)[None] - K @ H
+        self.Ps = IKH @ self.Ps @ IKH.transpose(0, 2, 1) + K @ R @ K.transpose(0, 2, 1)
+        self.Ps = 0.5 * (self.Ps + self.Ps.transpose(0, 2, 1))
+        if self.angles:
+            self.X[:, 0:3] = _wrap(self.X[:, 0:3])
+        if len(self.mu) > 1:
+            _, logdet = np.linalg.slogdet(Ss)
+            loglik = -0.5 * (np.einsum("nk,nkl,nl->n", NU, Sinv, NU) + logdet)
+            w = np.log(np.maximum(self.mu, 1e-300)) + loglik
+            w = np.exp(w - w.max())
+            self.mu = np.maximum(w / w.sum(), 1e-12)
+            self.mu /= self.mu.sum()
+        self._combined = None
         return True, d2
 
     def finite(self) -> bool:
-        return bool(np.all(np.isfinite(self.x)) and np.all(np.isfinite(self.P)))
+        return bool(
+            np.all(np.isfinite(self.X)) and np.all(np.isfinite(self.Ps)) and np.all(np.isfinite(self.mu))
+        )
 
     def value_sigma(self) -> float:
-        """Largest 1-sigma of the values."""
+        """Largest 1-sigma of the (combined) values."""
         return math.sqrt(max(float(np.linalg.eigvalsh(self.P[0:3, 0:3])[-1]), 0.0))
 
 
@@ -389,14 +503,15 @@ class FusedEstimator:
 
     def reset(self) -> None:
         """Forget everything: filter state, clock, range-noise estimate, ATDA prior."""
-        self._pos: _Kinematic | None = None
-        self._att: _Kinematic | None = None
+        self._pos: _Imm | None = None
+        self._att: _Imm | None = None
         self._time: float | None = None  # time of the last processed frame, s
         self._R_wb: NDArray[np.float64] | None = None
         self._a_world: NDArray[np.float64] | None = None
         self._log_var = 2.0 * math.log(self.params.tof_sigma)  # log of the range variance, m^2
         self._var_weight = 1.0  # pseudo-samples behind _log_var
         self._atda_prior: NDArray[np.float64] | None = None
+        self._converged = False  # both filters met the convergence rule since they were created
         #: What the last :meth:`update` did: accepted / rejected measurement blocks with their
         #: squared Mahalanobis distance, re-initialisations, range noise (m), 1-sigmas (m, rad).
         self.diagnostics: dict[str, Any] = {}
@@ -440,6 +555,7 @@ class FusedEstimator:
                 what = "tag lost" if frame.corners is None else f"no {key[1:]} measurement"
                 lost_reason = f"{what} for {t - kf.last_accepted:.3g} s > {p.lost_timeout:.3g} s"
                 setattr(self, key, None)
+                self._converged = False
         if self._att is None and self._pos is None:
             self._atda_prior = None
         u = a_world
@@ -450,22 +566,9 @@ class FusedEstimator:
         if self._pos is not None:
             r = self._pos.x[0:3]
             q_value = walk2 * (float(r @ r) * np.eye(3) - np.outer(r, r))  # e x r, e the tilt wander
-            drift_h = math.hypot(p.accel_drift, GRAVITY * p.imu_attitude_walk)  # gravity leak of e
-            self._pos.predict(
-                dt,
-                q_value,
-                np.full(3, p.accel_noise),
-                np.array([drift_h, drift_h, p.accel_drift]),
-                None if u is None else -u,
-            )
+            self._pos.predict(dt, q_value, np.full(3, p.accel_noise), None if u is None else -u)
         if self._att is not None:
-            self._att.predict(
-                dt,
-                np.diag([walk2, walk2, 0.0]),
-                np.full(3, p.angle_accel_noise),
-                np.full(3, p.angle_drift),
-                None,
-            )
+            self._att.predict(dt, np.diag([walk2, walk2, 0.0]), np.full(3, p.angle_accel_noise), None)
 
         reason = self._measure(frame, R_wb, t)
         for kf in (self._pos, self._att):
@@ -493,6 +596,7 @@ class FusedEstimator:
     def _drop(self) -> None:
         self._pos = None
         self._att = None
+        self._converged = False
         self._atda_prior = None
 
     def _depth_scale(self, depth: float) -> float:
@@ -562,20 +666,31 @@ class FusedEstimator:
             kf = getattr(self, key)
             if kf is not None and kf.rejected_run >= p.max_rejections:
                 setattr(self, key, None)
+                self._converged = False
                 self.diagnostics["reinitialised"].append(key[1:])
         if self._att is None and self._pos is None and ihrcf is None and not p.use_atda_position:
             return f"IHRCF: {ihrcf_reason}"  # nothing to start from before a position is measured
         new_att = self._att is None
         if self._att is None:
-            self._att = _Kinematic.wide(
-                (math.pi, p.init_rate_sigma, p.init_angle_accel_sigma), t, angles=True
+            self._att = _Imm(
+                (math.pi, p.init_rate_sigma, p.init_angle_accel_sigma),
+                [np.full(3, d) for d in p.angle_drift],
+                p.model_switch_time,
+                t,
+                angles=True,
             )
         new_pos = self._pos is None and (ihrcf is not None or (atda is not None and p.use_atda_position))
         if new_pos:
-            self._pos = _Kinematic.wide((10.0, p.init_velocity_sigma, p.init_accel_sigma), t)
+            leak = GRAVITY * p.imu_attitude_walk  # gravity leak of the IMU's tilt wander, horizontal
+            self._pos = _Imm(
+                (10.0, p.init_velocity_sigma, p.init_accel_sigma),
+                [np.array([math.hypot(d, leak), math.hypot(d, leak), d]) for d in p.accel_drift],
+                p.model_switch_time,
+                t,
+            )
         sigma_r = self.range_sigma
 
-        def apply(kf: _Kinematic, blocks: list[_Measurement], new: bool) -> int:
+        def apply(kf: _Imm, blocks: list[_Measurement], new: bool) -> int:
             """Sequential updates (the first block of a new filter is not gated); accepted count."""
             n = 0
             for i, m in enumerate(blocks):
@@ -722,19 +837,19 @@ class FusedEstimator:
             return PoseEstimate.invalid(f"{what}: {reason or 'no measurement yet'}")
         pos_sigma, ang_sigma = self._pos.value_sigma(), self._att.value_sigma()
         self.diagnostics.update(position_sigma=pos_sigma, angle_sigma=ang_sigma)
-        frames = min(self._pos.frames, self._att.frames)
-        if frames < p.min_updates:
-            return PoseEstimate.invalid(f"converging: {frames}/{p.min_updates} updates")
-        if pos_sigma > p.valid_position_sigma:
-            return PoseEstimate.invalid(
-                f"position sigma {pos_sigma:.3g} m > {p.valid_position_sigma:.3g} m"
-                + (f" ({reason})" if reason else "")
-            )
-        if ang_sigma > p.valid_angle_sigma:
-            return PoseEstimate.invalid(
-                f"angle sigma {math.degrees(ang_sigma):.3g} deg > {math.degrees(p.valid_angle_sigma):.3g} deg"
-                + (f" ({reason})" if reason else "")
-            )
+        if not self._converged:  # latched: afterwards only the timeouts end the validity
+            frames = min(self._pos.frames, self._att.frames)
+            why = ""
+            if frames < p.min_updates:
+                why = f"{frames}/{p.min_updates} updates"
+            elif pos_sigma > p.valid_position_sigma:
+                why = f"position sigma {pos_sigma:.3g} m > {p.valid_position_sigma:.3g} m"
+            elif ang_sigma > p.valid_angle_sigma:
+                limit = math.degrees(p.valid_angle_sigma)
+                why = f"angle sigma {math.degrees(ang_sigma):.3g} deg > {limit:.3g} deg"
+            if why:
+                return PoseEstimate.invalid(f"converging: {why}" + (f" ({reason})" if reason else ""))
+            self._converged = True
         R_bd = R_wb.T @ matrix_from_euler(*self._att.x[0:3])
         p_bd = R_wb.T @ self._pos.x[0:3]
         return PoseEstimate.from_body_pose(R_bd, p_bd, math.sqrt(float(np.trace(self._pos.P[0:3, 0:3]))))
