@@ -30,7 +30,7 @@ def hover_rollout(env: gym.Env, frames: int, seed: int = 0, altitude: float = 1.
 
 def make_accuracy_env(
     frames: int,
-    tof_noise: str = "ideal",
+    tof_noise: str | None = None,
     distortion: tuple[float, float] = (0.0, 0.0),
     calibration: str | Path | None = None,
     deck_profile: str = "paper",
@@ -40,18 +40,19 @@ def make_accuracy_env(
 
     Args:
         frames: control steps to be run; the episode limits are set beyond them.
-        tof_noise: ``"ideal"`` or ``"realistic"`` ToF ranges.
+        tof_noise: ``"ideal"`` or ``"realistic"`` ToF ranges; None follows ``sensor_preset``.
         distortion: camera radial distortion (k1, k2); a distorted camera needs ``calibration``.
         calibration: calibration file made for this camera (default: the shipped one).
         deck_profile: deck motion, ``"paper"`` by default.
         env_kwargs: further ``gym.make`` arguments.
     """
     hz = int(env_kwargs.get("control_hz", 20))
+    if tof_noise is not None:
+        env_kwargs["tof_noise"] = tof_noise
     return gym.make(
         "ihrcf_env/DeckLanding-v0",
         calibration=calibration,
         keep_image=False,
-        tof_noise=tof_noise,
         camera_distortion=tuple(distortion),
         deck_profile=deck_profile,
         max_episode_steps=frames + 10,
@@ -62,7 +63,7 @@ def make_accuracy_env(
 
 def accuracy(
     frames: int,
-    tof_noise: str = "ideal",
+    tof_noise: str | None = None,
     distortion: tuple[float, float] = (0.0, 0.0),
     seed: int = 0,
     calibration: str | Path | None = None,
