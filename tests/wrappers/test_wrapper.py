@@ -224,3 +224,23 @@ def test_distorted_camera_needs_a_calibration_made_for_it(tmp_path):
         assert np.abs(obs["ihrcf"]["position"] - gt).max() < 0.01
     finally:
         env.close()
+
+
+def test_fused_in_the_simulator_with_realistic_ranges():
+    """The fused filter gets the IMU and the sim time, converges within a second and beats IHRCF's
+    tilt by far with VL53L1X-like ranges (the issue's targets: <= 2 mm, <= 0.5 deg)."""
+    env = gym.make(ENV_ID, keep_image=False, tof_noise="realistic", max_episode_steps=None, horizon_s=10)
+    try:
+        rec = hover_rollout(env, 120, seed=0)
+        frame = env.get_wrapper_attr("last_frame")
+        fused = env.get_wrapper_attr("estimators")["fused"]
+    finally:
+        env.close()
+    assert frame.imu is not None and frame.time == pytest.approx(rec.time[-1])
+    assert 0.002 < fused.range_sigma < 0.02  # the ranges' noise, estimated online
+    valid = rec.valid["fused"]
+    assert not valid[:5].any() and valid[20:].all()
+    stats = rec.error_stats()
+    mae = stats["fused"].mae
+    assert np.all(mae[:3] <= 0.002) and np.all(mae[3:] <= 0.5), mae
+    assert np.all(mae[3:5] < 0.5 * stats["ihrcf"].mae[3:5]), (mae, stats["ihrcf"].mae)
