@@ -28,7 +28,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--episodes", type=int, default=20, help="episodes (seeds) per profile (default 20)")
     ap.add_argument("--profiles", nargs="+", default=["paper", "sea_state"], choices=PROFILES)
     ap.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
-    ap.add_argument("--tof-noise", default="ideal", choices=("ideal", "realistic"))
+    ap.add_argument("--sensor-preset", default="ideal", choices=("ideal", "realistic"))
+    ap.add_argument("--tof-noise", default=None, choices=("ideal", "realistic"), help="override the preset")
+    ap.add_argument(
+        "--estimator", default="ihrcf", choices=("ihrcf", "fused"), help="deck estimate to fly on"
+    )
     ap.add_argument("--max-seconds", type=float, default=30.0, help="episode limit, simulated s (default 30)")
     ap.add_argument(
         "--control-hz", type=int, default=20, help="agent/camera rate (default 20; 10 halves the wall time)"
@@ -58,13 +62,19 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.seed,
             args.tof_noise,
             args.max_seconds,
-            env_kwargs={"control_hz": args.control_hz, "random_deck_start": args.deck_start == "random"},
+            env_kwargs={
+                "control_hz": args.control_hz,
+                "random_deck_start": args.deck_start == "random",
+                "sensor_preset": args.sensor_preset,
+            },
             on_episode=None if args.quiet else lambda r: print(format_episode(r), flush=True),
+            estimator=args.estimator,
         )
         summaries[profile] = summarize_landings(results)
     wall = time.perf_counter() - t0
     print(
-        f"\nlanding report ({args.episodes} episodes per profile, tof_noise={args.tof_noise}, "
+        f"\nlanding report ({args.episodes} episodes per profile, sensor_preset={args.sensor_preset}, "
+        f"tof_noise={args.tof_noise or 'preset'}, estimator={args.estimator}, "
         f"deck start {args.deck_start}, wall {wall:.0f} s)"
     )
     for profile, s in summaries.items():

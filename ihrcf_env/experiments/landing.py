@@ -47,7 +47,7 @@ def evaluate(
     profile: str,
     episodes: int,
     seed: int = 0,
-    tof_noise: str = "ideal",
+    tof_noise: str | None = None,
     max_seconds: float = 30.0,
     env_kwargs: Mapping[str, Any] | None = None,
     on_episode: Callable[[EpisodeResult], None] | None = None,
@@ -59,18 +59,20 @@ def evaluate(
         profile: deck motion, one of :data:`PROFILES`.
         episodes: number of episodes.
         seed: first seed.
-        tof_noise: ``"ideal"`` or ``"realistic"`` ToF ranges.
+        tof_noise: ``"ideal"`` or ``"realistic"`` ToF ranges (None: as the ``sensor_preset`` in
+            ``env_kwargs`` says).
         max_seconds: episode limit (simulated s).
         env_kwargs: further ``gym.make`` arguments (e.g. ``control_hz``, ``random_deck_start``).
         on_episode: called with each result as soon as its episode ends (e.g. to print it).
         estimator: the deck-pose estimate the controller steers on (``"ihrcf"`` or ``"fused"``).
     """
     kwargs = dict(env_kwargs or {})
+    if tof_noise is not None:
+        kwargs["tof_noise"] = tof_noise
     hz = int(kwargs.get("control_hz", 20))
     env = gym.make(
         "ihrcf_env/DeckLanding-v0",
         deck_profile=profile,
-        tof_noise=tof_noise,
         keep_image=False,
         max_episode_steps=max(1, int(round(max_seconds * hz))),
         **kwargs,
