@@ -157,8 +157,11 @@ _G_WORLD = np.array([0.0, 0.0, -GRAVITY])
 @dataclass(frozen=True)
 class FusedParams:
     """Parameters of :class:`FusedEstimator` (SI units: m, s, rad). Defaults: the simulator's
-    "realistic" sensors (ToF sigma 10 mm, 512x512 camera with f = 443 px, 0.4 m tag, 20 Hz) over a
-    slowly moving deck; the range noise is estimated online, so they also suit ideal ranges.
+    realistic sensors (VL53L1X ranges, sigma a few mm to 10 mm; a BMI088 IMU behind an attitude
+    filter with 0.5 deg tilt error; a 512x512 camera with f = 443 px; a 0.4 m tag; 20 Hz) over a
+    deck between the paper's slow profile and a sea state. The range noise is estimated online,
+    so they also suit exact ranges; with an exact IMU attitude, ``imu_attitude_walk = 0`` smooths
+    a little more.
 
     Range sensors and IHRCF:
         tof_sigma: prior range noise, 1 sigma (m), until the online estimate takes over.
@@ -199,12 +202,13 @@ class FusedParams:
         init_angle_accel_sigma (rad/s^2).
     Gating, validity, timing:
         gate_probability: chi-square probability of the Mahalanobis gate of each measurement.
-        max_rejections: consecutive fully rejected frames that re-initialise the filter.
+        max_rejections: consecutive frames in which every measurement of one filter (position or
+            attitude) was rejected, after which that filter starts again from the measurements.
         min_updates: accepted frames before the output is valid.
         valid_position_sigma (m), valid_angle_sigma (rad): largest position and angle 1-sigma at
             which a new state counts as converged (checked until it first does).
-        lost_timeout: seconds without an accepted measurement before the output turns invalid and
-            the state is dropped.
+        lost_timeout: seconds without an accepted measurement after which a filter (position or
+            attitude) drops its state and the output turns invalid.
         nominal_dt: frame interval assumed when a frame's time is unknown (NaN), s.
     """
 
@@ -655,7 +659,8 @@ class FusedEstimator:
         self._var_weight = min(self._var_weight + 1.0, float(self.params.tof_sigma_window))
         self._log_var += (sample - self._log_var) / self._var_weight
 
-    def _predicted_R_bd(self, R_wb: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    def _filtered_R_bd(self, R_wb: NDArray[np.float64]) -> NDArray[np.float64] | None:
+        """The filter's current deck rotation in the body frame (``R_wb^T R_wd``), or None."""
         if self._att is None:
             return None
         return R_wb.T @ matrix_from_euler(*self._att.x[0:3])
@@ -684,7 +689,7 @@ class FusedEstimator:
         atda: PoseEstimate | None = None
         atda_reason = "ATDA not used"
         if self.K is not None and (p.use_atda_attitude or p.use_atda_position):
-            prior = self._predicted_R_bd(R_wb)
+            prior = self._filtered_R_bd(R_wb)
             est = atda_estimate(
                 frame.corners,
                 self.K,
@@ -829,7 +834,7 @@ class FusedEstimator:
         self, corners: IHRCFCorners, ranges: NDArray[np.float64], R_wb: NDArray[np.float64]
     ) -> PoseEstimate | None:
         """IHRCF's corner rays intersected with the filter's deck plane through the touch points."""
-        R_bd = self._predicted_R_bd(R_wb)
+        R_bd = self._filtered_R_bd(R_wb)
         if R_bd is None:
             return None
         n = -(R_BODY_CAM.T @ R_bd[:, 2])  # deck normal in the camera frame, into the deck (n_z > 0)
