@@ -385,7 +385,9 @@ def hover_run():
     w = hover_world(REALISTIC, seed=0, frames=frames)
     rng = np.random.default_rng(0)
     w.reset_random(rng)
-    est = estimator_from_calibration(Calibration.load(default_calibration_path()), tag_size=0.4, tag_id=0)
+    est = estimator_from_calibration(
+        Calibration.load(default_calibration_path()), tag_size=0.4, tag_id=0, estimators=("ihrcf", "atda")
+    )
     detected = 0
     errors: dict[str, list[np.ndarray]] = {"ihrcf": [], "atda": []}
     try:
