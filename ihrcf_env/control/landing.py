@@ -71,8 +71,13 @@ class LandingConfig:
     heave_beta: float = 0.06
     tilt_alpha: float = 0.2
     tilt_beta: float = 0.015
-    drift_k1: float = 0.2  # 1/s, IMU altitude pulled towards the commanded altitude
-    drift_k2: float = 0.01  # 1/s^2
+    # Third-order complementary filter of the drone's altitude: the IMU's vertical acceleration at
+    # high frequency, the autopilot's commanded altitude at low frequency, and an accelerometer bias
+    # state (a real MEMS accelerometer is off by up to ~20 mg = 0.2 m/s^2, which a second-order
+    # filter turns into a steady velocity error). Gains put the three poles at -0.2 rad/s.
+    drift_k1: float = 0.6  # 1/s, IMU altitude pulled towards the commanded altitude
+    drift_k2: float = 0.12  # 1/s^2
+    drift_k3: float = 0.008  # 1/s^3, accelerometer bias estimate
 
 
 @dataclass
@@ -133,6 +138,7 @@ class LandingController:
         self.phase = "approach"
         self.t = 0.0
         self.vz_drone = 0.0  # world vertical velocity, IMU-integrated
+        self.accel_bias = 0.0  # estimated offset of the IMU's vertical acceleration (m/s^2)
         self.z_drone = 0.0  # altitude relative to the start, IMU-integrated
         self.z_cmd = 0.0  # integral of the commanded vertical velocity (the autopilot tracks it)
         self.prev_accel_z: float | None = None
@@ -184,13 +190,15 @@ class LandingController:
         """Integrate the IMU altitude, update the heave and deck-normal filters and the tag timers."""
         c, dt = self.cfg, self.dt
         a_prev = m.accel_z if self.prev_accel_z is None else self.prev_accel_z
-        v_new = self.vz_drone + 0.5 * (a_prev + m.accel_z) * dt
+        v_new = self.vz_drone + (0.5 * (a_prev + m.accel_z) - self.accel_bias) * dt
         self.z_drone += 0.5 * (self.vz_drone + v_new) * dt
         self.vz_drone = v_new
         # complementary correction towards the commanded altitude: removes the integration drift
+        # and, through the bias state, a constant accelerometer offset
         e = self.z_cmd - self.z_drone
         self.z_drone += c.drift_k1 * e * dt
         self.vz_drone += c.drift_k2 * e * dt
+        self.accel_bias -= c.drift_k3 * e * dt
         self.prev_accel_z = m.accel_z
         self.height = m.tof_height
         deck_z = None if m.tof_height is None else self.z_drone - m.tof_height
