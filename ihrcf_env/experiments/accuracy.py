@@ -13,6 +13,7 @@ from typing import Any
 
 import gymnasium as gym
 
+from ihrcf_env.control.hover import HoverGains, HoverTracker
 from ihrcf_env.core.metrics import ErrorStats
 from ihrcf_env.experiments.rollout import Recording, rollout
 
@@ -20,12 +21,31 @@ from ihrcf_env.experiments.rollout import Recording, rollout
 HOVER_START: dict[str, Any] = {"altitude": 1.0, "offset": (0.0, 0.0), "yaw": 0.0}
 
 
-def hover_rollout(env: gym.Env, frames: int, seed: int = 0, altitude: float = 1.0) -> Recording:
+def hover_rollout(
+    env: gym.Env, frames: int, seed: int = 0, altitude: float = 1.0, track: str | None = None
+) -> Recording:
     """Reset ``env`` (``ihrcf_env/DeckLanding-v0``) to :data:`HOVER_START` (at ``altitude`` m above
-    the deck) and record ``frames`` control steps of the motionless hover (zero velocity commands: the
-    autopilot holds position, on its own navigation estimate under the realistic preset); score it
-    with :meth:`Recording.error_stats`."""
-    return rollout(env, frames, None, seed=seed, options={**HOVER_START, "altitude": float(altitude)})
+    the deck) and record ``frames`` control steps of the hover; score it with
+    :meth:`Recording.error_stats`.
+
+    ``track=None``: zero velocity commands, the autopilot holds its position (on its own drifting
+    navigation estimate under ``autopilot_feedback="estimated"``). ``track="fused"`` (or another
+    estimate's key): the drone is kept horizontally over the tag by :class:`HoverTracker` on that
+    estimate (0.5 (m/s)/m, no vertical or yaw command: the altitude stays on the autopilot, so the
+    deck still heaves beneath the drone as in the paper's experiment) -- what a drone whose GNSS/INS
+    drifts ~0.4 m in 30 s needs to keep the tag in view.
+    """
+    policy = None
+    if track is not None:
+        base = env.unwrapped
+        tracker = HoverTracker(
+            altitude,
+            base.max_velocity,  # type: ignore[attr-defined]
+            estimator=track,
+            gains=HoverGains(k_xy=0.5, k_z=0.0, k_yaw=0.0),
+        )
+        policy = tracker.act
+    return rollout(env, frames, policy, seed=seed, options={**HOVER_START, "altitude": float(altitude)})
 
 
 def make_accuracy_env(
@@ -69,15 +89,16 @@ def accuracy(
     calibration: str | Path | None = None,
     env_kwargs: Mapping[str, Any] | None = None,
     altitude: float = 1.0,
+    track: str | None = None,
 ) -> dict[str, ErrorStats]:
     """Run the paper's hover (``altitude`` m above the deck, 1 m in the paper) for ``frames`` steps;
     per estimator in the observation: MAE and peak (6,) = X, Y, Z (m), roll, pitch, yaw (deg), and
     the invalid-frame count.
 
-    See :func:`make_accuracy_env` for the other arguments.
+    See :func:`make_accuracy_env` for the other arguments and :func:`hover_rollout` for ``track``.
     """
     env = make_accuracy_env(frames, tof_noise, distortion, calibration, **dict(env_kwargs or {}))
     try:
-        return hover_rollout(env, frames, seed, altitude).error_stats()
+        return hover_rollout(env, frames, seed, altitude, track).error_stats()
     finally:
         env.close()

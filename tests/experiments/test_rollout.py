@@ -103,3 +103,16 @@ def test_progress_bar_only_on_a_terminal(stream: type[io.StringIO], shown: bool)
     finally:
         env.close()
     assert ("100%" in err.getvalue()) is shown
+
+
+def test_hover_rollout_can_hold_over_the_tag_horizontally() -> None:
+    env = gym.make(
+        "ihrcf_env/DeckLanding-v0", deck_profile="static", keep_image=False, autopilot_feedback="estimated"
+    )
+    try:
+        rec = hover_rollout(env, 40, seed=3, track="fused")
+    finally:
+        env.close()
+    assert np.all(rec.command[:, 2:] == 0.0)  # altitude and heading stay on the autopilot
+    assert np.any(rec.command[:, :2] != 0.0)  # the fused estimate steers x/y once it has converged
+    assert rec.valid["fused"][-1]
