@@ -21,7 +21,9 @@ The estimators are those of :data:`~ihrcf_env.core.estimators.DEFAULT_ESTIMATORS
 Every estimator gets the same :class:`~ihrcf_env.core.estimators.SensorFrame` per step: the tag
 corners (detected once), the ranges, the IMU sample and the simulated time (``info["time"]``), so
 a temporal filter (``fused``) sees the real frame interval. ``fused_params`` sets the fused
-filter's :class:`~ihrcf_env.core.estimators.FusedParams`.
+filter's :class:`~ihrcf_env.core.estimators.FusedParams`; by default they follow the env's ToF model
+(:func:`fused_params_for_tof`: the VL53L1X's per-sensor offsets give the filter a common-mode
+range-offset state).
 
 ``flatten=True`` gives one float32 Box for RL libraries, laid out as :func:`flat_slices` says (also
 ``wrapper.flat_slices``): ranges (4), ranges_valid (4), imu quaternion (4), angular velocity (3),
@@ -63,6 +65,7 @@ from ihrcf_env.core.rig import SensorRig
 
 if TYPE_CHECKING:
     from ihrcf_env.envs.deck_landing import DeckLandingEnv
+    from ihrcf_env.sim.sensors.tof import VL53L1X
 
 POSITION_BOUND = 10.0  # m
 #: The key of the ground-truth pose block; always after the estimators.
@@ -132,6 +135,15 @@ def estimator_from_calibration(
         estimators=estimators,
         fused=fused_params,
     )
+
+
+def fused_params_for_tof(model: VL53L1X | None) -> FusedParams:
+    """The fused filter's parameters for the env's ToF model: with the VL53L1X model (per-sensor
+    constant offsets of sigma ``offset_sigma``) a common-mode range-offset state of prior sigma
+    ``offset_sigma / 2`` (the mean of four independent offsets); the ideal ToF (None): none."""
+    if model is None or model.offset_sigma <= 0:
+        return FusedParams()
+    return FusedParams(range_offset_sigma=model.offset_sigma / 2)
 
 
 def _describe(value: Any) -> str:
@@ -222,7 +234,7 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         max_residual: IHRCF rigid-fit RMS (m) above which the estimate is declared invalid.
         estimators: registered estimator names, in observation order (default ihrcf, atda, fused).
         fused_params: :class:`~ihrcf_env.core.estimators.FusedParams` of the fused estimator, or
-            None for the defaults.
+            None for the defaults matching the env's ToF model (:func:`fused_params_for_tof`).
 
     Bad options raise TypeError / ValueError naming the option before anything is built.
 
@@ -270,6 +282,8 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         cal.check_matches(cam.width, cam.height, cam.fov, base.rig, distortion=cam.distortion)
         self.calibration = cal
         deck = base.config.deck
+        if fused_params is None:
+            fused_params = fused_params_for_tof(getattr(getattr(base.config, "tof", None), "model", None))
         self.estimator = estimator_from_calibration(
             cal, deck.tag_size, deck.tag_id, float(max_residual), estimators=names, fused_params=fused_params
         )

@@ -572,3 +572,43 @@ def test_default_fuses_atda_depth() -> None:
     assert {"atda.attitude", "atda.position", "ihrcf.position", "ihrcf.tilt", "ihrcf.yaw"} <= {
         n for n, _ in est.diagnostics["accepted"]
     }
+
+
+# ------------------------------------------------------------------------ common-mode range offset
+
+
+def _add_range_offset(offset: float) -> Callable[[int, SensorFrame], SensorFrame]:
+    def corrupt(k: int, frame: SensorFrame) -> SensorFrame:
+        return dataclasses.replace(frame, ranges=frame.ranges + offset)
+
+    return corrupt
+
+
+def test_common_mode_range_offset_is_estimated_against_atda_depth() -> None:
+    """+4 mm on all four ranges, exact (ATDA-consistent) corners: without the offset state the
+    range-based depth keeps the offset; with it the offset is learnt from ATDA's depth."""
+    corrupt = _add_range_offset(0.004)
+    off = FusedEstimator(touch_pixels, RIG, TAG, K)
+    run_off = simulate(20.0, estimator=off, sigma_r=0.002, corrupt=corrupt)
+    on = FusedEstimator(touch_pixels, RIG, TAG, K, params=FusedParams(range_offset_sigma=0.004))
+    run_on = simulate(20.0, estimator=on, sigma_r=0.002, corrupt=corrupt)
+    late = slice(200, None)
+    z_off, z_on = mae(run_off.errors()[late])[2], mae(run_on.errors()[late])[2]
+    assert off.range_offset == 0.0 and 2.5 < z_off < 5.0, z_off  # ATDA's depth pulls a little
+    assert z_on < 1.0, z_on
+    assert 3.0e-3 < on.range_offset < 5.0e-3, on.range_offset
+    # the rest of the pose is no worse
+    assert np.all(mae(run_on.errors()[late])[:2] < mae(run_off.errors()[late])[:2] + 0.2)
+    assert np.all(mae(run_on.errors()[late])[3:] < mae(run_off.errors()[late])[3:] + 0.02)
+
+
+def test_range_offset_state_off_by_default_is_bit_for_bit() -> None:
+    a = simulate(3.0, estimator=FusedEstimator(touch_pixels, RIG, TAG, K), seed=3)
+    b = simulate(
+        3.0,
+        estimator=FusedEstimator(touch_pixels, RIG, TAG, K, params=FusedParams(range_offset_sigma=0.0)),
+        seed=3,
+    )
+    for ea, eb in zip(a.estimates, b.estimates, strict=True):
+        np.testing.assert_array_equal(ea.position, eb.position)
+        np.testing.assert_array_equal(ea.euler, eb.euler)

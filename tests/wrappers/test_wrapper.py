@@ -10,6 +10,7 @@ from gymnasium.utils.env_checker import check_env
 
 import ihrcf_env  # noqa: F401
 from ihrcf_env.core.calibration import CalibrationError
+from ihrcf_env.core.estimators import FusedParams
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
 from ihrcf_env.experiments.accuracy import hover_rollout
 from ihrcf_env.wrappers.estimates import DeckPoseObservation, flat_slices
@@ -244,3 +245,29 @@ def test_fused_in_the_simulator_with_realistic_ranges():
     mae = stats["fused"].mae
     assert np.all(mae[:3] <= 0.002) and np.all(mae[3:] <= 0.5), mae
     assert np.all(mae[3:5] < 0.5 * stats["ihrcf"].mae[3:5]), (mae, stats["ihrcf"].mae)
+
+
+def test_fused_range_offset_state_follows_the_tof_model():
+    """The VL53L1X's per-sensor offsets give the fused filter a common-mode range-offset state
+    (prior sigma offset_sigma / 2, the mean of four); the ideal ToF none; explicit params win."""
+    for preset in ("realistic", "ideal"):
+        env = gym.make(ENV_ID, keep_image=False, sensor_preset=preset)
+        try:
+            fused = env.get_wrapper_attr("estimators")["fused"]
+            base = env.unwrapped
+            assert isinstance(base, DeckLandingEnv)
+            model = base.config.tof.model
+        finally:
+            env.close()
+        if preset == "realistic":
+            assert model is not None and model.offset_sigma > 0
+            assert fused.params.range_offset_sigma == pytest.approx(model.offset_sigma / 2)
+        else:
+            assert model is None and fused.params.range_offset_sigma == 0.0
+            assert fused.params == FusedParams()
+    custom = FusedParams(min_updates=3)
+    env = gym.make(ENV_ID, keep_image=False, sensor_preset="realistic", fused_params=custom)
+    try:
+        assert env.get_wrapper_attr("estimators")["fused"].params is custom
+    finally:
+        env.close()
