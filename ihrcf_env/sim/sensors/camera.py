@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -189,21 +190,9 @@ class DownCamera:
         R_wb = np.asarray(state.rotation, dtype=np.float64)
         eye, R_wc = self.pose(np.asarray(state.position, dtype=np.float64), R_wb)
         c = self.config
-        _, _, rgba, depth, seg = p.getCameraImage(
-            c.width,
-            c.height,
-            viewMatrix=self._view(eye, R_wc),
-            projectionMatrix=self._proj,
-            shadow=0,
-            lightDirection=list(ep.light_direction),
-            lightAmbientCoeff=ep.ambient,
-            lightDiffuseCoeff=ep.diffuse,
-            lightSpecularCoeff=c.specular,
-            renderer=p.ER_TINY_RENDERER,
-            physicsClientId=self.client,
-        )
-        rgb = np.ascontiguousarray(np.asarray(rgba, dtype=np.uint8).reshape(c.height, c.width, 4)[:, :, :3])
-        seg_a = np.asarray(seg, dtype=np.int32).reshape(c.height, c.width)
+        light = (tuple(ep.light_direction), ep.ambient, ep.diffuse)
+        rgb, depth, seg_a = tiny_render(self.client, c, self._view(eye, R_wc), self._proj, light, True)
+        assert seg_a is not None
         omega = np.asarray(state.angular_velocity, dtype=np.float64)
         v_eye = np.asarray(state.velocity, dtype=np.float64) + np.cross(omega, R_wb @ self._cam_offset)
         z_axis = self._axis_depth(np.asarray(depth).reshape(c.height, c.width), eye, R_wc)
@@ -254,25 +243,42 @@ def _distortion_maps(config: CameraConfig) -> tuple[NDArray[np.float32], NDArray
     return mx, my
 
 
-def render_rgb(client: int, config: CameraConfig, view: object, proj: object) -> NDArray[np.uint8]:
-    """One TinyRenderer frame as an (H, W, 3) uint8 array."""
+def tiny_render(
+    client: int,
+    config: CameraConfig,
+    view: object,
+    proj: object,
+    light: tuple[Sequence[float], float, float] | None = None,
+    segmentation: bool = False,
+) -> tuple[NDArray[np.uint8], NDArray[np.float32], NDArray[np.int32] | None]:
+    """One TinyRenderer frame: RGB (H, W, 3) uint8, the z-buffer (H, W) and, with ``segmentation``,
+    the segmentation mask (H, W) int32 (-1 = background). ``light`` = (direction, ambient, diffuse)
+    overrides the config's light (the realistic camera's per-episode light)."""
     c = config
-    _, _, rgba, _, _ = p.getCameraImage(
+    direction, ambient, diffuse = light if light is not None else (c.light_direction, c.ambient, c.diffuse)
+    _, _, rgba, depth, seg = p.getCameraImage(
         c.width,
         c.height,
         viewMatrix=view,
         projectionMatrix=proj,
         shadow=0,
-        lightDirection=list(c.light_direction),
-        lightAmbientCoeff=c.ambient,
-        lightDiffuseCoeff=c.diffuse,
+        lightDirection=list(direction),
+        lightAmbientCoeff=ambient,
+        lightDiffuseCoeff=diffuse,
         lightSpecularCoeff=c.specular,
         renderer=p.ER_TINY_RENDERER,
-        flags=p.ER_NO_SEGMENTATION_MASK,
+        flags=0 if segmentation else p.ER_NO_SEGMENTATION_MASK,
         physicsClientId=client,
     )
     img = np.asarray(rgba, dtype=np.uint8).reshape(c.height, c.width, 4)
-    return np.ascontiguousarray(img[:, :, :3])
+    z = np.asarray(depth, dtype=np.float32).reshape(c.height, c.width)
+    mask = np.asarray(seg, dtype=np.int32).reshape(c.height, c.width) if segmentation else None
+    return np.ascontiguousarray(img[:, :, :3]), z, mask
+
+
+def render_rgb(client: int, config: CameraConfig, view: object, proj: object) -> NDArray[np.uint8]:
+    """One TinyRenderer frame as an (H, W, 3) uint8 array, with the config's light."""
+    return tiny_render(client, config, view, proj)[0]
 
 
 def _hover_world(width: int, height: int, frames: int, camera: CameraConfig | None = None) -> Any:
