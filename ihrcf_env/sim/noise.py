@@ -58,12 +58,6 @@ def check_param(name: str, value: object, *, positive: bool = False, upper: floa
     return v
 
 
-def _check_nonneg(name: str, value: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
-        raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-    return float(value)
-
-
 @dataclass
 class NoNoise:
     """The ideal sensor: values pass unchanged, nothing is drawn from the generator."""
@@ -84,7 +78,7 @@ class GaussianNoise:
     sigma: float
 
     def __post_init__(self) -> None:
-        self.sigma = _check_nonneg("sigma", self.sigma)
+        self.sigma = check_param("sigma", self.sigma)
 
     def reset(self, rng: np.random.Generator) -> None:
         pass
@@ -104,9 +98,7 @@ class Dropout:
     probability: float
 
     def __post_init__(self) -> None:
-        self.probability = _check_nonneg("probability", self.probability)
-        if self.probability > 1.0:
-            raise ValueError(f"probability must be in [0, 1], got {self.probability!r}")
+        self.probability = check_param("probability", self.probability, upper=1.0)
 
     def reset(self, rng: np.random.Generator) -> None:
         pass
@@ -138,13 +130,6 @@ class Chain:
 
 
 # -- stateful models of inertial sensors and estimators ----------------------------------------------
-def _check_positive(name: str, value: float) -> float:
-    v = _check_nonneg(name, value)
-    if v == 0.0:
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    return v
-
-
 def _check_size(size: int) -> int:
     if isinstance(size, bool) or not isinstance(size, int | np.integer) or size < 1:
         raise ValueError(f"size must be an integer >= 1, got {size!r}")
@@ -157,8 +142,8 @@ def _per_element(name: str, value: float | Sequence[float], size: int) -> NDArra
         items = list(value)
         if len(items) != size:
             raise ValueError(f"{name} must be one number or {size} numbers, got {value!r}")
-        return np.array([_check_nonneg(f"{name}[{i}]", v) for i, v in enumerate(items)])
-    return np.full(size, _check_nonneg(name, value))
+        return np.array([check_param(f"{name}[{i}]", v) for i, v in enumerate(items)])
+    return np.full(size, check_param(name, value))
 
 
 @dataclass
@@ -256,7 +241,7 @@ class GaussMarkov:
     def __post_init__(self) -> None:
         self.size = _check_size(self.size)
         self._sigma = _per_element("sigma", self.sigma, self.size)
-        self.tau = _check_positive("tau", self.tau)
+        self.tau = check_param("tau", self.tau, positive=True)
         self.bias = np.zeros(self.size)
 
     def reset(self, rng: np.random.Generator) -> None:

@@ -52,7 +52,7 @@ def test_ideal_models_draw_nothing() -> None:
     assert rng.bit_generator.state == state
 
 
-@pytest.mark.parametrize("bad", [-0.1, float("nan"), float("inf"), "0.1", True])
+@pytest.mark.parametrize("bad", [-0.1, float("nan"), float("inf")])
 def test_noise_parameters_validated(bad) -> None:
     with pytest.raises(ValueError, match="sigma"):
         GaussianNoise(bad)
@@ -60,6 +60,15 @@ def test_noise_parameters_validated(bad) -> None:
         Dropout(bad)
     with pytest.raises(ValueError, match="probability"):
         Dropout(1.5)
+
+
+@pytest.mark.parametrize("bad", ["0.1", True, None])
+def test_noise_parameters_of_the_wrong_type_are_named(bad) -> None:
+    """The package's convention: a wrong type is a TypeError naming the parameter."""
+    with pytest.raises(TypeError, match="sigma"):
+        GaussianNoise(bad)
+    with pytest.raises(TypeError, match="probability"):
+        Dropout(bad)
 
 
 @pytest.fixture

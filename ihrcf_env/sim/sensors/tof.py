@@ -46,7 +46,7 @@ import pybullet as p
 from numpy.typing import NDArray
 
 from ihrcf_env.core.rig import SensorRig
-from ihrcf_env.sim.noise import Chain, Dropout, GaussianNoise, NoiseModel, NoNoise, check_param
+from ihrcf_env.sim.noise import NoiseModel, NoNoise, check_param
 from ihrcf_env.sim.sensors.base import BodyState
 
 #: Ranges of ST's long distance mode used to calibrate :class:`VL53L1X`'s SNR model: an 88 %
@@ -179,7 +179,7 @@ class ToFArray:
         self.model = config.model
         self._min = self.model.min_range if self.model is not None else 0.0
         if self.model is None:
-            self.noise: NoiseModel = noise if noise is not None else Chain((GaussianNoise(0.0), Dropout(0.0)))
+            self.noise: NoiseModel = noise if noise is not None else NoNoise()
         else:
             self.noise = noise if noise is not None else NoNoise()
             m = self.model
