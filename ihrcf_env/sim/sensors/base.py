@@ -45,3 +45,25 @@ class Sensor(Protocol):
     def read(self, state: BodyState, dt: float, rng: np.random.Generator) -> Mapping[str, NDArray]:
         """Measurements for ``state``; ``dt`` (s) is the time since the previous read."""
         ...
+
+
+#: Name of the tag-corner sensor in ``World.sensors`` (``camera_output="corners"``).
+TAG_CAMERA = "tag_camera"
+
+
+def tag_reading(corners: NDArray[np.float64] | None, reason: str) -> dict[str, NDArray]:
+    """The measurement mapping of a tag-corner sensor (:data:`TAG_CAMERA`).
+
+    ``tag_corners``: (4, 2) float64 px, the tag's corners in the (distorted) image, OpenCV
+    pixel-centre convention, in :class:`~ihrcf_env.core.estimators.TagDetector`'s corner order;
+    zeros when not detected. ``tag_detected``: 0-d bool array. ``tag_reason``: 0-d str array, why
+    the tag was not detected (``""`` when it was).
+    """
+    if corners is None:
+        return {
+            "tag_corners": np.zeros((4, 2)),
+            "tag_detected": np.array(False),
+            "tag_reason": np.array(reason or "tag not detected"),
+        }
+    c = np.asarray(corners, dtype=np.float64).reshape(4, 2).copy()
+    return {"tag_corners": c, "tag_detected": np.array(True), "tag_reason": np.array("")}
