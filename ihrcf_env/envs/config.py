@@ -47,10 +47,11 @@ import copy
 import dataclasses
 import functools
 import math
+import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from numbers import Integral, Real
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import cv2
 import numpy as np
@@ -69,7 +70,10 @@ from ihrcf_env.sim.sensors import TOF_PRESETS, CameraConfig, ToFConfig
 from ihrcf_env.sim.sensors.camera import CAMERA_QUALITIES
 from ihrcf_env.sim.sensors.imu import IMU_NOISE_PRESETS, IMUConfig, IMUNoise
 from ihrcf_env.sim.sensors.tof import VL53L1X
-from ihrcf_env.sim.world import ACTION_MODES, WorldConfig
+from ihrcf_env.sim.world import ACTION_MODES, CAMERA_MODELS, CAMERA_OUTPUTS, WorldConfig
+
+if TYPE_CHECKING:
+    from ihrcf_env.core.estimators.detector_model import DetectorModel
 
 #: Seconds of deck motion checked against the legs' stroke at reset when ``horizon_s`` is None.
 DEFAULT_HORIZON_S = 600.0
@@ -452,6 +456,70 @@ def model_option(
     )
 
 
+def _camera_options(
+    has_camera: bool,
+    camera_model: object,
+    camera_output: object,
+    camera_hz: object,
+    detector_model: object,
+    control_hz: object,
+) -> tuple[str, str, int | None, DetectorModel | None]:
+    """Checked (camera_model, camera_output, camera_hz, detector model) of :func:`make_config`.
+
+    ``camera_output`` None means ``"image"`` for the rendered camera and ``"corners"`` for the
+    projected one; the projected model's detector model is loaded here (the shipped file for None,
+    or a path), so a missing or corrupt file fails before any physics client exists."""
+    model = check_str("camera_model", camera_model, CAMERA_MODELS)
+    output = model_default = "corners" if model == "projected" else "image"
+    if camera_output is not None:
+        output = check_str("camera_output", camera_output, CAMERA_OUTPUTS)
+    if model == "projected" and output == "image":
+        raise ValueError(
+            'camera_output="image" is impossible with camera_model="projected" (no image is rendered; '
+            'it delivers the tag corners): drop camera_output or use camera_model="rendered"'
+        )
+    hz: int | None = None
+    if camera_hz is not None:
+        hz = check_int("camera_hz", camera_hz)
+        rate = check_int("control_hz", control_hz)
+        if hz <= 0 or rate % hz != 0:
+            raise ValueError(f"camera_hz must be a positive divisor of control_hz ({rate}) in Hz, got {hz!r}")
+    if not has_camera:
+        given = [
+            n
+            for n, v, d in (
+                ("camera_model", model, "rendered"),
+                ("camera_output", camera_output, None),
+                ("camera_hz", camera_hz, None),
+                ("detector_model", detector_model, None),
+            )
+            if v != d
+        ]
+        if given:
+            raise ValueError(f"{', '.join(given)} has no effect with camera=False: drop it or turn the camera on")
+        return model, model_default, None, None
+    if detector_model is None and model != "projected":
+        return model, output, hz, None
+    from ihrcf_env.core.estimators.detector_model import DetectorModel, default_detector_model_path
+
+    detector: DetectorModel | None = None
+    if detector_model is not None:
+        if model != "projected":
+            raise ValueError('detector_model is used only by camera_model="projected": drop it')
+        if isinstance(detector_model, DetectorModel):
+            detector = detector_model
+        elif isinstance(detector_model, str | os.PathLike):
+            detector = DetectorModel.load(detector_model)
+        else:
+            raise TypeError(
+                "detector_model must be a DetectorModel, a path to a detector-model file or None, got "
+                f"{type(detector_model).__name__} {detector_model!r}"
+            )
+    elif model == "projected":
+        detector = DetectorModel.load(default_detector_model_path())
+    return model, output, hz, detector
+
+
 def make_config(
     *,
     render_mode: str | None = None,
@@ -465,6 +533,10 @@ def make_config(
     camera_height: int = 512,
     camera_fov: float = math.radians(60.0),
     camera_distortion: tuple[float, float] = (0.0, 0.0),
+    camera_model: str = "rendered",
+    camera_output: str | None = None,
+    camera_hz: int | None = None,
+    detector_model: str | os.PathLike[str] | DetectorModel | None = None,
     sensor_preset: str = "ideal",
     camera_quality: str | None = None,
     tof_noise: str | Mapping[str, Any] | VL53L1X | None = None,
@@ -494,6 +566,9 @@ def make_config(
             f"camera_distortion {camera_distortion!r} has no effect with camera=False: drop it or "
             "turn the camera on"
         )
+    cam_model, cam_output, cam_hz, detector = _camera_options(
+        has_camera, camera_model, camera_output, camera_hz, detector_model, control_hz
+    )
     preset = SENSOR_PRESETS[check_str("sensor_preset", sensor_preset, tuple(SENSOR_PRESETS))]
     quality = (
         preset["camera_quality"]
@@ -558,6 +633,10 @@ def make_config(
         imu=imu,
         navigation=navigation,
         deck=deck,
+        camera_model=cam_model,
+        camera_output=cam_output,
+        camera_hz=cam_hz,
+        detector_model=detector,
     )
     task = TaskConfig(
         start=StartDistribution(start_altitude, start_altitude_jitter, start_offset, start_yaw),

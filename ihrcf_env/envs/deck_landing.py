@@ -5,13 +5,27 @@ Observation (``gymnasium.spaces.Dict``):
 ================  =======================  =====================================================
 key               shape / dtype            meaning
 ================  =======================  =====================================================
-``image``         (H, W, 3) uint8          downward camera, TinyRenderer (absent if camera=False)
+``image``         (H, W, 3) uint8          downward camera, TinyRenderer (``camera_output="image"``,
+                                           the default of the rendered camera; absent if camera=False)
+``tag_corners``   (4, 2) float32, px       ``camera_output="corners"`` instead of ``image``: the tag's
+                                           corners (OpenCV pixel centres and corner order), zeros
+                                           when not detected (``info["tag_reason"]`` says why)
+``tag_detected``  Discrete(2)              ``camera_output="corners"``: 1 = the tag was detected
 ``ranges``        (4,) float32, m          ToF ps1..ps4 along the optical axis, in [0, max_range]
 ``ranges_valid``  (4,) int8                1 = valid reading; invalid readings read max_range
 ``imu``           Dict                     ``quaternion`` (4,) x, y, z, w world-from-body;
                                            ``angular_velocity`` (3,) rad/s body frame;
                                            ``linear_acceleration`` (3,) m/s^2 specific force, body
 ================  =======================  =====================================================
+
+Camera (``camera_model``): ``"rendered"`` (default) renders with TinyRenderer; with
+``camera_output="corners"`` it renders only the window around the tag's projection and detects the
+tag there (same corners as the full frame within 0.05 px). ``"projected"`` renders nothing: the tag
+corners are projected through the true camera and a detector model fitted on rendered frames
+(``python -m ihrcf_env.fit_detector``) adds the detector's noise and failures. ``camera_hz``
+(default: the control rate, must divide it) delivers a frame every ``control_hz / camera_hz`` steps;
+in between the last frame is repeated and ``info["camera_time"]`` / ``info["camera_age"]`` (s) say
+when it was taken.
 
 Action: ``Box(-1, 1, (4,))``, values outside are clipped (NaN/inf raise ValueError).
 ``"velocity"`` mode: ``(vx, vy, vz, yaw_rate) = action * max_velocity`` with vx, vy in the heading
@@ -35,8 +49,9 @@ Misuse raises: a bad option TypeError/ValueError naming it (before any PyBullet 
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any, ClassVar, NoReturn, SupportsIndex
+from typing import TYPE_CHECKING, Any, ClassVar, NoReturn, SupportsIndex
 
 import gymnasium as gym
 import numpy as np
@@ -63,6 +78,9 @@ from ihrcf_env.sim.sensors import CameraConfig
 from ihrcf_env.sim.sensors.imu import IMUNoise
 from ihrcf_env.sim.sensors.tof import VL53L1X
 from ihrcf_env.sim.world import Snapshot, Touchdown, World, WorldConfig
+
+if TYPE_CHECKING:
+    from ihrcf_env.core.estimators.detector_model import DetectorModel
 
 RESET_OPTIONS = ("altitude", "offset", "yaw", "deck_time")
 
@@ -110,6 +128,10 @@ class DeckLandingEnv(gym.Env):
         camera_height: int = 512,
         camera_fov: float = math.radians(60.0),
         camera_distortion: tuple[float, float] = (0.0, 0.0),
+        camera_model: str = "rendered",
+        camera_output: str | None = None,
+        camera_hz: int | None = None,
+        detector_model: str | os.PathLike[str] | DetectorModel | None = None,
         sensor_preset: str = "ideal",
         camera_quality: str | None = None,
         tof_noise: str | Mapping[str, Any] | VL53L1X | None = None,
@@ -142,6 +164,10 @@ class DeckLandingEnv(gym.Env):
             camera_height=camera_height,
             camera_fov=camera_fov,
             camera_distortion=camera_distortion,
+            camera_model=camera_model,
+            camera_output=camera_output,
+            camera_hz=camera_hz,
+            detector_model=detector_model,
             sensor_preset=sensor_preset,
             camera_quality=camera_quality,
             tof_noise=tof_noise,
@@ -175,6 +201,9 @@ class DeckLandingEnv(gym.Env):
         self._profile: MotionProfile | None = None  # None: no episode yet (reset() first)
         self._episode_over = False
         self._last_touchdown: Touchdown | None = None
+        self._tag_reason = ""
+        cam = cfg.world.camera
+        self._corner_bound = float(max(cam.width, cam.height)) if cam is not None else 0.0
 
         self.world = World(self.config, gui=gui)  # releases its client itself if it fails
         self._closed = False
@@ -347,6 +376,10 @@ class DeckLandingEnv(gym.Env):
         obs: dict[str, Any] = {}
         if "image" in r:
             obs["image"] = r["image"]
+        if "tag_corners" in r:
+            self._tag_reason = str(r["tag_reason"])
+            obs["tag_corners"] = np.clip(r["tag_corners"], -1.0, self._corner_bound).astype(np.float32)
+            obs["tag_detected"] = int(bool(r["tag_detected"]))
         obs["ranges"] = r["ranges"]
         obs["ranges_valid"] = r["ranges_valid"]
         obs["imu"] = {
@@ -398,8 +431,13 @@ class DeckLandingEnv(gym.Env):
     def _get_info(self, s: Snapshot) -> dict[str, Any]:
         w = self.world
         contacts = w.contact_bodies()
-        return {
-            "time": w.time,
+        info: dict[str, Any] = {"time": w.time}
+        if self.config.camera is not None:
+            info["camera_time"] = w.camera_time
+            info["camera_age"] = w.time - w.camera_time
+            if self.config.camera_output == "corners":
+                info["tag_reason"] = self._tag_reason
+        return info | {
             "deck_position_body": s.deck_position_body,
             "deck_euler_body": euler_from_matrix(s.deck_rotation_body),
             "deck_rotation_body": s.deck_rotation_body,
@@ -461,8 +499,13 @@ class DeckLandingEnv(gym.Env):
 
 def _observation_space(world: WorldConfig) -> spaces.Dict:
     obs: dict[str, spaces.Space] = {}
-    if world.camera is not None:
-        obs["image"] = spaces.Box(0, 255, (world.camera.height, world.camera.width, 3), np.uint8)
+    cam = world.camera
+    if cam is not None and world.camera_output == "image":
+        obs["image"] = spaces.Box(0, 255, (cam.height, cam.width, 3), np.uint8)
+    elif cam is not None:
+        bound = np.float32(max(cam.width, cam.height))
+        obs["tag_corners"] = spaces.Box(np.float32(-1.0), bound, (4, 2), np.float32)
+        obs["tag_detected"] = spaces.Discrete(2)
     obs["ranges"] = spaces.Box(np.float32(0.0), np.float32(world.tof.max_range), (4,), np.float32)
     obs["ranges_valid"] = spaces.MultiBinary(4)
     obs["imu"] = spaces.Dict(

@@ -11,6 +11,7 @@ import math
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pybullet as p
@@ -26,9 +27,21 @@ from ihrcf_env.sim.disturbances import Disturbance
 from ihrcf_env.sim.drone import QuadParams, Quadrotor, VelocityController, VelocityGains
 from ihrcf_env.sim.navigation import Navigation, NavigationConfig, make_navigation
 from ihrcf_env.sim.sensors import IMU, BodyState, CameraConfig, DownCamera, Sensor, ToFArray, ToFConfig
+from ihrcf_env.sim.sensors.base import TAG_CAMERA
 from ihrcf_env.sim.sensors.imu import IMUConfig
 
+if TYPE_CHECKING:
+    from ihrcf_env.core.estimators.detector_model import DetectorModel
+
 ACTION_MODES: tuple[str, ...] = ("velocity", "motors")
+#: How the camera is simulated: ``"rendered"`` (TinyRenderer + the tag detector) or ``"projected"``
+#: (no image: the exact projection of the tag corners through a fitted detector model).
+CAMERA_MODELS: tuple[str, ...] = ("rendered", "projected")
+#: What the camera delivers: the ``"image"`` (rendered only) or the tag's ``"corners"`` (a rendered
+#: window around the tag + detection, or the projected model).
+CAMERA_OUTPUTS: tuple[str, ...] = ("image", "corners")
+#: Names of the camera sensors in ``World.sensors`` (read at ``camera_hz``, held in between).
+CAMERA_SENSORS: tuple[str, ...] = ("camera", TAG_CAMERA)
 
 
 @dataclass(frozen=True)
@@ -47,6 +60,10 @@ class WorldConfig:
     gains: VelocityGains = field(default_factory=VelocityGains)
     rig: SensorRig = field(default_factory=SensorRig)
     action_mode: str = "velocity"
+    camera_model: str = "rendered"
+    camera_output: str = "image"
+    camera_hz: int | None = None  # None: every control step
+    detector_model: DetectorModel | None = None  # "projected": the fitted model (None: the shipped one)
 
     def __post_init__(self) -> None:
         if not (isinstance(self.physics_hz, int | np.integer) and self.physics_hz > 0):
@@ -59,6 +76,26 @@ class WorldConfig:
             )
         if self.action_mode not in ACTION_MODES:
             raise ValueError(f"action_mode must be one of {ACTION_MODES}, got {self.action_mode!r}")
+        if self.camera_model not in CAMERA_MODELS:
+            raise ValueError(f"camera_model must be one of {CAMERA_MODELS}, got {self.camera_model!r}")
+        if self.camera_output not in CAMERA_OUTPUTS:
+            raise ValueError(f"camera_output must be one of {CAMERA_OUTPUTS}, got {self.camera_output!r}")
+        if self.camera_model == "projected" and self.camera_output == "image":
+            raise ValueError(
+                'camera_model="projected" renders no image: it delivers the tag corners only '
+                '(camera_output="corners"); use camera_model="rendered" for images'
+            )
+        hz = self.camera_hz
+        if hz is not None:
+            if isinstance(hz, bool) or not (isinstance(hz, int | np.integer) and hz > 0):
+                raise ValueError(f"camera_hz must be a positive integer (Hz) or None, got {hz!r}")
+            if self.control_hz % hz != 0:
+                raise ValueError(f"camera_hz ({hz}) must divide control_hz ({self.control_hz}) evenly")
+
+    @property
+    def camera_every(self) -> int:
+        """The camera delivers a frame every this many control steps."""
+        return 1 if self.camera_hz is None else self.control_hz // self.camera_hz
 
     @property
     def substeps(self) -> int:
@@ -151,21 +188,41 @@ class World:
         self.deck = Deck(cid, cfg.stewart, cfg.deck, Path(self._tmp.name))
         self.quad = Quadrotor(cid, cfg.quad)
         self.controller = VelocityController(self.quad, cfg.gains)
-        self.camera = DownCamera(cid, cfg.camera, cfg.rig) if cfg.camera is not None else None
+        rendered = cfg.camera is not None and cfg.camera_model == "rendered"
+        self.camera = DownCamera(cid, cfg.camera, cfg.rig) if rendered and cfg.camera is not None else None
         self.tof = ToFArray(cid, cfg.tof, cfg.rig)
         self.imu_sensor = IMU.from_config(cfg.imu)
         self.navigation: Navigation = make_navigation(cfg.navigation, self.dt)
         self.sensors: dict[str, Sensor] = {}
-        if self.camera is not None:
-            self.sensors["camera"] = self.camera
+        if cfg.camera is not None:
+            self.sensors.update(self._camera_sensor(cfg.camera))
         self.sensors["tof"] = self.tof
         self.sensors["imu"] = self.imu_sensor
         self.disturbances: list[Disturbance] = []
         self.tick = 0
+        self._camera_held = {}
+        self.camera_time = math.nan  # s, simulated time of the last camera frame (NaN: none yet)
         self._motor_cmd = [0.0] * 4
         self._acc_world = np.zeros(3)
         self._setpoint = (0.0, 0.0, 0.0, 0.0)
         self._mode_velocity = cfg.action_mode == "velocity"
+
+    def _camera_sensor(self, camera: CameraConfig) -> dict[str, Sensor]:
+        """The camera as configured: the image (``"camera"``), or the tag corners (:data:`TAG_CAMERA`)
+        from a rendered window or the projected model."""
+        cfg = self.config
+        if self.camera is not None and cfg.camera_output == "image":
+            return {"camera": self.camera}
+        tag_size, tag_id = cfg.deck.tag_size, cfg.deck.tag_id
+        if self.camera is not None:
+            from ihrcf_env.sim.sensors.tag_window import WindowedTagCamera
+
+            return {TAG_CAMERA: WindowedTagCamera(self.camera, self.deck, tag_size, tag_id)}
+        from ihrcf_env.core.estimators.detector_model import DetectorModel
+        from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
+
+        model = cfg.detector_model if cfg.detector_model is not None else DetectorModel.load()
+        return {TAG_CAMERA: ProjectedTagCamera(self.client, camera, cfg.rig, self.deck, tag_size, model)}
 
     # -- lifecycle -------------------------------------------------------------------------
     def reset(
@@ -188,6 +245,8 @@ class World:
             plate_half_thickness=self.config.deck.thickness / 2,
         )
         self.tick = 0
+        self._camera_held: dict[str, NDArray] = {}
+        self.camera_time = math.nan
         self.deck.set_trajectory(traj)
         deck_pos, _ = self.deck.pose()
         start = np.array([deck_pos[0] + offset_xy[0], deck_pos[1] + offset_xy[1], deck_pos[2] + altitude])
@@ -368,16 +427,33 @@ class World:
         self, rng: np.random.Generator, names: tuple[str, ...] | None = None
     ) -> dict[str, NDArray]:
         """One reading of the sensors ``names`` (default: all, in :attr:`sensors` order), merged into
-        one mapping of measurement names (``image``, ``ranges``, ``ranges_valid``, ``quaternion``,
-        ``angular_velocity``, ``linear_acceleration``) to arrays. Call once per control step:
-        noise models advance by one control period."""
+        one mapping of measurement names (``image``, or ``tag_corners``/``tag_detected``/``tag_reason``;
+        ``ranges``, ``ranges_valid``, ``quaternion``, ``angular_velocity``, ``linear_acceleration``)
+        to arrays. Call once per control step: noise models advance by one control period.
+
+        With the default ``names`` the camera (:data:`CAMERA_SENSORS`) delivers a new frame only
+        every :attr:`WorldConfig.camera_every` control steps (``camera_hz``), counted from the
+        episode's start; in between its last frame is repeated (the same arrays) and
+        :attr:`camera_time` (s) still says when it was taken. Named explicitly, a sensor is always
+        read."""
         state = self.body_state()
-        dt = self.config.substeps * self.dt
+        control_dt = self.config.substeps * self.dt
         out: dict[str, NDArray] = {}
+        held = names is None
+        every = self.config.camera_every
+        due = (self.tick // self.config.substeps) % every == 0 or not self._camera_held
         for name in names if names is not None else tuple(self.sensors):
+            is_camera = name in CAMERA_SENSORS
+            if held and is_camera and not due:
+                out.update({k: v.copy() for k, v in self._camera_held.items()})  # fresh arrays per step
+                continue
             if name == "camera":
                 self.deck.update_visuals()
-            out.update(self.sensors[name].read(state, dt, rng))
+            reading = self.sensors[name].read(state, control_dt * (every if is_camera else 1), rng)
+            out.update(reading)
+            if held and is_camera:
+                self._camera_held = dict(reading)
+                self.camera_time = state.time
         return out
 
     def render_camera(self) -> NDArray[np.uint8]:

@@ -152,7 +152,7 @@ def _describe(value: Any) -> str:
 
 def check_wrapper_options(
     calibration: Any = None,
-    keep_image: Any = True,
+    keep_image: Any = None,
     flatten: Any = False,
     max_residual: Any = 0.01,
     estimators: Any = DEFAULT_ESTIMATORS,
@@ -161,7 +161,9 @@ def check_wrapper_options(
 ) -> tuple[str, ...]:
     """Type and value checks of the wrapper's options, before anything is built: TypeError (wrong
     type) or ValueError (bad value) naming the option. Returns the estimator names as a tuple."""
-    for name, value in (("raw", raw), ("keep_image", keep_image), ("flatten", flatten)):
+    if keep_image is not None and not isinstance(keep_image, bool | np.bool_):
+        raise TypeError(f"keep_image must be a bool (True or False) or None, got {_describe(keep_image)}")
+    for name, value in (("raw", raw), ("flatten", flatten)):
         if not isinstance(value, bool | np.bool_):
             raise TypeError(f"{name} must be a bool (True or False), got {_describe(value)}")
     if isinstance(max_residual, bool | np.bool_) or not isinstance(max_residual, numbers.Real):
@@ -229,7 +231,9 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         calibration: a :class:`Calibration`, a path (str or os.PathLike) to a calibration file, or
             None for the file shipped in ``assets/`` (which must match the env's camera; otherwise a
             :class:`~ihrcf_env.core.calibration.CalibrationError` gives the command that makes one).
-        keep_image: keep the raw camera image in the observation (bool).
+        keep_image: keep the raw camera image in the observation (bool); None (default): keep it if
+            the env delivers one (``camera_output="image"``). True with an env that delivers only
+            the tag corners (``camera_model="projected"`` or ``camera_output="corners"``) raises.
         flatten: return one float32 Box (see :func:`flat_slices`); implies no image (bool).
         max_residual: IHRCF rigid-fit RMS (m) above which the estimate is declared invalid.
         estimators: registered estimator names, in observation order (default ihrcf, atda, fused).
@@ -252,7 +256,7 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         self,
         env: gym.Env,
         calibration: Calibration | str | os.PathLike[str] | None = None,
-        keep_image: bool = True,
+        keep_image: bool | None = None,
         flatten: bool = False,
         max_residual: float = 0.01,
         estimators: Iterable[str] = DEFAULT_ESTIMATORS,
@@ -290,10 +294,20 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         self.estimators: dict[str, DeckPoseSource] = self.estimator.sources
         self.pose_keys: tuple[str, ...] = (*names, GROUND_TRUTH)
         self.flat_slices: dict[str, slice] = flat_slices(names)
+        has_image = base.config.camera_output == "image"
+        if keep_image and not has_image:
+            raise ValueError(
+                f"keep_image=True needs the camera image, but the env delivers only the tag corners "
+                f'(camera_model={base.config.camera_model!r}, camera_output="corners"): use '
+                'keep_image=False, or camera_model="rendered" with camera_output="image"'
+            )
         self.flatten = bool(flatten)
-        self.keep_image = bool(keep_image) and not self.flatten
+        self.keep_image = has_image and keep_image is not False and not self.flatten
         self.last_estimates: dict[str, PoseEstimate] | None = None
         self.last_frame: SensorFrame | None = None
+        self.last_ages: dict[str, float] = {}
+        self._frame_times: dict[str, float] = {}  # estimator -> time (s) of the frame it last used
+        self._camera_time = math.nan  # time (s) of the camera frame last fed to the estimators
 
         inner = env.observation_space
         if not isinstance(inner, spaces.Dict):
@@ -322,41 +336,89 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         self.estimator.reset()
         self.last_estimates = None
         self.last_frame = None
+        self.last_ages = {}
+        self._frame_times = {}
+        self._camera_time = math.nan
         obs, info = self.env.reset(seed=seed, options=options)
-        out = self.observation(obs, time=info.get("time"))
-        self._add_reasons(info)
+        out = self._observe(obs, info)
         return out, info
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
         obs, reward, terminated, truncated, info = self.env.step(action)
-        out = self.observation(obs, time=info.get("time"))
-        self._add_reasons(info)
+        out = self._observe(obs, info)
         return out, float(reward), terminated, truncated, info
 
-    def _add_reasons(self, info: dict) -> None:
+    def _observe(self, obs: dict[str, Any], info: dict[str, Any]) -> Any:
+        """The wrapped observation; adds each estimate's reason, residual and age to ``info``."""
+        out = self.observation(
+            obs,
+            time=info.get("time"),
+            camera_time=info.get("camera_time"),
+            tag_reason=info.get("tag_reason", ""),
+        )
         if self.last_estimates is not None:
             for name, est in self.last_estimates.items():
                 info[f"{name}_reason"] = est.reason
                 info[f"{name}_residual"] = est.residual
+                info[f"{name}_age"] = self.last_ages.get(name, 0.0)
+        return out
 
-    def sensor_frame(self, observation: Mapping[str, Any], time: float | None = None) -> SensorFrame:
-        """The :class:`SensorFrame` of a raw observation (tag detected once), at ``time`` (s; None:
-        unknown, NaN)."""
+    def sensor_frame(
+        self, observation: Mapping[str, Any], time: float | None = None, tag_reason: str = ""
+    ) -> SensorFrame:
+        """The :class:`SensorFrame` of a raw observation at ``time`` (s; None: unknown, NaN): the tag
+        detected once in ``image``, or the env's ``tag_corners`` (``tag_reason``: why they are
+        missing)."""
         imu = observation["imu"]
-        return self.estimator.frame(
-            observation["image"],
-            observation["ranges"],
-            np.asarray(observation["ranges_valid"]).astype(bool),
-            time=math.nan if time is None else float(time),
-            imu=ImuSample(imu["quaternion"], imu["angular_velocity"], imu["linear_acceleration"]),
+        t = math.nan if time is None else float(time)
+        ranges = observation["ranges"]
+        valid = np.asarray(observation["ranges_valid"]).astype(bool)
+        sample = ImuSample(imu["quaternion"], imu["angular_velocity"], imu["linear_acceleration"])
+        if "image" in observation:
+            return self.estimator.frame(observation["image"], ranges, valid, time=t, imu=sample)
+        detected = bool(observation["tag_detected"])
+        return SensorFrame(
+            time=t,
+            corners=np.asarray(observation["tag_corners"], dtype=np.float64) if detected else None,
+            ranges=np.asarray(ranges, dtype=np.float64),
+            ranges_valid=valid,
+            corners_reason="" if detected else tag_reason,
+            imu=sample,
         )
 
-    def observation(self, observation: dict[str, Any], time: float | None = None) -> Any:
-        """The wrapped observation of a raw one; ``time`` (s) is the frame's time (None: unknown)."""
-        frame = self.sensor_frame(observation, time)
-        estimates = self.estimator.update(frame)
-        self.last_frame = frame
-        self.last_estimates = estimates
+    def observation(
+        self,
+        observation: dict[str, Any],
+        time: float | None = None,
+        camera_time: float | None = None,
+        tag_reason: str = "",
+    ) -> Any:
+        """The wrapped observation of a raw one; ``time`` (s) is the frame's time (None: unknown).
+
+        ``camera_time`` (s, the env's ``info["camera_time"]``): when the camera frame in
+        ``observation`` was taken. If it is the frame the estimators already used (``camera_hz``
+        below the control rate), the estimates are held, not recomputed; :attr:`last_ages` (and
+        ``info[f"{name}_age"]``) say how old (s) the frame behind each estimate is."""
+        now = math.nan if time is None else float(time)
+        fresh = (
+            camera_time is None
+            or self.last_estimates is None
+            or not (math.isfinite(camera_time) and camera_time == self._camera_time)
+        )
+        if fresh:
+            frame = self.sensor_frame(observation, time, tag_reason)
+            estimates = self.estimator.update(frame)
+            self.last_frame = frame
+            self.last_estimates = estimates
+            stamp = now if camera_time is None else float(camera_time)
+            self._camera_time = stamp
+            self._frame_times = dict.fromkeys(estimates, stamp)
+        assert self.last_estimates is not None
+        estimates = self.last_estimates
+        self.last_ages = {
+            name: (now - t) if math.isfinite(now) and math.isfinite(t) else 0.0
+            for name, t in self._frame_times.items()
+        }
         gt_pos, gt_euler = cast("DeckLandingEnv", self.env.unwrapped).deck_pose_body()
         poses = {name: _pose_obs(e.position, e.euler, e.valid) for name, e in estimates.items()}
         poses[GROUND_TRUTH] = _pose_obs(gt_pos, gt_euler, True)
@@ -376,7 +438,7 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
 def make_deck_landing(
     raw: bool = False,
     calibration: Calibration | str | os.PathLike[str] | None = None,
-    keep_image: bool = True,
+    keep_image: bool | None = None,
     flatten: bool = False,
     max_residual: float = 0.01,
     estimators: Iterable[str] = DEFAULT_ESTIMATORS,
@@ -388,14 +450,21 @@ def make_deck_landing(
 
     The wrapper's options are checked and the calibration file is read before the env is built; if
     the wrapper still fails (e.g. a calibration made for another camera), the env is closed before
-    the error propagates."""
+    the error propagates.
+
+    Without the image in the observation (``keep_image=False`` or ``flatten=True``) the rendered
+    camera renders only the tag's window (``camera_output="corners"``, unless given)."""
     names = check_wrapper_options(
         calibration, keep_image, flatten, max_residual, estimators, raw, fused_params
     )
     from ihrcf_env.envs.deck_landing import DeckLandingEnv
 
     if raw:
+        if keep_image is not None or flatten:
+            raise ValueError("keep_image and flatten are wrapper options: they have no effect with raw=True")
         return DeckLandingEnv(**env_kwargs)
+    if (keep_image is False or flatten) and env_kwargs.get("camera", True) is not False:
+        env_kwargs.setdefault("camera_output", "corners")
     cal = _load_calibration(calibration)
     env = DeckLandingEnv(**env_kwargs)
     try:

@@ -380,6 +380,10 @@ def test_callable_profile_unusable_within_the_horizon_fails_at_reset(make_profil
 
 # -- 8 and 9. types, bools and values that would be ignored ----------------------------------------
 BAD_OPTIONS = [
+    ({"camera_model": "fast"}, ValueError, "camera_model"),
+    ({"camera_output": 2}, TypeError, "camera_output"),
+    ({"camera_hz": 3}, ValueError, "camera_hz"),
+    ({"detector_model": 1.5, "camera_model": "projected"}, TypeError, "detector_model"),
     ({"render_mode": 1}, TypeError, "render_mode"),
     ({"render_mode": "ascii"}, ValueError, "render_mode"),
     ({"action_mode": None}, TypeError, "action_mode"),
