@@ -36,6 +36,7 @@ import numpy as np
 import ihrcf_env  # noqa: F401  (registers the envs)
 from ihrcf_env.core.metrics import table2_markdown
 from ihrcf_env.experiments.accuracy import accuracy
+from ihrcf_env.experiments.speed import component_costs, mode_speeds, vector_scaling
 from ihrcf_env.sim.sensors.camera import realism_cost_ms
 
 
@@ -97,6 +98,35 @@ def estimation_ms(frames: int) -> float | None:
 MILD_DISTORTION = (-0.05, 0.0)
 
 
+def _camera_mode_report(steps: int, frames: int, vector: bool) -> list[str]:
+    """Print and return (markdown) the wrapped env's speed per camera mode, the per-component cost
+    table and, with ``vector``, the AsyncVectorEnv scaling."""
+    out = ["", "| wrapped env, 1 m hover, all estimators | steps/s | real-time factor | vs image kept |"]
+    out.append("|---|---|---|---|")
+    print(f"\n{'wrapped env (1 m hover, ihrcf+atda+fused)':<44} {'steps/s':>9} {'RTF':>8} {'ratio':>7}")
+    speeds = mode_speeds(steps)
+    base = speeds[0].steps_per_s
+    for sp in speeds:
+        ratio = sp.steps_per_s / base
+        print(f"{sp.label:<44} {sp.steps_per_s:9.1f} {sp.real_time_factor:7.2f}x {ratio:6.1f}x", flush=True)
+        out.append(f"| {sp.label} | {sp.steps_per_s:.1f} | {sp.real_time_factor:.2f}x | {ratio:.1f}x |")
+    costs = component_costs(frames)
+    print("\nper-component cost (ms per control step, 512x512, 1 m hover):")
+    out += ["", "| component | ms per step |", "|---|---|"]
+    for name, ms in costs.items():
+        print(f"  {name:<10} {ms:8.3f}")
+        out.append(f"| {name} | {ms:.3f} |")
+    if vector:
+        v = vector_scaling()
+        line = (
+            f"AsyncVectorEnv, {v['workers']:.0f} workers, projected: {v['vector_steps_per_s']:.0f} steps/s "
+            f"vs {v['single_steps_per_s']:.0f} for one env in-process: {v['factor']:.2f}x"
+        )
+        print(line)
+        out += ["", line + "."]
+    return out
+
+
 def calibration_for(distortion: tuple[float, float]) -> str | None:
     """Calibration file for a camera with radial ``distortion`` (k1, k2), made by the calibrate CLI
     in a temporary folder; ``None`` (the shipped file) for the undistorted camera."""
@@ -128,6 +158,9 @@ def main(argv: list[str] | None = None) -> int:
         "--altitudes", type=float, nargs="+", default=[1.0, 2.0], help="hover heights above the deck (m)"
     )
     ap.add_argument("--distortion", action="store_true", help="also the tables with lens distortion")
+    ap.add_argument(
+        "--vector", action="store_true", help="also AsyncVectorEnv scaling with 2 workers (uses 2 cores)"
+    )
     ap.add_argument("--markdown", type=str, default=None, help="also write the tables to this file")
     args = ap.parse_args(argv)
     report: list[str] = []
@@ -144,6 +177,7 @@ def main(argv: list[str] | None = None) -> int:
             label = "none" if size == 0 else f"{size}x{size}"
             print(f"{label:>10} {sps:10.1f} {rtf:17.2f}x", flush=True)
             report.append(f"| {label} | {sps:.1f} | {rtf:.2f}x |")
+        report += _camera_mode_report(args.steps, args.frames, args.vector)
         ms = estimation_ms(args.frames)
         if ms is None:
             print("estimation: no shipped calibration file; run python -m ihrcf_env.calibrate")

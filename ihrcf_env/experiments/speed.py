@@ -1,0 +1,211 @@
+"""Speed figures: the wrapped env per camera mode, the cost of each component, vector-env scaling.
+
+All at the paper's experiment (drone hovering 1 m above the deck on the ``"paper"`` profile, zero
+velocity commands, 20 Hz control, 240 Hz physics, 512x512 camera, the ideal preset unless given).
+Wall times come from ``time.perf_counter``; a few warm-up steps are not counted. The figures depend
+on the machine and on what else runs on it: the benchmark CLI pins itself to one core.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import ihrcf_env  # noqa: F401  (registers the envs)
+
+WRAPPED = "ihrcf_env/DeckLanding-v0"
+#: The wrapped env's camera modes: label -> gym.make kwargs (all estimators, 1 m hover).
+CAMERA_MODES: dict[str, dict[str, Any]] = {
+    "rendered 512, image kept": {"keep_image": True},
+    "rendered 512, tag window": {"keep_image": False},
+    "projected": {"camera_model": "projected"},
+}
+
+
+@dataclass(frozen=True)
+class Speed:
+    """Steps per second of one configuration and its real-time factor (simulated s per wall s)."""
+
+    label: str
+    steps_per_s: float
+    real_time_factor: float
+
+
+def _hover_kwargs(control_hz: int) -> dict[str, Any]:
+    return {"deck_profile": "paper", "control_hz": control_hz, "start_altitude_jitter": 0.0}
+
+
+def wrapped_speed(
+    label: str,
+    kwargs: Mapping[str, Any],
+    steps: int = 300,
+    control_hz: int = 20,
+    warmup: int = 5,
+) -> Speed:
+    """Steps/s of the wrapped env (``ihrcf_env/DeckLanding-v0``, flat observation unless the kwargs
+    keep the image) with ``kwargs``, zero actions, at the 1 m hover."""
+    kw = {**_hover_kwargs(control_hz), **kwargs}
+    if not kw.get("keep_image", False):
+        kw.setdefault("flatten", True)
+    env = gym.make(WRAPPED, max_episode_steps=None, horizon_s=(steps + warmup) / control_hz + 5, **kw)
+    try:
+        env.reset(seed=0, options={"altitude": 1.0, "offset": (0.0, 0.0), "yaw": 0.0})
+        a = np.zeros(4, dtype=np.float32)
+        for _ in range(warmup):
+            env.step(a)
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            env.step(a)
+        wall = time.perf_counter() - t0
+    finally:
+        env.close()
+    sps = steps / wall
+    return Speed(label, sps, sps / control_hz)
+
+
+def mode_speeds(steps: int = 300, sensor_preset: str = "ideal") -> list[Speed]:
+    """:func:`wrapped_speed` of every :data:`CAMERA_MODES` entry, in one run (ratios comparable)."""
+    return [
+        wrapped_speed(label, {**kw, "sensor_preset": sensor_preset}, steps) for label, kw in CAMERA_MODES.items()
+    ]
+
+
+@contextmanager
+def _all_cores() -> Iterator[None]:
+    """Undo a one-core pinning (the benchmark's) while the block runs."""
+    if not hasattr(os, "sched_getaffinity"):
+        yield
+        return
+    before = os.sched_getaffinity(0)
+    try:
+        os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))
+        yield
+    finally:
+        os.sched_setaffinity(0, before)
+
+
+def _make_projected(control_hz: int) -> Callable[[], gym.Env]:
+    def make() -> gym.Env:
+        import ihrcf_env  # noqa: F401  (registers the envs in the worker)
+
+        return gym.make(
+            WRAPPED, camera_model="projected", flatten=True, max_episode_steps=None, **_hover_kwargs(control_hz)
+        )
+
+    return make
+
+
+def vector_scaling(steps: int = 600, workers: int = 2, control_hz: int = 20) -> dict[str, float]:
+    """Environment steps per second of ``workers`` projected envs in a ``gym.vector.AsyncVectorEnv``
+    (one process each) against one env in this process; ``factor`` = vector / single. Uses all
+    cores (the one-core pinning is lifted while it runs)."""
+    make = _make_projected(control_hz)
+    single = make()
+    try:
+        single.reset(seed=0)
+        a = np.zeros(4, dtype=np.float32)
+        for _ in range(5):
+            single.step(a)
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            single.step(a)
+        sps_single = steps / (time.perf_counter() - t0)
+    finally:
+        single.close()
+    with _all_cores():
+        vec = gym.vector.AsyncVectorEnv([make] * workers)
+        try:
+            vec.reset(seed=0)
+            actions = np.zeros((workers, 4), dtype=np.float32)
+            for _ in range(5):
+                vec.step(actions)
+            t0 = time.perf_counter()
+            n = max(1, steps // workers)
+            for _ in range(n):
+                vec.step(actions)
+            sps_vec = n * workers / (time.perf_counter() - t0)
+        finally:
+            vec.close()
+    return {
+        "workers": float(workers),
+        "single_steps_per_s": sps_single,
+        "vector_steps_per_s": sps_vec,
+        "factor": sps_vec / sps_single,
+    }
+
+
+def component_costs(frames: int = 100, sensor_preset: str = "ideal") -> dict[str, float]:
+    """Mean ms per control step of each component at the 1 m hover (512x512 camera, ``sensor_preset``):
+
+    ``physics`` (``World.step``: 12 physics steps, deck drive, autopilot, Python), ``tof``, ``imu``,
+    ``render`` (the full frame), ``detect`` (the tag in the full frame), ``window`` (rendering the
+    tag's window + detecting there), ``projected`` (the projected camera model), and each estimator
+    (``ihrcf``, ``atda``, ``fused``) on the full-frame corners."""
+    from ihrcf_env.core.calibration import Calibration, default_calibration_path
+    from ihrcf_env.core.estimators import ImuSample, SensorFrame
+    from ihrcf_env.envs.config import make_config
+    from ihrcf_env.sim.sensors.base import TAG_CAMERA
+    from ihrcf_env.sim.world import World
+    from ihrcf_env.wrappers.estimates import estimator_from_calibration, fused_params_for_tof
+
+    cfg = make_config(sensor_preset=sensor_preset, **_hover_kwargs(20))
+    projected = make_config(sensor_preset=sensor_preset, camera_model="projected", **_hover_kwargs(20))
+    rendered_window = make_config(sensor_preset=sensor_preset, camera_output="corners", **_hover_kwargs(20))
+    worlds = [World(cfg.world), World(projected.world), World(rendered_window.world)]
+    try:
+        profile = cfg.task.deck.make_profile(np.random.default_rng(0))
+        rngs = [np.random.default_rng(0) for _ in worlds]
+        for w, r in zip(worlds, rngs, strict=True):
+            w.reset(profile, frames / 20 + 5, altitude=1.0)
+            w.reset_random(r)
+        main, proj, win = worlds
+        deck = cfg.world.deck
+        est = estimator_from_calibration(
+            Calibration.load(default_calibration_path()),
+            deck.tag_size,
+            deck.tag_id,
+            fused_params=fused_params_for_tof(getattr(cfg.world.tof, "model", None)),
+        )
+        rng = rngs[0]
+        spent: dict[str, list[float]] = {}
+
+        def timed(name: str, fn: Callable[[], Any]) -> Any:
+            t0 = time.perf_counter()
+            out = fn()
+            spent.setdefault(name, []).append(time.perf_counter() - t0)
+            return out
+
+        dt = 1.0 / 20
+        state = main.body_state
+        for _ in range(frames + 3):
+            timed("physics", main.step)
+            proj.step()
+            win.step()
+            tof = timed("tof", lambda: main.sensors["tof"].read(state(), dt, rng))
+            imu = timed("imu", lambda: main.sensors["imu"].read(state(), dt, rng))
+            main.deck.update_visuals()
+            image = timed("render", lambda: main.sensors["camera"].read(state(), dt, rng))["image"]
+            corners = timed("detect", lambda: est.detector.detect(image))
+            timed("window", lambda: win.sensors[TAG_CAMERA].read(win.body_state(), dt, rngs[2]))
+            timed("projected", lambda: proj.sensors[TAG_CAMERA].read(proj.body_state(), dt, rngs[1]))
+            frame = SensorFrame(
+                time=main.time,
+                corners=corners,
+                ranges=np.asarray(tof["ranges"], dtype=np.float64),
+                ranges_valid=np.asarray(tof["ranges_valid"]).astype(bool),
+                imu=ImuSample(imu["quaternion"], imu["angular_velocity"], imu["linear_acceleration"]),
+            )
+            for name, source in est.sources.items():
+                timed(name, lambda s=source: s.update(frame))  # type: ignore[misc]
+    finally:
+        for w in worlds:
+            w.close()
+    return {name: 1e3 * float(np.mean(t[3:])) for name, t in spent.items() if not math.isnan(t[0])}
