@@ -12,8 +12,13 @@ __version__ = "0.1.0"
 
 ENV_ID = "ihrcf_env/DeckLanding-v0"  # wrapped with the IHRCF/ATDA/ground-truth observation (raw=True: raw)
 RAW_ENV_ID = "ihrcf_env/DeckLandingRaw-v0"  # the raw DeckLandingEnv
+ENV_V1_ID = "ihrcf_env/DeckLanding-v1"  # the v1 landing task, flat RL observation (raw=True: raw)
 
 if ENV_ID not in registry:
     register(id=ENV_ID, entry_point="ihrcf_env.wrappers.estimates:make_deck_landing", max_episode_steps=600)
 if RAW_ENV_ID not in registry:
     register(id=RAW_ENV_ID, entry_point="ihrcf_env.envs.deck_landing:DeckLandingEnv", max_episode_steps=600)
+if ENV_V1_ID not in registry:
+    register(
+        id=ENV_V1_ID, entry_point="ihrcf_env.wrappers.landing_obs:make_deck_landing_v1", max_episode_steps=600
+    )

@@ -78,6 +78,8 @@ class LandingConfig:
     drift_k1: float = 0.6  # 1/s, IMU altitude pulled towards the commanded altitude
     drift_k2: float = 0.12  # 1/s^2
     drift_k3: float = 0.008  # 1/s^3, accelerometer bias estimate
+    # Without ToF ranges (beyond their reach, e.g. a high start) fly on the estimate's height.
+    tag_height_fallback: bool = False
 
 
 @dataclass
@@ -92,6 +94,7 @@ class Measurement:
     tof_normal: NDArray[np.float64] | None  # normal of the plane through the ToF hits, level frame
     tof_full: bool  # all four beams valid and on one plane
     accel_z: float  # world vertical acceleration (m/s^2, gravity removed)
+    tag_height: float | None = None  # height of the body origin above the deck origin (estimate)
 
 
 def _tilt(nx: float, ny: float) -> float:
@@ -161,16 +164,36 @@ class LandingController:
         R_lb = Rz_T @ R_wb
         accel_z = float((R_wb @ np.asarray(obs["imu"]["linear_acceleration"], dtype=np.float64))[2] - GRAVITY)
 
-        tag_xy = tag_yaw = tag_normal = None
+        tag_level = tag_yaw = tag_normal = None
         est = obs[self.estimator]
         if int(est["valid"]):
-            p_level = R_lb @ np.asarray(est["position"], dtype=np.float64)
-            tag_xy = p_level[:2]
+            tag_level = R_lb @ np.asarray(est["position"], dtype=np.float64)
             roll, pitch, tag_yaw = (float(v) for v in est["euler"])
             tag_normal = R_lb @ matrix_from_euler(roll, pitch, tag_yaw)[:, 2]
+        return self.measure_level(
+            R_lb, accel_z, tag_level, tag_yaw, tag_normal, obs["ranges"], obs["ranges_valid"]
+        )
 
-        ranges = np.asarray(obs["ranges"], dtype=np.float64)
-        valid = np.asarray(obs["ranges_valid"]).astype(bool)
+    def measure_level(
+        self,
+        R_lb: NDArray[np.float64],
+        accel_z: float,
+        tag_level: NDArray[np.float64] | None,
+        tag_yaw: float | None,
+        tag_normal: NDArray[np.float64] | None,
+        ranges: Any,
+        ranges_valid: Any,
+    ) -> Measurement:
+        """The :class:`Measurement` of quantities already in the level heading frame: ``R_lb``
+        (level-from-body), the world vertical acceleration ``accel_z`` (m/s^2, gravity removed),
+        the deck origin ``tag_level`` (m), yaw (rad) and normal from the estimate (None: no valid
+        estimate), and the ToF ``ranges`` (m) with their validity."""
+        tag_xy = tag_height = None
+        if tag_level is not None:
+            tag_xy = tag_level[:2]
+            tag_height = -float(tag_level[2])
+        ranges = np.asarray(ranges, dtype=np.float64)
+        valid = np.asarray(ranges_valid).astype(bool)
         tof_height = tof_normal = None
         tof_full = False
         if valid.sum() >= 3:
@@ -184,7 +207,9 @@ class LandingController:
             tof_full = bool(valid.all() and np.max(np.abs(resid)) < 0.05)
         elif valid.any():
             tof_height = float(np.mean(ranges[valid])) - float(self.sensors[0, 2])
-        return Measurement(R_lb, tag_xy, tag_yaw, tag_normal, tof_height, tof_normal, tof_full, accel_z)
+        return Measurement(
+            R_lb, tag_xy, tag_yaw, tag_normal, tof_height, tof_normal, tof_full, accel_z, tag_height
+        )
 
     def _update_state(self, m: Measurement) -> None:
         """Integrate the IMU altitude, update the heave and deck-normal filters and the tag timers."""
@@ -201,6 +226,8 @@ class LandingController:
         self.accel_bias -= c.drift_k3 * e * dt
         self.prev_accel_z = m.accel_z
         self.height = m.tof_height
+        if self.height is None and c.tag_height_fallback:
+            self.height = m.tag_height
         deck_z = None if m.tof_height is None else self.z_drone - m.tof_height
         self.heave.update(deck_z, dt)
         n = m.tag_normal if m.tag_normal is not None else m.tof_normal
@@ -255,8 +282,11 @@ class LandingController:
 
     def act(self, obs: Mapping[str, Any]) -> NDArray[np.float32]:
         """Velocity action in [-1, 1]^4 for this observation."""
+        return self.act_measured(self.measure(obs))
+
+    def act_measured(self, m: Measurement) -> NDArray[np.float32]:
+        """Velocity action in [-1, 1]^4 for this step's :class:`Measurement`."""
         c = self.cfg
-        m = self.measure(obs)
         self._update_state(m)
         self.t += self.dt
         vx = vy = yaw_rate = 0.0

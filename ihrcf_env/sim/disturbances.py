@@ -3,12 +3,20 @@
 A disturbance is called at every physics step with the simulated time and the drone's world
 position and velocity and returns a world-frame force (N) applied at the centre of mass, like
 PyFlyt's wind ``__call__(t, pos)``. Randomness (gust sequences) is drawn in :meth:`reset` from the
-env's generator so that a seeded episode is reproducible. Wind models come with the landing task.
+env's generator so that a seeded episode is reproducible.
+
+:class:`Wind` is the landing task's wind (``ihrcf_env/DeckLanding-v1``): a mean wind drawn per
+episode plus Dryden gusts (:class:`WindParams`), pushing the drone through a rotor-drag +
+parasitic-drag model of a 1-2 kg quadrotor (:class:`DragModel`).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from collections.abc import Sequence
+from dataclasses import dataclass, field
+from numbers import Real
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -46,3 +54,199 @@ class ConstantForce:
         self, t: float, position: Sequence[float], velocity: Sequence[float]
     ) -> tuple[float, float, float]:
         return self.force
+
+
+# -- wind ------------------------------------------------------------------------------------------
+FT = 0.3048  # m per foot (the Dryden formulas are written in feet)
+
+
+def dryden_low_altitude(height: float) -> tuple[float, float, float, float]:
+    """Dryden turbulence below 1000 ft (MIL-F-8785C / MIL-HDBK-1797, as in MathWorks' "Dryden Wind
+    Turbulence Model" blocks) at ``height`` (m) above the surface, for a wind of 1 m/s at 20 ft:
+    ``(sigma_horizontal, sigma_vertical, L_horizontal, L_vertical)``, intensities per m/s of wind
+    (dimensionless) and scale lengths (m)::
+
+        sigma_w = 0.1 W20,  sigma_u = sigma_v = sigma_w / (0.177 + 0.000823 h)^0.4
+        L_w = h,            L_u = L_v = h / (0.177 + 0.000823 h)^1.2         (h in ft)
+    """
+    h = max(float(height), 0.5) / FT
+    k = 0.177 + 0.000823 * h
+    return 0.1 / k**0.4, 0.1, h / k**1.2 * FT, h * FT
+
+
+@dataclass(frozen=True)
+class DragModel:
+    """Aerodynamic force on the drone from its velocity through the air ``v_a`` (world, m/s)::
+
+        F = -mass (d_xy v_a_xy + d_z v_a_z) - 0.5 rho CdA |v_a| v_a        (N)
+
+    The linear term is rotor drag (blade flapping and induced drag, proportional to the thrust and
+    so, near hover, to the mass; Mahony, Kumar & Corke, "Multirotor aerial vehicles", IEEE RAM 19(3),
+    2012). Faessler, Franchi & Scaramuzza (IEEE RA-L 3(2), 2018) identified mass-normalised
+    horizontal coefficients of about 0.4-0.5 1/s on their ~1 kg quadrotor: ``d_xy = 0.4``. The
+    vertical one is smaller (the rotor's heave damping; ``d_z = 0.2``). The quadratic term is the
+    airframe's parasitic drag, a drag area ``CdA`` of a few hundredths of a square metre for a
+    1-2 kg quadrotor with its propellers (wind-tunnel drag areas of cross-frame quadrotors: Bannwarth
+    et al., "Aerodynamic force modeling of multirotor unmanned aerial vehicles", AIAA J. 57(3),
+    2019): ``CdA = 0.04 m^2``. At 5 m/s of wind a 1.2 kg drone feels 2.4 + 0.6 = 3.0 N (a 14 deg
+    lean to hold position)."""
+
+    mass: float = 1.2  # kg, the simulated quadrotor's (QuadParams.mass)
+    d_xy: float = 0.4  # 1/s
+    d_z: float = 0.2  # 1/s
+    cda: float = 0.04  # m^2
+    rho: float = 1.225  # kg/m^3, sea-level air
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, Real) or not math.isfinite(float(v)) or float(v) < 0:
+                raise ValueError(f"DragModel.{f.name} must be a finite number >= 0, got {v!r}")
+
+    def force(self, air_velocity: Sequence[float]) -> tuple[float, float, float]:
+        """Force (N, world) for the velocity through the air ``air_velocity`` (m/s, world)."""
+        vx, vy, vz = (float(v) for v in air_velocity)
+        q = 0.5 * self.rho * self.cda * math.sqrt(vx * vx + vy * vy + vz * vz)
+        lin_xy, lin_z = self.mass * self.d_xy, self.mass * self.d_z
+        return (-(lin_xy + q) * vx, -(lin_xy + q) * vy, -(lin_z + q) * vz)
+
+
+@dataclass(frozen=True)
+class WindParams:
+    """Parameters of :class:`Wind` (SI units).
+
+    Each episode draws a mean wind speed uniform in ``[mean_speed_min, mean_speed_max]`` (m/s,
+    horizontal; the default 0-5 m/s spans calm to a gentle breeze, Beaufort 0-3) blowing towards a
+    direction uniform in [0, 2 pi) (rad from world +x, counter-clockwise). Gusts are Dryden
+    turbulence (:func:`dryden_low_altitude`) at ``height`` above the surface (default 5 m, a small
+    ship's deck), scaled by ``turbulence`` (0: steady wind), with the mean wind as W20. The frozen
+    turbulence field is carried past the hovering drone by the mean wind (Taylor's hypothesis), so
+    the correlation time of each component is ``L / V`` with ``V = max(mean speed, min_advection)``.
+    Each component is a first-order Gauss-Markov process (the Dryden longitudinal form, used for all
+    three axes: same variance and integral scale as Dryden's second-order lateral/vertical filters)
+    sampled every ``sample_dt`` s and linearly interpolated, so the wind is a function of time only.
+    """
+
+    mean_speed_min: float = 0.0
+    mean_speed_max: float = 5.0
+    height: float = 5.0
+    turbulence: float = 1.0
+    min_advection: float = 1.0  # m/s
+    sample_dt: float = 0.05  # s
+    drag: DragModel = field(default_factory=DragModel)
+
+    def __post_init__(self) -> None:
+        for name in (
+            "mean_speed_min",
+            "mean_speed_max",
+            "height",
+            "turbulence",
+            "min_advection",
+            "sample_dt",
+        ):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, Real) or not math.isfinite(float(v)):
+                raise TypeError(f"wind {name} must be a finite real number, got {type(v).__name__} {v!r}")
+            object.__setattr__(self, name, float(v))
+        if not 0 <= self.mean_speed_min <= self.mean_speed_max <= 30:
+            raise ValueError(
+                "wind mean speeds need 0 <= mean_speed_min <= mean_speed_max <= 30 m/s, got "
+                f"{self.mean_speed_min!r}, {self.mean_speed_max!r}"
+            )
+        for name in ("height", "min_advection", "sample_dt"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"wind {name} must be > 0, got {getattr(self, name)!r}")
+        if self.turbulence < 0:
+            raise ValueError(f"wind turbulence must be >= 0, got {self.turbulence!r}")
+        if not isinstance(self.drag, DragModel):
+            raise TypeError(f"wind drag must be a DragModel, got {type(self.drag).__name__} {self.drag!r}")
+
+
+class Wind:
+    """Seeded wind on the drone: a mean wind plus Dryden gusts (see :class:`WindParams`), turned
+    into a world force by :class:`DragModel` from the drone's velocity through the air.
+
+    As a :class:`Disturbance` it returns the force the wind *adds* to the drone's own still-air drag
+    (the quadrotor model's linear ``QuadParams.drag``): ``drag.force(v - w) - drag.force(v)``, zero
+    in calm air. :meth:`velocity` gives the wind itself (world, m/s) at a time; the state drawn at
+    :meth:`reset` is ``mean_speed`` (m/s), ``direction`` (rad) and the gust sequence (from one draw
+    of the env's generator, generated lazily in 10 s blocks, so it does not depend on how often the
+    wind is read). Before the first :meth:`reset` the air is calm.
+    """
+
+    BLOCK = 200  # gust samples generated at a time
+
+    def __init__(self, params: WindParams | None = None, **overrides: object) -> None:
+        base = params if params is not None else WindParams()
+        self.params = dataclasses.replace(base, **overrides) if overrides else base  # type: ignore[arg-type]
+        self.mean_speed = 0.0
+        self.direction = 0.0
+        self.mean = (0.0, 0.0, 0.0)
+        self.sigma = (0.0, 0.0, 0.0)  # gust std along (mean wind, cross wind, vertical), m/s
+        self.tau = (1.0, 1.0, 1.0)  # s, their correlation times
+        self._rng: np.random.Generator | None = None
+        self._samples: list[tuple[float, float, float]] = []  # gusts in the world frame
+        self._state = np.zeros(3)
+        self._drag = self.params.drag
+
+    def reset(self, rng: np.random.Generator) -> None:
+        """Draw this episode's mean wind and gust sequence from ``rng``."""
+        p = self.params
+        self.mean_speed = float(rng.uniform(p.mean_speed_min, p.mean_speed_max))
+        self.direction = float(rng.uniform(0.0, 2.0 * math.pi))
+        c, s = math.cos(self.direction), math.sin(self.direction)
+        self.mean = (self.mean_speed * c, self.mean_speed * s, 0.0)
+        s_h, s_w, l_h, l_w = dryden_low_altitude(p.height)
+        k = p.turbulence * self.mean_speed
+        self.sigma = (k * s_h, k * s_h, k * s_w)
+        v_adv = max(self.mean_speed, p.min_advection)
+        self.tau = (l_h / v_adv, l_h / v_adv, l_w / v_adv)
+        self._rng = np.random.default_rng(int(rng.integers(2**63)))
+        self._samples = []
+        self._state = np.asarray(self.sigma) * self._rng.standard_normal(3)  # stationary start
+
+    def _extend(self) -> None:
+        """Append one block of gust samples (exact Gauss-Markov steps of ``sample_dt``)."""
+        assert self._rng is not None
+        dt, n = self.params.sample_dt, self.BLOCK
+        a = np.exp(-dt / np.asarray(self.tau))
+        q = np.asarray(self.sigma) * np.sqrt(1.0 - a * a)
+        noise = self._rng.standard_normal((n, 3)) * q
+        out = np.empty((n, 3))
+        x = self._state
+        for i in range(n):
+            out[i] = x
+            x = a * x + noise[i]
+        self._state = x
+        c, s = math.cos(self.direction), math.sin(self.direction)
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])  # (along, cross, up) -> world
+        self._samples.extend(tuple(r) for r in (out @ rot.T).tolist())
+
+    def gust(self, t: float) -> tuple[float, float, float]:
+        """The turbulent part of the wind (world, m/s) at time ``t`` (s, >= 0)."""
+        if self._rng is None or self.params.turbulence == 0 or self.mean_speed == 0:
+            return (0.0, 0.0, 0.0)
+        u = max(float(t), 0.0) / self.params.sample_dt
+        k = int(u)
+        while k + 1 >= len(self._samples):
+            self._extend()
+        f = u - k
+        (ax, ay, az), (bx, by, bz) = self._samples[k], self._samples[k + 1]
+        return (ax + f * (bx - ax), ay + f * (by - ay), az + f * (bz - az))
+
+    def velocity(self, t: float) -> NDArray[np.float64]:
+        """Wind velocity (world, m/s) at time ``t`` (s): mean plus gusts."""
+        g = self.gust(t)
+        return np.array([self.mean[0] + g[0], self.mean[1] + g[1], self.mean[2] + g[2]])
+
+    def __call__(
+        self, t: float, position: Sequence[float], velocity: Sequence[float]
+    ) -> tuple[float, float, float]:
+        gx, gy, gz = self.gust(t)
+        wx, wy, wz = self.mean[0] + gx, self.mean[1] + gy, self.mean[2] + gz
+        if wx == 0.0 and wy == 0.0 and wz == 0.0:
+            return (0.0, 0.0, 0.0)
+        vx, vy, vz = velocity
+        fa = self._drag.force((vx - wx, vy - wy, vz - wz))
+        f0 = self._drag.force((vx, vy, vz))
+        return (fa[0] - f0[0], fa[1] - f0[1], fa[2] - f0[2])

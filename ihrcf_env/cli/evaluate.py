@@ -1,0 +1,307 @@
+"""``python -m ihrcf_env.evaluate``: run a landing policy over seeded episodes and report.
+
+POLICY is one of
+
+* ``scripted``: :class:`~ihrcf_env.control.policies.ScriptedLanding` (the package's landing
+  controller on the v1 observation: own sensing only, never ground truth);
+* ``blind:VZ``: constant descent at VZ m/s (> 0), no lateral command;
+* a saved stable-baselines3 policy (``.zip``; ``--algo`` names its class, default PPO), run
+  deterministically; stable-baselines3 is imported only then.
+
+Prints one line per episode (unless ``--quiet``), then the success rate, touchdown relative
+vertical speed / relative tilt / horizontal offset from the tag centre (mean, max), time to land,
+the failure reasons, and as the last line ``success K/N``.
+
+    python -m ihrcf_env.evaluate --policy blind:0.3 --episodes 50 --camera-model projected
+    python -m ihrcf_env.evaluate --policy scripted --episodes 10 --seed 100
+    python -m ihrcf_env.evaluate --policy ppo_landing.zip --episodes 50 --camera-model rendered
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import math
+import os
+import re
+import time
+from collections import Counter
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from ihrcf_env import ENV_V1_ID
+from ihrcf_env.control.policies import BlindDescent, Policy, ScriptedLanding
+
+SB3_ALGOS = ("PPO", "SAC", "TD3", "A2C", "DDPG")
+
+
+@dataclass
+class Episode:
+    """How one episode ended (from ``info`` after the fact; the policy never reads it)."""
+
+    seed: int
+    outcome: str  # "success", "crash" or "timeout"
+    reason: str
+    time: float  # simulated s at the end
+    steps: int
+    ret: float  # undiscounted return
+    speed: float | None = None  # |relative vertical speed| at touchdown (m/s)
+    tilt: float | None = None  # relative tilt at touchdown (rad)
+    offset: float | None = None  # drone centre to tag centre, horizontal, at touchdown (m)
+
+
+class PolicyError(ValueError):
+    """A POLICY argument that cannot be used (the message names ``--policy``)."""
+
+
+class SB3Policy:
+    """A saved stable-baselines3 model as a :class:`~ihrcf_env.control.policies.Policy`."""
+
+    def __init__(self, model: Any) -> None:
+        self.model = model
+
+    def reset(self) -> None:
+        pass
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        action, _ = self.model.predict(obs, deterministic=True)
+        return np.asarray(action, dtype=np.float32)
+
+
+def load_sb3(path: str, algo: str, env: gym.Env) -> SB3Policy:
+    """Load ``path`` with stable-baselines3's ``algo`` class and check its spaces against ``env``'s."""
+    try:
+        sb3 = importlib.import_module("stable_baselines3")
+    except ImportError:
+        raise PolicyError(
+            f"--policy {path!r} is a stable-baselines3 model, but stable-baselines3 is not installed "
+            "(pip install 'ihrcf_env[rl]' or pip install stable-baselines3)"
+        ) from None
+    cls = getattr(sb3, algo)
+    try:
+        model = cls.load(path, device="cpu")
+    except Exception as e:  # a zip that is not an SB3 model of this class
+        raise PolicyError(
+            f"--policy {path!r}: cannot be loaded as a stable-baselines3 {algo} model: {e}"
+        ) from None
+    space, want = model.observation_space, env.observation_space
+    same = (
+        isinstance(space, gym.spaces.Box)
+        and isinstance(want, gym.spaces.Box)
+        and space.shape == want.shape
+        and np.allclose(space.low, want.low)
+        and np.allclose(space.high, want.high)
+    )
+    if not same:
+        raise PolicyError(
+            f"--policy {path!r}: its observation space {space} does not match the env's {want} "
+            "(another env id, estimator set or privileged observation?)"
+        )
+    if getattr(model.action_space, "shape", None) != env.action_space.shape:
+        raise PolicyError(
+            f"--policy {path!r}: its action space {model.action_space} does not match the env's "
+            f"{env.action_space}"
+        )
+    return SB3Policy(model)
+
+
+def make_policy(spec: str, env: gym.Env, algo: str = "PPO") -> Policy:
+    """The policy of a POLICY argument (module docstring) for ``env``; PolicyError naming
+    ``--policy`` if it cannot be."""
+    base: Any = env.unwrapped
+    max_velocity = tuple(float(v) for v in getattr(base, "max_velocity", np.ones(4)))
+    if getattr(getattr(base, "config", None), "action_mode", "velocity") != "velocity":
+        raise PolicyError(f"--policy {spec!r}: the baselines need action_mode='velocity'")
+    if spec == "scripted":
+        try:
+            slices = env.get_wrapper_attr("obs_slices")
+            scales = env.get_wrapper_attr("obs_scales")
+        except AttributeError:
+            raise PolicyError(
+                "--policy scripted needs the v1 observation (obs_slices/obs_scales): use --env-id "
+                + ENV_V1_ID
+            ) from None
+        return ScriptedLanding(
+            slices, scales, int(base.config.control_hz), max_velocity, base.rig, estimator="fused"
+        )
+    if spec.startswith("blind:"):
+        text = spec.removeprefix("blind:")
+        try:
+            vz = float(text)
+        except ValueError:
+            raise PolicyError(f"--policy {spec!r}: VZ must be a number of m/s, e.g. blind:0.3") from None
+        try:
+            return BlindDescent(vz, max_velocity)
+        except (TypeError, ValueError) as e:
+            raise PolicyError(f"--policy {spec!r}: {e}") from None
+    if spec.endswith(".zip") or os.path.exists(spec):
+        if not os.path.isfile(spec):
+            raise PolicyError(f"--policy {spec!r}: no such file")
+        return load_sb3(spec, algo, env)
+    raise PolicyError(
+        f"--policy {spec!r}: not 'scripted', 'blind:VZ' or a saved stable-baselines3 model (.zip)"
+    )
+
+
+def run_episode(env: gym.Env, policy: Policy, seed: int) -> Episode:
+    """One episode of ``policy`` on ``env`` from ``seed``; its outcome read from ``info``."""
+    obs, info = env.reset(seed=seed)
+    policy.reset()
+    ret, steps = 0.0, 0
+    while True:
+        obs, reward, terminated, truncated, info = env.step(policy.act(obs))
+        ret += float(reward)
+        steps += 1
+        if terminated or truncated:
+            break
+    outcome = info.get("outcome", "flying")
+    ep = Episode(
+        seed=seed,
+        outcome="timeout" if outcome == "flying" else outcome,
+        reason=str(info.get("crash_reason", "")) if outcome == "crash" else "",
+        time=float(info.get("time", math.nan)),
+        steps=steps,
+        ret=ret,
+    )
+    td = info.get("touchdown")
+    if td is not None:
+        ep.speed = abs(float(td["relative_vertical_speed"]))
+        ep.tilt = float(td["relative_tilt"])
+        d = np.asarray(info["drone_position_world"])[:2] - np.asarray(info["deck_position_world"])[:2]
+        ep.offset = float(info.get("tag_offset", np.hypot(*d)))
+    return ep
+
+
+def evaluate(
+    env: gym.Env,
+    policy: Policy,
+    episodes: int,
+    seed: int,
+    on_episode: Callable[[Episode], None] | None = None,
+) -> list[Episode]:
+    """``episodes`` episodes from seeds ``seed, seed + 1, ...``."""
+    out = []
+    for i in range(episodes):
+        ep = run_episode(env, policy, seed + i)
+        out.append(ep)
+        if on_episode is not None:
+            on_episode(ep)
+    return out
+
+
+def format_episode(ep: Episode) -> str:
+    td = (
+        f"speed {ep.speed:.3f} m/s  tilt {math.degrees(ep.tilt):5.2f} deg  offset {ep.offset:.3f} m"
+        if ep.speed is not None and ep.tilt is not None and ep.offset is not None
+        else "no touchdown"
+    )
+    why = f"  ({ep.reason})" if ep.reason else ""
+    return f"seed {ep.seed:5d}  {ep.outcome:8s} t {ep.time:6.2f} s  return {ep.ret:8.2f}  {td}{why}"
+
+
+def _stat(values: Sequence[float], unit: str, fmt: str = ".3f") -> str:
+    if not values:
+        return "n/a"
+    return f"{np.mean(values):{fmt}} / {np.max(values):{fmt}} {unit}"
+
+
+def summary(episodes: Sequence[Episode]) -> list[str]:
+    """The report's lines; the last one is ``success K/N``."""
+    n = len(episodes)
+    ok = [e for e in episodes if e.outcome == "success"]
+    touched = [e for e in episodes if e.speed is not None]
+    speeds = [e.speed for e in touched if e.speed is not None]
+    tilts = [math.degrees(e.tilt) for e in touched if e.tilt is not None]
+    offsets = [e.offset for e in touched if e.offset is not None]
+    lines = [
+        f"episodes {n}, success rate {len(ok) / n:.1%}, mean return {np.mean([e.ret for e in episodes]):.2f}",
+        f"touchdown (mean / max over the {len(touched)} episodes that touched down): relative vertical "
+        f"speed {_stat(speeds, 'm/s')}, relative tilt {_stat(tilts, 'deg', '.2f')}, offset from the tag "
+        f"centre {_stat(offsets, 'm')}",
+        f"time to land (successes, mean / max): {_stat([e.time for e in ok], 's', '.1f')}",
+    ]
+    reasons = Counter(
+        re.sub(r"-?\d+(\.\d+)?", "N", e.reason) if e.outcome == "crash" else e.outcome
+        for e in episodes
+        if e.outcome != "success"
+    )
+    if reasons:
+        lines.append("failures: " + "; ".join(f"{k} x{v}" for k, v in reasons.most_common()))
+    lines.append(f"success {len(ok)}/{n}")
+    return lines
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="python -m ihrcf_env.evaluate",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ap.add_argument("--env-id", default=ENV_V1_ID, help=f"registered env id (default {ENV_V1_ID})")
+    ap.add_argument("--policy", required=True, help="scripted | blind:VZ | a stable-baselines3 .zip")
+    ap.add_argument("--episodes", type=int, default=10, help="episodes (seeds), default 10")
+    ap.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
+    ap.add_argument(
+        "--camera-model", choices=("rendered", "projected"), default=None, help="default: the env's"
+    )
+    ap.add_argument(
+        "--sensor-preset", choices=("ideal", "realistic"), default=None, help="default: the env's"
+    )
+    ap.add_argument(
+        "--algo", choices=SB3_ALGOS, default="PPO", help="stable-baselines3 class of a .zip policy"
+    )
+    ap.add_argument("--max-steps", type=int, default=None, help="episode limit in steps (default: the env's)")
+    ap.add_argument("--quiet", action="store_true", help="only the summary")
+    args = ap.parse_args(argv)
+    if args.episodes < 1:
+        ap.error(f"argument --episodes: must be >= 1, got {args.episodes}")
+    if args.max_steps is not None and args.max_steps < 1:
+        ap.error(f"argument --max-steps: must be >= 1, got {args.max_steps}")
+    if args.env_id not in gym.registry:
+        ap.error(f"argument --env-id: unknown env id {args.env_id!r}")
+    spec = args.policy
+    if not (spec == "scripted" or spec.startswith("blind:") or spec.endswith(".zip") or os.path.exists(spec)):
+        ap.error(
+            f"argument --policy: {spec!r} is not 'scripted', 'blind:VZ' or a saved stable-baselines3 .zip"
+        )
+    if spec.endswith(".zip") and not os.path.isfile(spec):
+        ap.error(f"argument --policy: no such file {spec!r}")
+    kwargs: dict[str, Any] = {}
+    if args.camera_model is not None:
+        kwargs["camera_model"] = args.camera_model
+    if args.sensor_preset is not None:
+        kwargs["sensor_preset"] = args.sensor_preset
+    if args.max_steps is not None:
+        kwargs["max_episode_steps"] = args.max_steps
+    env = gym.make(args.env_id, **kwargs)
+    try:
+        try:
+            policy = make_policy(spec, env, args.algo)
+        except PolicyError as e:
+            ap.error(f"argument {e}")
+        t0 = time.perf_counter()
+        results = evaluate(
+            env,
+            policy,
+            args.episodes,
+            args.seed,
+            None if args.quiet else lambda e: print(format_episode(e), flush=True),
+        )
+        wall = time.perf_counter() - t0
+    finally:
+        env.close()
+    print(
+        f"\n{args.env_id}, policy {spec}, seeds {args.seed}..{args.seed + args.episodes - 1}, "
+        f"{' '.join(f'{k}={v}' for k, v in kwargs.items()) or 'env defaults'}, wall {wall:.0f} s"
+    )
+    for line in summary(results):
+        print(line)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,155 @@
+"""Baseline policies on the flat observation of ``ihrcf_env/DeckLanding-v1`` (pure: numpy only).
+
+A policy has ``reset()`` (episode start) and ``act(obs) -> action`` (velocity action in
+[-1, 1]^4). The observation's layout is passed in as two mappings, ``slices`` (name -> slice) and
+``scales`` (name -> scale: physical value = observation value * scale), as the v1 wrapper exposes
+them (``env.get_wrapper_attr("obs_slices")``, ``"obs_scales"``; :mod:`ihrcf_env.wrappers.landing_obs`),
+so the same code runs on a vector built from a real drone's sensing.
+
+* :class:`BlindDescent`: constant descent, no lateral command (the baseline a task where sensing
+  matters must defeat).
+* :class:`ScriptedLanding`: :class:`~ihrcf_env.control.landing.LandingController` on the v1
+  observation (one deck-pose estimate, the ToF ranges, the IMU; never ground truth), with
+  :data:`V1_LANDING_CONFIG`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ihrcf_env.control.landing import LandingConfig, LandingController
+from ihrcf_env.core.constants import GRAVITY
+from ihrcf_env.core.rig import SensorRig
+
+#: The landing controller's tunables on v1: starts up to 3 m high (beyond the ToF's reach in
+#: ambient light, so the height comes from the estimate until the ranges are valid).
+V1_LANDING_CONFIG = LandingConfig(tag_height_fallback=True)
+
+
+class Policy(Protocol):
+    """What :mod:`ihrcf_env.cli.evaluate` runs."""
+
+    def reset(self) -> None:
+        """Episode start."""
+
+    def act(self, obs: NDArray[np.float32]) -> NDArray[np.float32]:
+        """Action in [-1, 1]^4 for one observation."""
+        ...
+
+
+def _max_velocity(max_velocity: Sequence[float]) -> NDArray[np.float64]:
+    mv = np.asarray(max_velocity, dtype=np.float64)
+    if mv.shape != (4,) or not np.all(np.isfinite(mv)) or np.any(mv <= 0):
+        raise ValueError(
+            f"max_velocity must be 4 positive numbers (m/s, m/s, m/s, rad/s), got {max_velocity!r}"
+        )
+    return mv
+
+
+class BlindDescent:
+    """Descend at ``vz`` m/s (> 0) with no lateral and no yaw command."""
+
+    def __init__(self, vz: float, max_velocity: Sequence[float] = (1.0, 1.0, 1.0, 1.0)) -> None:
+        mv = _max_velocity(max_velocity)
+        if isinstance(vz, bool) or not isinstance(vz, int | float | np.floating) or not math.isfinite(vz):
+            raise TypeError(f"vz must be a finite number (m/s), got {type(vz).__name__} {vz!r}")
+        if not 0 < vz <= mv[2]:
+            raise ValueError(f"vz must be in (0, {mv[2]:g}] m/s (the env's max_velocity[2]), got {vz!r}")
+        self.vz = float(vz)
+        self._action = np.array([0.0, 0.0, -self.vz / mv[2], 0.0], dtype=np.float32)
+
+    def reset(self) -> None:
+        pass
+
+    def act(self, obs: NDArray[np.float32]) -> NDArray[np.float32]:
+        return self._action.copy()
+
+
+def level_from_up(up: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Level-heading-from-body rotation (roll and pitch only) for the world up axis ``up`` seen in
+    the body frame (the third row of the world-from-body rotation)."""
+    u = up / max(float(np.linalg.norm(up)), 1e-9)
+    pitch = math.asin(max(-1.0, min(1.0, -float(u[0]))))
+    roll = math.atan2(float(u[1]), float(u[2]))
+    cp, sp, cr, sr = math.cos(pitch), math.sin(pitch), math.cos(roll), math.sin(roll)
+    Ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    Rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    return Ry @ Rx
+
+
+class ScriptedLanding:
+    """The scripted landing (:class:`LandingController`) on the v1 flat observation.
+
+    Args:
+        slices, scales: the observation layout (module docstring).
+        control_hz: the env's control rate (Hz).
+        max_velocity: the env's velocity action scale.
+        rig: the drone's ToF/camera geometry.
+        config: the controller's tunables (default :data:`V1_LANDING_CONFIG`).
+        estimator: the deck-pose estimate to fly on (``"fused"``: valid high up under the realistic
+            preset, where IHRCF's ranges are not).
+    """
+
+    def __init__(
+        self,
+        slices: Mapping[str, slice],
+        scales: Mapping[str, float],
+        control_hz: int = 20,
+        max_velocity: Sequence[float] = (1.0, 1.0, 1.0, 1.0),
+        rig: SensorRig | None = None,
+        config: LandingConfig | None = None,
+        estimator: str = "fused",
+    ) -> None:
+        need: tuple[str, ...] = ("ranges", "ranges_valid", "imu.up", "imu.linear_acceleration")
+        need += tuple(f"{estimator}.{f}" for f in ("position", "normal", "yaw", "valid"))
+        missing = [n for n in need if n not in slices or n not in scales]
+        if missing:
+            raise ValueError(
+                f"the observation layout lacks {missing} (estimator {estimator!r}): ScriptedLanding needs "
+                "the v1 observation (ihrcf_env/DeckLanding-v1) with that estimator"
+            )
+        self.slices, self.scales, self.estimator = dict(slices), dict(scales), estimator
+        self.controller = LandingController(
+            control_hz,
+            tuple(_max_velocity(max_velocity).tolist()),
+            rig,
+            config if config is not None else V1_LANDING_CONFIG,
+        )
+
+    def _get(self, obs: NDArray[np.float32], name: str) -> NDArray[np.float64]:
+        return np.asarray(obs[self.slices[name]], dtype=np.float64) * self.scales[name]
+
+    def reset(self) -> None:
+        self.controller.reset()
+
+    @property
+    def commit_time(self) -> float | None:
+        """Simulated s (from the episode start) when the controller committed to the drop."""
+        return self.controller.commit_time
+
+    def act(self, obs: NDArray[np.float32]) -> NDArray[np.float32]:
+        up = self._get(obs, "imu.up")
+        R_lb = level_from_up(up)
+        accel_z = float(up @ self._get(obs, "imu.linear_acceleration")) - GRAVITY
+        e = self.estimator
+        tag_level = tag_yaw = tag_normal = None
+        if float(obs[self.slices[f"{e}.valid"]][0]) > 0.5:
+            tag_level = self._get(obs, f"{e}.position")
+            tag_normal = self._get(obs, f"{e}.normal")
+            c, s = self._get(obs, f"{e}.yaw")
+            tag_yaw = math.atan2(s, c)
+        m = self.controller.measure_level(
+            R_lb,
+            accel_z,
+            tag_level,
+            tag_yaw,
+            tag_normal,
+            self._get(obs, "ranges"),
+            self._get(obs, "ranges_valid") > 0.5,
+        )
+        return self.controller.act_measured(m)
