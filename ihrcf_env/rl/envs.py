@@ -1,0 +1,53 @@
+"""The env factory shared by the learning scripts (SB3 and RLlib).
+
+``ihrcf_env/DeckLanding-v1`` is the learning task (one-level float32 Box observation,
+``info["is_success"]`` at episode end). ``ihrcf_env/DeckLanding-v0`` is accepted too (made with
+``flatten=True``, its ``info["outcome"]`` turned into ``info["is_success"]``) so that the scripts run
+on the paper's hover env as well.
+"""
+
+from __future__ import annotations
+
+from typing import Any, SupportsFloat
+
+import gymnasium as gym
+from gymnasium.envs.registration import registry
+
+import ihrcf_env
+
+V1_ID = "ihrcf_env/DeckLanding-v1"
+V0_ID = ihrcf_env.ENV_ID
+
+
+class SuccessInfo(gym.Wrapper[Any, Any, Any, Any]):
+    """Sets ``info["is_success"]`` (bool) at the end of every episode from ``info["outcome"]``,
+    unless the env sets it itself; SB3's Monitor/VecMonitor and EvalCallback read it."""
+
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if (terminated or truncated) and "is_success" not in info:
+            info["is_success"] = bool(info.get("outcome") == "success")
+        return obs, reward, terminated, truncated, info
+
+
+def default_env_id() -> str:
+    """``ihrcf_env/DeckLanding-v1`` when registered, else ``ihrcf_env/DeckLanding-v0``."""
+    return V1_ID if V1_ID in registry else V0_ID
+
+
+def make_env(env_id: str | None = None, camera_model: str = "projected", **kwargs: Any) -> gym.Env:
+    """A learning env: ``gym.make(env_id, camera_model=camera_model, **kwargs)`` with
+    ``info["is_success"]`` guaranteed at episode end (v0 is made with ``flatten=True``).
+
+    ``camera_model="projected"`` (no rendering) is the fast training camera, ``"rendered"`` the
+    TinyRenderer one. Other keyword arguments go to the env (``max_episode_steps`` to ``gym.make``)."""
+    env_id = default_env_id() if env_id is None else env_id
+    if not isinstance(env_id, str) or env_id not in registry:
+        raise ValueError(f"env_id must be a registered Gymnasium id, got {env_id!r}")
+    if env_id == V0_ID:
+        kwargs.setdefault("flatten", True)
+    env = gym.make(env_id, camera_model=camera_model, **kwargs)
+    if not isinstance(env.observation_space, gym.spaces.Box):
+        env.close()
+        raise ValueError(f"{env_id} gives a {type(env.observation_space).__name__} observation: need a Box")
+    return SuccessInfo(env)

@@ -1,0 +1,70 @@
+"""Ray RLlib pieces for ``examples/train_rllib.py``: the env creator (registered with Ray's
+registry under :data:`RLLIB_ENV_NAME`), a success-rate metric and the result fields logged per
+iteration. Needs the ``[rl]`` extra (``ray[rllib]``); this module imports Ray only inside functions,
+and Ray imports it by name on every node, so each node needs ``ihrcf_env`` installed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium as gym
+
+from ihrcf_env.rl.envs import make_env
+
+RLLIB_ENV_NAME = "ihrcf_deck_landing"
+PROGRESS_FIELDS = (
+    "iteration",
+    "timesteps",
+    "wall_s",
+    "episodes",
+    "episode_return_mean",
+    "episode_len_mean",
+    "success_rate",
+)
+
+
+def env_creator(env_config: Mapping[str, Any]) -> gym.Env:
+    """RLlib env creator: ``env_config`` keys ``env_id`` (default v1), ``camera_model`` (default
+    ``"projected"``) and any keyword of the env (e.g. ``max_episode_steps``)."""
+    cfg = dict(env_config)  # an EnvContext (a dict with worker_index etc. as attributes)
+    return make_env(cfg.pop("env_id", None), cfg.pop("camera_model", "projected"), **cfg)
+
+
+def register() -> str:
+    """Register :func:`env_creator` with ``ray.tune.registry.register_env``; returns the name."""
+    from ray.tune.registry import register_env
+
+    register_env(RLLIB_ENV_NAME, env_creator)
+    return RLLIB_ENV_NAME
+
+
+def log_success(*, episode: Any, metrics_logger: Any = None, **_: Any) -> None:
+    """``on_episode_end`` callback: logs ``info["is_success"]`` of the episode's last step as the
+    metric ``success_rate`` (mean over the last 100 episodes of each env runner)."""
+    infos = episode.get_infos()
+    last = infos[-1] if len(infos) else {}
+    if metrics_logger is not None:
+        metrics_logger.log_value("success_rate", float(bool(last.get("is_success", False))), window=100)
+
+
+def progress_row(iteration: int, wall_s: float, result: Mapping[str, Any]) -> dict[str, float | int]:
+    """The :data:`PROGRESS_FIELDS` of one ``Algorithm.train()`` result (``nan`` when RLlib has no
+    finished episode to report yet)."""
+    runners = result.get("env_runners", {})
+
+    def num(key: str, default: float = float("nan")) -> float:
+        value = runners.get(key, default)
+        return float(value) if isinstance(value, int | float) else default
+
+    steps = result.get("num_env_steps_sampled_lifetime", runners.get("num_env_steps_sampled_lifetime", 0))
+    return {
+        "iteration": iteration,
+        "timesteps": int(steps),
+        "wall_s": round(wall_s, 1),
+        "episodes": int(num("num_episodes_lifetime", 0.0)),
+        "episode_return_mean": num("episode_return_mean"),
+        "episode_len_mean": num("episode_len_mean"),
+        "success_rate": num("success_rate"),
+    }
