@@ -1,0 +1,359 @@
+"""Paired validation of the "projected" camera model against the rendered camera.
+
+At the same physical states, with the same ToF and IMU readings, every frame goes through two
+pipelines, each into its own :class:`~ihrcf_env.core.estimators.DeckPoseEstimator` (IHRCF, ATDA,
+fused; the shipped calibration):
+
+* **rendered**: the TinyRenderer frame -> :class:`~ihrcf_env.core.estimators.TagDetector`
+  (``refine="subpix"``);
+* **projected**: :class:`~ihrcf_env.sim.sensors.tag_camera.ProjectedTagCamera` (exact projection +
+  the fitted detector model, ``assets/detector_model.json``), the realistic camera on the rendered
+  camera's episode (light, exposure, gain).
+
+The states are short trajectories flown in a :class:`~ihrcf_env.sim.world.World` (20 Hz): the deck
+on the ``paper`` profile (started at a random time of its 130 s) or a seeded ``sea_state``, so its
+tilts span the profiles' ranges; the drone starting 0.45-3 m above the deck, its centre offset
+anywhere out to the image edge, random yaw, holding position or flying a constant velocity command
+(to 0.5 m/s, 0.5 rad/s: blur and motion). Both sensor presets: ``"ideal"`` (ideal camera, ToF and
+IMU) and ``"realistic"`` (realistic camera, VL53L1X ToF, BMI088 IMU), the autopilot on the true
+state in both (the states are what matters here, not how they were flown).
+
+Scores per preset: the detection rate in both modes, and per estimator and axis the mean absolute
+error of each mode over the frames where both modes are valid (paired) and their ratio
+(projected / rendered). Acceptance (issue 10): ratio within 1 +- 0.25 on every axis of every
+estimator, detection rates within 3 percentage points.
+
+``python -m ihrcf_env.experiments.camera_validation [--trajectories N] [--frames F] [--seed S]``
+prints the Markdown table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ihrcf_env.core.calibration import Calibration, default_calibration_path
+from ihrcf_env.core.estimators import DeckPoseEstimator, ImuSample, SensorFrame
+from ihrcf_env.core.estimators.detector_model import DetectorModel
+from ihrcf_env.core.frames import euler_from_matrix
+from ihrcf_env.core.metrics import POSE_AXES, pose_errors
+from ihrcf_env.core.profiles import (
+    PAPER_DURATION,
+    MotionProfile,
+    ShiftedProfile,
+    paper_profile,
+    sea_state_profile,
+)
+
+#: Sensor presets of the validation (camera quality, ToF model, IMU noise), as SENSOR_PRESETS.
+PRESETS: dict[str, dict[str, str]] = {
+    "ideal": {"camera_quality": "ideal", "tof_noise": "ideal", "imu_noise": "ideal"},
+    "realistic": {"camera_quality": "realistic", "tof_noise": "realistic", "imu_noise": "realistic"},
+}
+MODES: tuple[str, ...] = ("rendered", "projected")
+ESTIMATORS: tuple[str, ...] = ("ihrcf", "atda", "fused")
+#: Acceptance bounds: MAE ratio within 1 +- MAE_TOLERANCE, detection rates within DETECTION_TOLERANCE.
+MAE_TOLERANCE = 0.25
+DETECTION_TOLERANCE = 0.03
+
+
+@dataclass(frozen=True, eq=False)
+class PresetValidation:
+    """The paired comparison for one sensor preset.
+
+    Attributes:
+        preset: ``"ideal"`` or ``"realistic"``. frames: frames compared. trajectories: their count.
+        detection: mode -> fraction of frames with tag corners.
+        mae: mode -> estimator -> (6,) MAE over the frames where both modes are valid: X, Y, Z (m),
+            roll, pitch, yaw (deg).
+        paired: estimator -> frames where both modes are valid. valid: mode -> estimator -> valid
+            frames.
+        corner_rms: mode -> RMS corner error (px) against the exact projection, over frames where
+            both modes found the tag.
+        seconds: wall time of the run.
+    """
+
+    preset: str
+    frames: int
+    trajectories: int
+    detection: dict[str, float]
+    mae: dict[str, dict[str, NDArray[np.float64]]]
+    paired: dict[str, int]
+    valid: dict[str, dict[str, int]]
+    corner_rms: dict[str, float]
+    seconds: float
+
+    def ratio(self, estimator: str) -> NDArray[np.float64]:
+        """(6,) projected / rendered MAE of ``estimator``, per axis."""
+        r: NDArray[np.float64] = self.mae["projected"][estimator] / self.mae["rendered"][estimator]
+        return r
+
+    def failures(
+        self, mae_tolerance: float = MAE_TOLERANCE, detection_tolerance: float = DETECTION_TOLERANCE
+    ) -> list[str]:
+        """What misses the acceptance bounds (empty when everything is within them)."""
+        out = []
+        dd = self.detection["projected"] - self.detection["rendered"]
+        if not abs(dd) <= detection_tolerance:
+            out.append(f"{self.preset}: detection rate {100 * dd:+.1f} pp")
+        for est in self.mae["rendered"]:
+            for axis, r in zip(POSE_AXES, self.ratio(est), strict=True):
+                if not abs(r - 1.0) <= mae_tolerance:
+                    out.append(f"{self.preset}: {est} {axis} MAE ratio {r:.2f}")
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class CameraValidation:
+    """The validation over the presets (:func:`validate_camera_model`)."""
+
+    presets: dict[str, PresetValidation]
+    settings: dict[str, object] = field(default_factory=dict)
+
+    def failures(
+        self, mae_tolerance: float = MAE_TOLERANCE, detection_tolerance: float = DETECTION_TOLERANCE
+    ) -> list[str]:
+        """Every miss of the acceptance bounds, over all presets."""
+        return [f for v in self.presets.values() for f in v.failures(mae_tolerance, detection_tolerance)]
+
+    def markdown(self) -> str:
+        """The tables (one per preset): per estimator and axis the rendered and projected MAE and
+        their ratio; detection rates; corner RMS."""
+        lines: list[str] = []
+        for name, v in self.presets.items():
+            dpp = 100 * (v.detection["projected"] - v.detection["rendered"])
+            lines += [
+                f"**sensor_preset={name!r}**: {v.frames} frames ({v.trajectories} trajectories), "
+                f"detection rendered {100 * v.detection['rendered']:.1f} % / projected "
+                f"{100 * v.detection['projected']:.1f} % ({dpp:+.1f} pp); "
+                f"corner RMS vs projection rendered {v.corner_rms['rendered']:.3f} px / projected "
+                f"{v.corner_rms['projected']:.3f} px",
+                "",
+                "| estimator | axis | rendered MAE | projected MAE | ratio |",
+                "|---|---|---|---|---|",
+            ]
+            for est in v.mae["rendered"]:
+                for i, axis in enumerate(POSE_AXES):
+                    unit, fmt = ("mm", 1e3) if i < 3 else ("deg", 1.0)
+                    a, b = v.mae["rendered"][est][i] * fmt, v.mae["projected"][est][i] * fmt
+                    flag = "" if abs(v.ratio(est)[i] - 1) <= MAE_TOLERANCE else " **"
+                    lines.append(
+                        f"| {est} ({v.paired[est]} frames) | {axis} ({unit}) | {a:.3f} | {b:.3f} "
+                        f"| {b / a:.2f}{flag} |"
+                    )
+            lines.append("")
+        fails = self.failures()
+        lines.append(
+            "All within the bounds." if not fails else "Outside the bounds (**): " + "; ".join(fails)
+        )
+        return "\n".join(lines)
+
+
+def _estimators(cal: Calibration, tag_size: float, tag_id: int, tof_model: object) -> DeckPoseEstimator:
+    from ihrcf_env.wrappers.estimates import estimator_from_calibration, fused_params_for_tof
+
+    return estimator_from_calibration(
+        cal,
+        tag_size,
+        tag_id,
+        estimators=ESTIMATORS,
+        fused_params=fused_params_for_tof(tof_model),  # type: ignore[arg-type]
+    )
+
+
+def validate_preset(
+    preset: str,
+    trajectories: int = 24,
+    frames: int = 20,
+    seed: int = 0,
+    model: DetectorModel | None = None,
+    calibration: Calibration | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> PresetValidation:
+    """The paired comparison for one preset (see the module docstring): ``trajectories`` of
+    ``frames`` control steps each, seeded by ``seed``."""
+    from ihrcf_env.sim.sensors.camera import CameraConfig
+    from ihrcf_env.sim.sensors.imu import IMUConfig
+    from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
+    from ihrcf_env.sim.sensors.tof import ToFConfig
+    from ihrcf_env.sim.world import World, WorldConfig
+
+    if preset not in PRESETS:
+        raise ValueError(f"preset must be one of {tuple(PRESETS)}, got {preset!r}")
+    for name, count in (("trajectories", trajectories), ("frames", frames)):
+        if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+            raise ValueError(f"{name} must be a positive integer, got {count!r}")
+    t_start = time.perf_counter()
+    model = model if model is not None else DetectorModel.load()
+    cal = calibration if calibration is not None else Calibration.load(default_calibration_path())
+    cfg = PRESETS[preset]
+    wcfg = WorldConfig(
+        camera=CameraConfig(quality=cfg["camera_quality"]),
+        tof=ToFConfig(noise=cfg["tof_noise"]),
+        imu=IMUConfig(cfg["imu_noise"]),
+    )
+    rng = np.random.default_rng(seed)
+    world = World(wcfg)
+    try:
+        assert world.camera is not None
+        deck_cfg = wcfg.deck
+        proj = ProjectedTagCamera(world.client, wcfg.camera, wcfg.rig, world.deck, deck_cfg.tag_size, model)  # type: ignore[arg-type]
+        pipes = {m: _estimators(cal, deck_cfg.tag_size, deck_cfg.tag_id, wcfg.tof.model) for m in MODES}
+        detector = pipes["rendered"].detector
+        dt = wcfg.substeps / wcfg.physics_hz
+        errs: dict[str, dict[str, list[NDArray[np.float64]]]] = {
+            m: {e: [] for e in ESTIMATORS} for m in MODES
+        }
+        found = {m: 0 for m in MODES}
+        corner_sq: dict[str, list[float]] = {m: [] for m in MODES}
+        n = 0
+        for traj in range(trajectories):
+            ep_rng = np.random.default_rng([seed, traj])
+            profile: MotionProfile
+            if traj % 2 == 0:
+                profile = ShiftedProfile(paper_profile(), float(ep_rng.uniform(0.0, PAPER_DURATION)))
+            else:
+                profile = sea_state_profile(ep_rng)
+            altitude = float(ep_rng.uniform(0.45, 3.0))
+            reach = (altitude - 0.03) * math.tan(wcfg.camera.fov / 2)  # type: ignore[union-attr]
+            offset = ep_rng.uniform(-reach, reach, 2)
+            yaw = float(ep_rng.uniform(-math.pi, math.pi))
+            world.reset(
+                profile,
+                horizon_s=frames * dt + 2.0,
+                altitude=altitude,
+                offset_xy=(float(offset[0]), float(offset[1])),
+                yaw=yaw,
+            )
+            world.reset_random(ep_rng)
+            proj.reset(ep_rng, episode=world.camera.episode)
+            if ep_rng.random() < 0.5:
+                setpoint = np.zeros(4)
+            else:
+                v = ep_rng.uniform(-0.5, 0.5, 2)
+                vz = float(np.clip(ep_rng.uniform(-0.1, 0.1), (0.45 - altitude) / (frames * dt), 0.3))
+                setpoint = np.array([v[0], v[1], vz, ep_rng.uniform(-0.5, 0.5)])
+            world.set_velocity_setpoint(setpoint)
+            for pipe in pipes.values():
+                pipe.reset()
+            for _ in range(frames):
+                world.step()
+                state = world.body_state()
+                tof = world.tof.read(state, dt, rng)
+                imu_r = world.imu_sensor.read(state, dt, rng)
+                imu = ImuSample(imu_r["quaternion"], imu_r["angular_velocity"], imu_r["linear_acceleration"])
+                world.deck.update_visuals()
+                image = world.camera.read(state, dt, rng)["image"]
+                reading = proj.read(state, dt, rng)
+                truth = proj.last_features
+                corners = {
+                    "rendered": detector.detect(image),
+                    "projected": reading["tag_corners"] if bool(reading["tag_detected"]) else None,
+                }
+                p_bd, R_bd = world.deck_in_body()
+                gt_euler = euler_from_matrix(R_bd)
+                for mode in MODES:
+                    c = corners[mode]
+                    found[mode] += c is not None
+                    frame = SensorFrame(
+                        time=world.time,
+                        corners=c,
+                        ranges=np.asarray(tof["ranges"], dtype=np.float64),
+                        ranges_valid=np.asarray(tof["ranges_valid"]).astype(bool),
+                        corners_reason="" if c is not None else str(reading["tag_reason"]),
+                        imu=imu,
+                    )
+                    for est, out in pipes[mode].update(frame).items():
+                        errs[mode][est].append(
+                            pose_errors(out.position, out.euler, p_bd, gt_euler, [out.valid])[0]
+                        )
+                cr, cp = corners["rendered"], corners["projected"]
+                if truth is not None and cr is not None and cp is not None:
+                    corner_sq["rendered"].append(float(((cr - truth.corners) ** 2).mean()))
+                    corner_sq["projected"].append(float(((cp - truth.corners) ** 2).mean()))
+                n += 1
+            if progress is not None:
+                progress(traj + 1, trajectories)
+    finally:
+        world.close()
+    mae: dict[str, dict[str, NDArray[np.float64]]] = {m: {} for m in MODES}
+    paired: dict[str, int] = {}
+    valid: dict[str, dict[str, int]] = {m: {} for m in MODES}
+    for est in ESTIMATORS:
+        e = {m: np.array(errs[m][est]) for m in MODES}
+        ok = {m: np.all(np.isfinite(e[m]), axis=1) for m in MODES}
+        both = ok["rendered"] & ok["projected"]
+        paired[est] = int(both.sum())
+        for m in MODES:
+            valid[m][est] = int(ok[m].sum())
+            mae[m][est] = np.abs(e[m][both]).mean(axis=0) if both.any() else np.full(6, np.nan)
+    return PresetValidation(
+        preset=preset,
+        frames=n,
+        trajectories=trajectories,
+        detection={m: found[m] / max(n, 1) for m in MODES},
+        mae=mae,
+        paired=paired,
+        valid=valid,
+        corner_rms={m: math.sqrt(float(np.mean(corner_sq[m]))) if corner_sq[m] else math.nan for m in MODES},
+        seconds=time.perf_counter() - t_start,
+    )
+
+
+def validate_camera_model(
+    presets: Iterable[str] = tuple(PRESETS),
+    trajectories: int = 24,
+    frames: int = 20,
+    seed: int = 0,
+    model: DetectorModel | None = None,
+    calibration: Calibration | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> CameraValidation:
+    """:func:`validate_preset` for every preset in ``presets`` (same seed: the same trajectories
+    under both presets)."""
+    model = model if model is not None else DetectorModel.load()
+    out = {}
+    for preset in presets:
+        cb = None if progress is None else (lambda d, n, p=preset: progress(p, d, n))
+        out[preset] = validate_preset(preset, trajectories, frames, seed, model, calibration, cb)
+    settings: dict[str, object] = {
+        "trajectories": trajectories,
+        "frames": frames,
+        "seed": seed,
+        "model": model.source,
+    }
+    return CameraValidation(out, settings)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="python -m ihrcf_env.experiments.camera_validation",
+        description="Paired validation of the projected camera model against rendered frames + TagDetector.",
+    )
+    ap.add_argument("--trajectories", type=int, default=24, help="trajectories per preset (default 24)")
+    ap.add_argument("--frames", type=int, default=20, help="control steps per trajectory (default 20)")
+    ap.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    ap.add_argument("--presets", nargs="+", default=list(PRESETS), choices=list(PRESETS))
+    ap.add_argument("--model", default=None, help="detector model file (default: the shipped one)")
+    ap.add_argument("--markdown", default=None, help="also write the table to this file")
+    args = ap.parse_args(argv)
+    model = DetectorModel.load(args.model)
+    res = validate_camera_model(args.presets, args.trajectories, args.frames, args.seed, model)
+    text = res.markdown()
+    print(text)
+    for v in res.presets.values():
+        print(f"{v.preset}: {v.seconds:.1f} s")
+    if args.markdown:
+        Path(args.markdown).write_text(text + "\n", encoding="utf-8")
+    return 0 if not res.failures() else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,6 @@
+"""``python -m ihrcf_env.fit_detector``: see :mod:`ihrcf_env.cli.fit_detector`."""
+
+from ihrcf_env.cli.fit_detector import main
+
+if __name__ == "__main__":
+    raise SystemExit(main())
