@@ -78,8 +78,10 @@ class LandingConfig:
     drift_k1: float = 0.6  # 1/s, IMU altitude pulled towards the commanded altitude
     drift_k2: float = 0.12  # 1/s^2
     drift_k3: float = 0.008  # 1/s^3, accelerometer bias estimate
-    # Without ToF ranges (beyond their reach, e.g. a high start) fly on the estimate's height.
-    tag_height_fallback: bool = False
+    # Fly on the estimate's height when the ToF ranges are missing (beyond their reach, e.g. a high
+    # start) or disagree with it by more than ``tof_agreement`` (a cone straddling the deck's edge).
+    estimate_height: bool = False
+    tof_agreement: float = 0.15  # m
 
 
 @dataclass
@@ -225,10 +227,14 @@ class LandingController:
         self.vz_drone += c.drift_k2 * e * dt
         self.accel_bias -= c.drift_k3 * e * dt
         self.prev_accel_z = m.accel_z
-        self.height = m.tof_height
-        if self.height is None and c.tag_height_fallback:
+        tof_height = m.tof_height
+        if c.estimate_height and tof_height is not None and m.tag_height is not None:
+            if abs(tof_height - m.tag_height) > c.tof_agreement:
+                tof_height = None  # beams straddling the deck's edge (or off it): trust the estimate
+        self.height = tof_height
+        if self.height is None and c.estimate_height:
             self.height = m.tag_height
-        deck_z = None if m.tof_height is None else self.z_drone - m.tof_height
+        deck_z = None if tof_height is None else self.z_drone - tof_height
         self.heave.update(deck_z, dt)
         n = m.tag_normal if m.tag_normal is not None else m.tof_normal
         self.nx.update(None if n is None else float(n[0]), dt)

@@ -26,9 +26,11 @@ from ihrcf_env.control.landing import LandingConfig, LandingController
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.rig import SensorRig
 
-#: The landing controller's tunables on v1: starts up to 3 m high (beyond the ToF's reach in
-#: ambient light, so the height comes from the estimate until the ranges are valid).
-V1_LANDING_CONFIG = LandingConfig(tag_height_fallback=True)
+#: The landing controller's tunables on v1: starts up to 3 m high, beyond the ToF's reach in ambient
+#: light and where its cones straddle the deck's edge, so the height comes from the estimate until
+#: the ranges agree with it; no heading alignment (the task does not need it, and in gusts the
+#: autopilot's mixer drops yaw when a motor saturates, so a yaw command can run away).
+V1_LANDING_CONFIG = LandingConfig(estimate_height=True, k_yaw=0.0)
 
 
 class Policy(Protocol):

@@ -76,25 +76,25 @@ def dryden_low_altitude(height: float) -> tuple[float, float, float, float]:
 
 @dataclass(frozen=True)
 class DragModel:
-    """Aerodynamic force on the drone from its velocity through the air ``v_a`` (world, m/s)::
+    """Aerodynamic force on the drone from its velocity through the air ``v_a`` (world, m/s), in
+    the form of PX4's multirotor drag model (EKF2 wind estimation, ``src/modules/ekf2/
+    params_drag.yaml``)::
 
-        F = -mass (d_xy v_a_xy + d_z v_a_z) - 0.5 rho CdA |v_a| v_a        (N)
+        F = -mass (mcoef_xy v_a_xy + mcoef_z v_a_z) - mass 0.5 rho |v_a| v_a / bcoef        (N)
 
-    The linear term is rotor drag (blade flapping and induced drag, proportional to the thrust and
-    so, near hover, to the mass; Mahony, Kumar & Corke, "Multirotor aerial vehicles", IEEE RAM 19(3),
-    2012). Faessler, Franchi & Scaramuzza (IEEE RA-L 3(2), 2018) identified mass-normalised
-    horizontal coefficients of about 0.4-0.5 1/s on their ~1 kg quadrotor: ``d_xy = 0.4``. The
-    vertical one is smaller (the rotor's heave damping; ``d_z = 0.2``). The quadratic term is the
-    airframe's parasitic drag, a drag area ``CdA`` of a few hundredths of a square metre for a
-    1-2 kg quadrotor with its propellers (wind-tunnel drag areas of cross-frame quadrotors: Bannwarth
-    et al., "Aerodynamic force modeling of multirotor unmanned aerial vehicles", AIAA J. 57(3),
-    2019): ``CdA = 0.04 m^2``. At 5 m/s of wind a 1.2 kg drone feels 2.4 + 0.6 = 3.0 N (a 14 deg
-    lean to hold position)."""
+    The linear term is the propellers' momentum (rotor) drag, proportional to the thrust and so,
+    near hover, to the mass (Mahony, Kumar & Corke, "Multirotor aerial vehicles", IEEE RAM 19(3),
+    2012); the quadratic one the airframe's bluff-body drag with ballistic coefficient ``bcoef =
+    mass / CdA``. Defaults are PX4's (``EKF2_MCOEF`` = 0.15 1/s, ``EKF2_BCOEF_X/Y`` = 100 kg/m^2,
+    its starting values for a generic 1-2 kg quadrotor such as the X500); the vertical momentum
+    drag is taken equal to the horizontal one for lack of a better figure. Rotor drag identified
+    on small racing quadrotors is larger (about 0.4-0.5 1/s: Faessler, Franchi & Scaramuzza, IEEE
+    RA-L 3(2), 2018). At 5 m/s a 1.2 kg drone feels 0.9 + 0.2 = 1.1 N (a 5 deg lean)."""
 
     mass: float = 1.2  # kg, the simulated quadrotor's (QuadParams.mass)
-    d_xy: float = 0.4  # 1/s
-    d_z: float = 0.2  # 1/s
-    cda: float = 0.04  # m^2
+    mcoef_xy: float = 0.15  # 1/s
+    mcoef_z: float = 0.15  # 1/s
+    bcoef: float = 100.0  # kg/m^2
     rho: float = 1.225  # kg/m^3, sea-level air
 
     def __post_init__(self) -> None:
@@ -102,12 +102,15 @@ class DragModel:
             v = getattr(self, f.name)
             if isinstance(v, bool) or not isinstance(v, Real) or not math.isfinite(float(v)) or float(v) < 0:
                 raise ValueError(f"DragModel.{f.name} must be a finite number >= 0, got {v!r}")
+        if self.bcoef <= 0:
+            raise ValueError(f"DragModel.bcoef must be > 0 (kg/m^2), got {self.bcoef!r}")
 
     def force(self, air_velocity: Sequence[float]) -> tuple[float, float, float]:
         """Force (N, world) for the velocity through the air ``air_velocity`` (m/s, world)."""
         vx, vy, vz = (float(v) for v in air_velocity)
-        q = 0.5 * self.rho * self.cda * math.sqrt(vx * vx + vy * vy + vz * vz)
-        lin_xy, lin_z = self.mass * self.d_xy, self.mass * self.d_z
+        m = self.mass
+        q = m * 0.5 * self.rho / self.bcoef * math.sqrt(vx * vx + vy * vy + vz * vz)
+        lin_xy, lin_z = m * self.mcoef_xy, m * self.mcoef_z
         return (-(lin_xy + q) * vx, -(lin_xy + q) * vy, -(lin_z + q) * vz)
 
 
