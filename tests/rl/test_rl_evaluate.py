@@ -1,0 +1,42 @@
+"""The evaluate CLI on the shipped PPO policy (``rl`` marker): 2 episodes (at most 300 steps each)
+on the rendered camera, in a fresh interpreter as a user runs it."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.rl
+
+POLICY = Path(__file__).resolve().parents[2] / "examples" / "policies" / "ppo_landing_v1.zip"
+
+
+def test_evaluate_cli_runs_the_shipped_policy() -> None:
+    pytest.importorskip("stable_baselines3")
+    if not POLICY.is_file():
+        pytest.skip(f"no shipped policy at {POLICY} (train one with examples/train_ppo.py)")
+    cmd = [
+        sys.executable,
+        "-m",
+        "ihrcf_env.evaluate",
+        "--env-id",
+        "ihrcf_env/DeckLanding-v1",
+        "--policy",
+        str(POLICY),
+        "--episodes",
+        "2",
+        "--seed",
+        "0",
+        "--camera-model",
+        "rendered",
+        "--max-steps",
+        "300",
+    ]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    lines = proc.stdout.strip().splitlines()
+    assert re.fullmatch(r"success [0-2]/2", lines[-1]), proc.stdout[-3000:]

@@ -1,0 +1,124 @@
+"""PPO smoke test (stable-baselines3, ``rl`` marker): ``examples/train_ppo.py`` trains a few hundred
+steps on v1 with the projected camera over 2 processes, writes its curves and checkpoints, the
+saved policy reloads and reproduces its last held-out evaluation, and ``--resume`` continues."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.rl
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+CAMERA = "projected"
+TINY = [
+    "--n-steps",
+    "64",
+    "--batch-size",
+    "64",
+    "--n-epochs",
+    "2",
+    "--eval-every",
+    "128",
+    "--eval-episodes",
+    "2",
+    "--checkpoint-every",
+    "128",
+    "--max-episode-steps",
+    "60",
+    "--n-envs",
+    "2",
+    "--camera-model",
+    CAMERA,
+]
+
+
+def _example(name: str) -> ModuleType:
+    spec = importlib.util.spec_from_file_location(f"_example_{name}", EXAMPLES / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_running_norm_matches_numpy_and_clips() -> None:
+    pytest.importorskip("stable_baselines3")
+    import gymnasium as gym
+    import torch as th
+
+    from ihrcf_env.rl.sb3 import RunningNormExtractor
+
+    ext = RunningNormExtractor(gym.spaces.Box(-np.inf, np.inf, (3,), np.float32), clip=5.0)
+    rng = np.random.default_rng(0)
+    a = rng.normal([1.0, -2.0, 0.0], [0.5, 3.0, 1e-3], size=(40, 2, 3))
+    b = rng.normal([1.5, -1.0, 0.0], [0.5, 3.0, 1e-3], size=(25, 3))
+    ext.update(a)
+    bad = np.full((1, 3), np.nan)
+    ext.update(np.concatenate([b, bad]))  # the non-finite row is ignored
+    both = np.concatenate([a.reshape(-1, 3), b])
+    np.testing.assert_allclose(ext.mean.numpy(), both.mean(axis=0), rtol=1e-12)
+    np.testing.assert_allclose(ext.var.numpy(), both.var(axis=0), rtol=1e-10)
+    assert float(ext.count) == 105
+    x = th.as_tensor([[1.0, -2.0, 1.0]])
+    y = ext(x).numpy()[0]
+    np.testing.assert_allclose(
+        y[:2], (x.numpy()[0, :2] - both.mean(0)[:2]) / np.sqrt(both.var(0)[:2] + 1e-4), rtol=1e-5
+    )
+    assert y[2] == 5.0  # 1 / sqrt(1e-6 + 1e-4) = 99.5, clipped
+
+
+def test_train_ppo_saves_a_policy_that_reloads_and_resumes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+
+    from ihrcf_env.rl.curves import read_csv
+    from ihrcf_env.rl.envs import make_env
+    from ihrcf_env.rl.sb3 import RunningNormExtractor, evaluate_on_seeds, norm_extractors
+
+    train_ppo = _example("train_ppo")
+    out = tmp_path / "ppo"
+    assert train_ppo.main(["--total-steps", "256", "--out", str(out), *TINY]) == 0
+    text = capsys.readouterr().out
+    assert f"training PPO on ihrcf_env/DeckLanding-v1 (camera_model={CAMERA}, 2 envs)" in text
+    assert "256 steps in" in text and "held-out success: last" in text
+    for name in (
+        "final.zip",
+        "best.zip",
+        "curves.png",
+        "train.csv",
+        "eval.csv",
+        "checkpoints/latest.zip",
+        "checkpoints/vecnormalize.pkl",
+    ):
+        assert (out / name).stat().st_size > 0, name
+    assert (out / "final.zip").stat().st_size < 1_000_000  # a small policy file
+    evals = read_csv(out / "eval.csv")
+    assert [int(r["timesteps"]) for r in evals] == [128, 256]
+    assert all(0 <= float(r["success_rate"]) <= 1 for r in evals)
+    train_rows = read_csv(out / "train.csv")
+    steps = [int(r["timesteps"]) for r in train_rows]
+    assert train_rows and steps == sorted(steps) and all(0 < int(r["length"]) <= 60 for r in train_rows)
+
+    model = PPO.load(out / "final.zip", device="cpu")
+    (ext,) = norm_extractors(model)
+    assert isinstance(ext, RunningNormExtractor) and float(ext.count) == 128  # one rollout (2 x 64) merged
+    env = make_env("ihrcf_env/DeckLanding-v1", CAMERA, max_episode_steps=60)
+    try:
+        assert model.observation_space == env.observation_space
+        res = evaluate_on_seeds(model, env, [20_000, 20_001])  # the seeds of the run's evaluations
+    finally:
+        env.close()
+    assert res.mean_return == pytest.approx(float(evals[-1]["mean_return"]), rel=1e-6, abs=1e-9)
+    assert res.success_rate == float(evals[-1]["success_rate"])
+
+    assert train_ppo.main(["--total-steps", "384", "--out", str(out), "--resume", *TINY]) == 0
+    assert "resuming from" in capsys.readouterr().out
+    evals2 = read_csv(out / "eval.csv")
+    assert [int(r["timesteps"]) for r in evals2] == [128, 256, 384] and evals2[:2] == evals
+    assert PPO.load(out / "final.zip", device="cpu").num_timesteps == 384
