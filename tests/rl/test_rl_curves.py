@@ -6,6 +6,8 @@ marker and need the ``[rl]`` extra.
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -122,3 +124,12 @@ def test_success_info_at_episode_end(outcome: str, own: bool | None, expected: b
 def test_make_env_rejects_an_unknown_id() -> None:
     with pytest.raises(ValueError, match="env_id"):
         make_env("ihrcf_env/NoSuchEnv-v9")
+
+
+def test_importing_the_package_and_its_torch_free_rl_modules_loads_no_learning_library() -> None:
+    code = (
+        "import sys, ihrcf_env, ihrcf_env.rl, ihrcf_env.rl.curves, ihrcf_env.rl.envs, ihrcf_env.rl.rllib\n"
+        "print(sorted(m for m in ('torch', 'stable_baselines3', 'ray') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]", out.stdout + out.stderr
