@@ -51,7 +51,7 @@ class WindowedTagCamera:
     The generator ``rng`` is drawn from exactly as the full camera's ``read`` draws from it, so
     every other sensor sees the same random stream as with the full image.
 
-    ``margin`` (px, default 16) is what the detector needs around the black square to behave as
+    ``margin`` (px, default 14) is what the detector needs around the black square to behave as
     on the full frame: OpenCV's adaptive threshold looks up to 11 px away (23 px window), its
     corner refinement 6 px; plus the projected-vs-detected corner difference (< 1 px).
 
@@ -69,7 +69,7 @@ class WindowedTagCamera:
         deck: Deck,
         tag_size: float,
         tag_id: int,
-        margin: int = 16,
+        margin: int = 14,
         refine: str = "subpix",
     ) -> None:
         if not isinstance(camera, DownCamera):
