@@ -496,7 +496,9 @@ def _camera_options(
             if v != d
         ]
         if given:
-            raise ValueError(f"{', '.join(given)} has no effect with camera=False: drop it or turn the camera on")
+            raise ValueError(
+                f"{', '.join(given)} has no effect with camera=False: drop it or turn the camera on"
+            )
         return model, model_default, None, None
     if detector_model is None and model != "projected":
         return model, output, hz, None

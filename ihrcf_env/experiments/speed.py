@@ -74,7 +74,8 @@ def wrapped_speed(
 def mode_speeds(steps: int = 300, sensor_preset: str = "ideal") -> list[Speed]:
     """:func:`wrapped_speed` of every :data:`CAMERA_MODES` entry, in one run (ratios comparable)."""
     return [
-        wrapped_speed(label, {**kw, "sensor_preset": sensor_preset}, steps) for label, kw in CAMERA_MODES.items()
+        wrapped_speed(label, {**kw, "sensor_preset": sensor_preset}, steps)
+        for label, kw in CAMERA_MODES.items()
     ]
 
 
@@ -97,7 +98,11 @@ def _make_projected(control_hz: int) -> Callable[[], gym.Env]:
         import ihrcf_env  # noqa: F401  (registers the envs in the worker)
 
         return gym.make(
-            WRAPPED, camera_model="projected", flatten=True, max_episode_steps=None, **_hover_kwargs(control_hz)
+            WRAPPED,
+            camera_model="projected",
+            flatten=True,
+            max_episode_steps=None,
+            **_hover_kwargs(control_hz),
         )
 
     return make
