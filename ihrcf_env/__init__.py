@@ -6,6 +6,8 @@ Gymnasium env (``ihrcf_env.envs``) and wrappers on top. Importing this package r
 ``ihrcf_env/DeckLanding-v0`` (wrapped) and ``ihrcf_env/DeckLandingRaw-v0`` without importing PyBullet.
 """
 
+import warnings
+
 from gymnasium.envs.registration import register, registry
 
 __version__ = "0.1.0"
@@ -22,3 +24,9 @@ if ENV_V1_ID not in registry:
     register(
         id=ENV_V1_ID, entry_point="ihrcf_env.wrappers.landing_obs:make_deck_landing_v1", max_episode_steps=600
     )
+
+# v0 is not an outdated v1: it is the paper's hover experiment, kept as it is, and v1 is a different
+# task (landing). Gymnasium warns "out of date" on every make of a lower version; silence exactly that.
+warnings.filterwarnings(
+    "ignore", message=r".*ihrcf_env/DeckLanding-v0 is out of date", category=DeprecationWarning
+)

@@ -463,6 +463,8 @@ def make_deck_landing(
         if keep_image is not None or flatten:
             raise ValueError("keep_image and flatten are wrapper options: they have no effect with raw=True")
         return DeckLandingEnv(**env_kwargs)
+    if (keep_image is False or flatten) and env_kwargs.get("camera", True) is not False:
+        env_kwargs.setdefault("camera_output", "corners")
     cal = _load_calibration(calibration)
     env = DeckLandingEnv(**env_kwargs)
     try:
