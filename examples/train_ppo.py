@@ -103,8 +103,8 @@ def main(argv: list[str] | None = None) -> int:
     seeds = range(EVAL_SEED_BASE, EVAL_SEED_BASE + args.eval_episodes)
     callbacks = [  # evaluation and checkpoint see the statistics the policy was trained with
         sb3.EpisodeCsvCallback(train_log),
-        sb3.HeldOutEvalCallback(thunk, seeds, args.eval_every, eval_log, out / "best.zip"),
         ckpt,
+        sb3.HeldOutEvalCallback(thunk, seeds, args.eval_every, eval_log, out / "best.zip"),
         sb3.NormUpdateCallback(),
     ]
     print(f"training PPO on {env_id} (camera_model={args.camera_model}, {args.n_envs} envs)", flush=True)
