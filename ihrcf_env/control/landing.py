@@ -82,6 +82,11 @@ class LandingConfig:
     # start) or disagree with it by more than ``tof_agreement`` (a cone straddling the deck's edge).
     estimate_height: bool = False
     tof_agreement: float = 0.15  # m
+    # Tag lost for ``reacquire_after`` s before the drop: climb at ``reacquire_speed`` (m/s; 0: wait
+    # in place) up to ``reacquire_height`` above the hold height, where the view is wider.
+    reacquire_speed: float = 0.0
+    reacquire_after: float = 0.3
+    reacquire_height: float = 0.4
 
 
 @dataclass
@@ -311,6 +316,9 @@ class LandingController:
             else:  # height on the ranges, riding the heave
                 vz = float(np.clip(-c.k_z * (h - c.hold_height), -c.approach_speed, c.approach_speed))
                 vz += self.deck_velocity
+                lost = m.tag_xy is None and self.since_tag > c.reacquire_after
+                if c.reacquire_speed > 0 and lost and h < c.hold_height + c.reacquire_height:
+                    vz = c.reacquire_speed  # climb until the tag is back in view
             centred = m.tag_xy is not None and float(np.hypot(*m.tag_xy)) < c.centred_tolerance
             near = h is not None and abs(h - c.hold_height) < c.height_tolerance
             if self.phase == "approach" and near:

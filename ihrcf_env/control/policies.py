@@ -28,9 +28,11 @@ from ihrcf_env.core.rig import SensorRig
 
 #: The landing controller's tunables on v1: starts up to 3 m high, beyond the ToF's reach in ambient
 #: light and where its cones straddle the deck's edge, so the height comes from the estimate until
-#: the ranges agree with it; no heading alignment (the task does not need it, and in gusts the
-#: autopilot's mixer drops yaw when a motor saturates, so a yaw command can run away).
-V1_LANDING_CONFIG = LandingConfig(estimate_height=True, k_yaw=0.0)
+#: the ranges agree with it; a higher hold (0.75 m: the tag stays in view with the drone leaning
+#: into the wind) and a climb when the tag is lost before the drop; no heading alignment (the task
+#: does not need it, and in gusts the autopilot's mixer drops yaw when a motor saturates, so a yaw
+#: command can run away).
+V1_LANDING_CONFIG = LandingConfig(estimate_height=True, k_yaw=0.0, hold_height=0.75, reacquire_speed=0.2)
 
 
 class Policy(Protocol):
