@@ -41,6 +41,7 @@ from numpy.typing import NDArray
 from ihrcf_env.core.estimators.detector import TagDetector
 from ihrcf_env.core.estimators.detector_model import (
     FIT_COMMAND,
+    N_BASIS,
     QUALITIES,
     DetectorModel,
     DetectorSamples,
@@ -100,9 +101,7 @@ def collect_samples(
         deck = world.deck
         rig = world.config.rig
         tag_size = world.config.deck.tag_size
-        dummy = DetectorModel(
-            {q: QualityParams((0.0,) * 6, (0.0,) * 6, (0.0,) * 6, (0.0,) * 6) for q in QUALITIES}
-        )
+        dummy = DetectorModel({q: QualityParams(*[(0.0,) * N_BASIS] * 4) for q in QUALITIES})
         far_cfg = replace(cam_cfg, far=45.0)
         cams = {
             "near": (
@@ -207,13 +206,47 @@ def collect_samples(
     )
 
 
+def save_samples(samples: DetectorSamples, path: str | Path) -> None:
+    """Write collected frames to an ``.npz`` file (for analysis; :func:`load_samples` reads it)."""
+    np.savez_compressed(
+        path,
+        corners=samples.corners,
+        quiet_zone=samples.quiet_zone,
+        cos_view=samples.cos_view,
+        noise_ratio=samples.noise_ratio,
+        blur_px=samples.blur_px,
+        detected=samples.detected,
+        track=samples.track,
+        size=np.array([samples.width, samples.height]),
+    )
+
+
+def load_samples(path: str | Path) -> DetectorSamples:
+    """The frames written by :func:`save_samples`."""
+    with np.load(path) as d:
+        w, h = (int(v) for v in d["size"])
+        return DetectorSamples(
+            corners=d["corners"],
+            quiet_zone=d["quiet_zone"],
+            cos_view=d["cos_view"],
+            noise_ratio=d["noise_ratio"],
+            blur_px=d["blur_px"],
+            detected=d["detected"],
+            track=d["track"],
+            width=w,
+            height=h,
+        )
+
+
 def fit_detector_model(
     frames: int = 1200,
     seed: int = 0,
     progress: Callable[[str, int, int], None] | None = None,
+    samples_dir: str | Path | None = None,
 ) -> DetectorModel:
     """Collect frames of both qualities (:func:`collect_samples`, seeds ``seed`` and ``seed + 1``)
-    and fit the model; its ``fit`` record holds the settings, timings and the fit reports."""
+    and fit the model; its ``fit`` record holds the settings, timings and the fit reports. With
+    ``samples_dir`` the frames are also written there (``<quality>.npz``, :func:`save_samples`)."""
     from ihrcf_env import __version__
     from ihrcf_env.sim.sensors.camera import CameraConfig
 
@@ -224,6 +257,9 @@ def fit_detector_model(
         t1 = time.perf_counter()
         cb = None if progress is None else (lambda d, n, q=quality: progress(q, d, n))
         samples = collect_samples(quality, frames, seed + i, cb)
+        if samples_dir is not None:
+            Path(samples_dir).mkdir(parents=True, exist_ok=True)
+            save_samples(samples, Path(samples_dir) / f"{quality}.npz")
         t2 = time.perf_counter()
         params[quality], report = fit_quality(samples, with_extra=quality == "realistic")
         report["render_seconds"] = round(t2 - t1, 1)
@@ -258,6 +294,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     ap.add_argument("--frames", type=int, default=1200, help="track frames per camera quality (default 1200)")
+    ap.add_argument("--samples", default=None, help="also write the rendered frames (npz) to this folder")
     ap.add_argument("--quiet", action="store_true", help="no progress output")
     return ap
 
@@ -270,10 +307,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     out = Path(args.out) if args.out is not None else default_detector_model_path()
 
     def progress(quality: str, done: int, total: int) -> None:
-        if not args.quiet and (done == total or done % 25 == 0):
-            print(f"\r{quality:<9} {done}/{total} tracks", end="\n" if done == total else "", file=sys.stderr)
+        if not args.quiet and (done == total or done % 100 == 0):
+            print(f"{quality}: {done}/{total} tracks rendered", file=sys.stderr)
 
-    model = fit_detector_model(args.frames, args.seed, progress)
+    model = fit_detector_model(args.frames, args.seed, progress, args.samples)
     model.save(out)
     print(f"wrote {out} ({out.stat().st_size} bytes) in {model.fit['seconds']} s")
     for quality in QUALITIES:

@@ -77,7 +77,7 @@ class PresetValidation:
             frames.
         corner_rms: mode -> RMS corner error (px) against the exact projection, over frames where
             both modes found the tag.
-        seconds: wall time of the run.
+        seconds: wall time of the run. replicas: projected runs averaged.
     """
 
     preset: str
@@ -89,6 +89,7 @@ class PresetValidation:
     valid: dict[str, dict[str, int]]
     corner_rms: dict[str, float]
     seconds: float
+    replicas: int = 1
 
     def ratio(self, estimator: str) -> NDArray[np.float64]:
         """(6,) projected / rendered MAE of ``estimator``, per axis."""
@@ -170,15 +171,22 @@ def _estimators(cal: Calibration, tag_size: float, tag_id: int, tof_model: objec
 
 def validate_preset(
     preset: str,
-    trajectories: int = 24,
-    frames: int = 20,
+    trajectories: int = 40,
+    frames: int = 30,
     seed: int = 0,
     model: DetectorModel | None = None,
     calibration: Calibration | None = None,
     progress: Callable[[int, int], None] | None = None,
+    replicas: int = 1,
+    altitudes: tuple[float, float] = (0.45, 3.0),
+    offset_fraction: float = 1.0,
 ) -> PresetValidation:
     """The paired comparison for one preset (see the module docstring): ``trajectories`` of
-    ``frames`` control steps each, seeded by ``seed``."""
+    ``frames`` control steps each, seeded by ``seed``. ``replicas`` projected cameras (independent
+    noise, each with its own estimators) run beside the rendered one; their MAE and detection rate
+    are averaged (less sampling noise on the projected side). Start altitudes are uniform in
+    ``altitudes`` (m above the deck) and the horizontal offset uniform over a disk reaching
+    ``offset_fraction`` of the way to the image edge."""
     from ihrcf_env.sim.sensors.camera import CameraConfig
     from ihrcf_env.sim.sensors.imu import IMUConfig
     from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
@@ -187,9 +195,13 @@ def validate_preset(
 
     if preset not in PRESETS:
         raise ValueError(f"preset must be one of {tuple(PRESETS)}, got {preset!r}")
-    for name, count in (("trajectories", trajectories), ("frames", frames)):
+    for name, count in (("trajectories", trajectories), ("frames", frames), ("replicas", replicas)):
         if isinstance(count, bool) or not isinstance(count, int) or count < 1:
             raise ValueError(f"{name} must be a positive integer, got {count!r}")
+    if not (0.3 <= altitudes[0] <= altitudes[1] <= 5.0):
+        raise ValueError(f"altitudes must be (low, high) with 0.3 <= low <= high <= 5 m, got {altitudes!r}")
+    if not (0.0 <= offset_fraction <= 1.5):
+        raise ValueError(f"offset_fraction must be in [0, 1.5], got {offset_fraction!r}")
     t_start = time.perf_counter()
     model = model if model is not None else DetectorModel.load()
     cal = calibration if calibration is not None else Calibration.load(default_calibration_path())
@@ -200,18 +212,24 @@ def validate_preset(
         imu=IMUConfig(cfg["imu_noise"]),
     )
     rng = np.random.default_rng(seed)
+    replica_rngs = [np.random.default_rng([seed, 1, i]) for i in range(replicas)]
+    channels = ["rendered", *(f"projected{i}" for i in range(replicas))]
+    lo_alt, hi_alt = altitudes
     world = World(wcfg)
     try:
-        assert world.camera is not None
+        assert world.camera is not None and wcfg.camera is not None
         deck_cfg = wcfg.deck
-        proj = ProjectedTagCamera(world.client, wcfg.camera, wcfg.rig, world.deck, deck_cfg.tag_size, model)  # type: ignore[arg-type]
-        pipes = {m: _estimators(cal, deck_cfg.tag_size, deck_cfg.tag_id, wcfg.tof.model) for m in MODES}
+        projs = [
+            ProjectedTagCamera(world.client, wcfg.camera, wcfg.rig, world.deck, deck_cfg.tag_size, model)
+            for _ in range(replicas)
+        ]
+        pipes = {ch: _estimators(cal, deck_cfg.tag_size, deck_cfg.tag_id, wcfg.tof.model) for ch in channels}
         detector = pipes["rendered"].detector
         dt = wcfg.substeps / wcfg.physics_hz
         errs: dict[str, dict[str, list[NDArray[np.float64]]]] = {
-            m: {e: [] for e in ESTIMATORS} for m in MODES
+            ch: {e: [] for e in ESTIMATORS} for ch in channels
         }
-        found = {m: 0 for m in MODES}
+        found = dict.fromkeys(channels, 0)
         corner_sq: dict[str, list[float]] = {m: [] for m in MODES}
         n = 0
         for traj in range(trajectories):
@@ -221,9 +239,11 @@ def validate_preset(
                 profile = ShiftedProfile(paper_profile(), float(ep_rng.uniform(0.0, PAPER_DURATION)))
             else:
                 profile = sea_state_profile(ep_rng)
-            altitude = float(ep_rng.uniform(0.45, 3.0))
-            reach = (altitude - 0.03) * math.tan(wcfg.camera.fov / 2)  # type: ignore[union-attr]
-            offset = ep_rng.uniform(-reach, reach, 2)
+            altitude = float(ep_rng.uniform(lo_alt, hi_alt))
+            reach = (altitude - 0.03) * math.tan(wcfg.camera.fov / 2) * offset_fraction
+            heading = ep_rng.uniform(0.0, 2.0 * math.pi)
+            radius = reach * math.sqrt(ep_rng.uniform())  # uniform over the disk
+            offset = radius * np.array([math.cos(heading), math.sin(heading)])
             yaw = float(ep_rng.uniform(-math.pi, math.pi))
             world.reset(
                 profile,
@@ -233,12 +253,13 @@ def validate_preset(
                 yaw=yaw,
             )
             world.reset_random(ep_rng)
-            proj.reset(ep_rng, episode=world.camera.episode)
+            for proj, r in zip(projs, replica_rngs, strict=True):
+                proj.reset(r, episode=world.camera.episode)
             if ep_rng.random() < 0.5:
                 setpoint = np.zeros(4)
             else:
                 v = ep_rng.uniform(-0.5, 0.5, 2)
-                vz = float(np.clip(ep_rng.uniform(-0.1, 0.1), (0.45 - altitude) / (frames * dt), 0.3))
+                vz = float(np.clip(ep_rng.uniform(-0.1, 0.1), (lo_alt - altitude) / (frames * dt), 0.3))
                 setpoint = np.array([v[0], v[1], vz, ep_rng.uniform(-0.5, 0.5)])
             world.set_velocity_setpoint(setpoint)
             for pipe in pipes.values():
@@ -251,33 +272,40 @@ def validate_preset(
                 imu = ImuSample(imu_r["quaternion"], imu_r["angular_velocity"], imu_r["linear_acceleration"])
                 world.deck.update_visuals()
                 image = world.camera.read(state, dt, rng)["image"]
-                reading = proj.read(state, dt, rng)
-                truth = proj.last_features
-                corners = {
-                    "rendered": detector.detect(image),
-                    "projected": reading["tag_corners"] if bool(reading["tag_detected"]) else None,
-                }
+                corners: dict[str, NDArray[np.float64] | None] = {"rendered": detector.detect(image)}
+                reasons = {"rendered": ""}
+                for i, (proj, r) in enumerate(zip(projs, replica_rngs, strict=True)):
+                    reading = proj.read(state, dt, r)
+                    seen = bool(reading["tag_detected"])
+                    corners[f"projected{i}"] = reading["tag_corners"] if seen else None
+                    reasons[f"projected{i}"] = str(reading["tag_reason"])
+                truth = projs[0].last_features
                 p_bd, R_bd = world.deck_in_body()
                 gt_euler = euler_from_matrix(R_bd)
-                for mode in MODES:
-                    c = corners[mode]
-                    found[mode] += c is not None
+                ranges = np.asarray(tof["ranges"], dtype=np.float64)
+                ranges_valid = np.asarray(tof["ranges_valid"]).astype(bool)
+                for ch in channels:
+                    c = corners[ch]
+                    found[ch] += c is not None
                     frame = SensorFrame(
                         time=world.time,
                         corners=c,
-                        ranges=np.asarray(tof["ranges"], dtype=np.float64),
-                        ranges_valid=np.asarray(tof["ranges_valid"]).astype(bool),
-                        corners_reason="" if c is not None else str(reading["tag_reason"]),
+                        ranges=ranges,
+                        ranges_valid=ranges_valid,
+                        corners_reason=reasons[ch],
                         imu=imu,
                     )
-                    for est, out in pipes[mode].update(frame).items():
-                        errs[mode][est].append(
+                    for est, out in pipes[ch].update(frame).items():
+                        errs[ch][est].append(
                             pose_errors(out.position, out.euler, p_bd, gt_euler, [out.valid])[0]
                         )
-                cr, cp = corners["rendered"], corners["projected"]
-                if truth is not None and cr is not None and cp is not None:
-                    corner_sq["rendered"].append(float(((cr - truth.corners) ** 2).mean()))
-                    corner_sq["projected"].append(float(((cp - truth.corners) ** 2).mean()))
+                cr = corners["rendered"]
+                if truth is not None and cr is not None:
+                    for i in range(replicas):
+                        cp = corners[f"projected{i}"]
+                        if cp is not None:
+                            corner_sq["rendered"].append(float(((cr - truth.corners) ** 2).mean()))
+                            corner_sq["projected"].append(float(((cp - truth.corners) ** 2).mean()))
                 n += 1
             if progress is not None:
                 progress(traj + 1, trajectories)
@@ -287,46 +315,64 @@ def validate_preset(
     paired: dict[str, int] = {}
     valid: dict[str, dict[str, int]] = {m: {} for m in MODES}
     for est in ESTIMATORS:
-        e = {m: np.array(errs[m][est]) for m in MODES}
-        ok = {m: np.all(np.isfinite(e[m]), axis=1) for m in MODES}
-        both = ok["rendered"] & ok["projected"]
-        paired[est] = int(both.sum())
-        for m in MODES:
-            valid[m][est] = int(ok[m].sum())
-            mae[m][est] = np.abs(e[m][both]).mean(axis=0) if both.any() else np.full(6, np.nan)
+        e = {ch: np.array(errs[ch][est]) for ch in channels}
+        ok = {ch: np.all(np.isfinite(e[ch]), axis=1) for ch in channels}
+        rendered, projected, counts = [], [], []
+        for ch in channels[1:]:  # each replica paired with the rendered run
+            both = ok["rendered"] & ok[ch]
+            counts.append(int(both.sum()))
+            rendered.append(np.abs(e["rendered"][both]).mean(axis=0) if both.any() else np.full(6, np.nan))
+            projected.append(np.abs(e[ch][both]).mean(axis=0) if both.any() else np.full(6, np.nan))
+        mae["rendered"][est] = np.mean(rendered, axis=0)
+        mae["projected"][est] = np.mean(projected, axis=0)
+        paired[est] = int(round(float(np.mean(counts))))
+        valid["rendered"][est] = int(ok["rendered"].sum())
+        valid["projected"][est] = int(round(float(np.mean([ok[ch].sum() for ch in channels[1:]]))))
     return PresetValidation(
         preset=preset,
         frames=n,
         trajectories=trajectories,
-        detection={m: found[m] / max(n, 1) for m in MODES},
+        detection={
+            "rendered": found["rendered"] / max(n, 1),
+            "projected": float(np.mean([found[ch] for ch in channels[1:]])) / max(n, 1),
+        },
         mae=mae,
         paired=paired,
         valid=valid,
         corner_rms={m: math.sqrt(float(np.mean(corner_sq[m]))) if corner_sq[m] else math.nan for m in MODES},
         seconds=time.perf_counter() - t_start,
+        replicas=replicas,
     )
 
 
 def validate_camera_model(
     presets: Iterable[str] = tuple(PRESETS),
-    trajectories: int = 24,
-    frames: int = 20,
+    trajectories: int = 40,
+    frames: int = 30,
     seed: int = 0,
     model: DetectorModel | None = None,
     calibration: Calibration | None = None,
     progress: Callable[[str, int, int], None] | None = None,
+    replicas: int = 1,
+    altitudes: tuple[float, float] = (0.45, 3.0),
+    offset_fraction: float = 1.0,
 ) -> CameraValidation:
-    """:func:`validate_preset` for every preset in ``presets`` (same seed: the same trajectories
-    under both presets)."""
+    """:func:`validate_preset` for every preset in ``presets`` (same seed: the same starts under
+    both presets); see it for the arguments."""
     model = model if model is not None else DetectorModel.load()
     out = {}
     for preset in presets:
         cb = None if progress is None else (lambda d, n, p=preset: progress(p, d, n))
-        out[preset] = validate_preset(preset, trajectories, frames, seed, model, calibration, cb)
+        out[preset] = validate_preset(
+            preset, trajectories, frames, seed, model, calibration, cb, replicas, altitudes, offset_fraction
+        )
     settings: dict[str, object] = {
         "trajectories": trajectories,
         "frames": frames,
         "seed": seed,
+        "replicas": replicas,
+        "altitudes": altitudes,
+        "offset_fraction": offset_fraction,
         "model": model.source,
     }
     return CameraValidation(out, settings)
@@ -337,15 +383,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         prog="python -m ihrcf_env.experiments.camera_validation",
         description="Paired validation of the projected camera model against rendered frames + TagDetector.",
     )
-    ap.add_argument("--trajectories", type=int, default=24, help="trajectories per preset (default 24)")
-    ap.add_argument("--frames", type=int, default=20, help="control steps per trajectory (default 20)")
+    ap.add_argument("--trajectories", type=int, default=40, help="trajectories per preset (default 40)")
+    ap.add_argument("--frames", type=int, default=30, help="control steps per trajectory (default 30)")
+    ap.add_argument("--replicas", type=int, default=1, help="projected runs per frame, averaged (default 1)")
     ap.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     ap.add_argument("--presets", nargs="+", default=list(PRESETS), choices=list(PRESETS))
     ap.add_argument("--model", default=None, help="detector model file (default: the shipped one)")
     ap.add_argument("--markdown", default=None, help="also write the table to this file")
     args = ap.parse_args(argv)
     model = DetectorModel.load(args.model)
-    res = validate_camera_model(args.presets, args.trajectories, args.frames, args.seed, model)
+    res = validate_camera_model(
+        args.presets, args.trajectories, args.frames, args.seed, model, replicas=args.replicas
+    )
     text = res.markdown()
     print(text)
     for v in res.presets.values():

@@ -106,6 +106,8 @@ class ProjectedTagCamera:
         self._vignetting_exponent = float(im.vignetting_exponent)
         self._read_noise = float(im.read_noise_e)
         self._blur_threshold = float(im.blur_threshold_px)
+        self._e_per_dn = math.nan
+        self._deck_half = float(deck.config.thickness) / 2.0
 
     def reset(self, rng: np.random.Generator, episode: EpisodeImaging | None = None) -> None:
         """Start an episode: forget the correlated error; the realistic quality draws the episode's
@@ -116,72 +118,114 @@ class ProjectedTagCamera:
         self.track.reset()
         if self.quality == "realistic":
             self.episode = episode if episode is not None else draw_episode(self.camera.imaging, rng)
+            self._e_per_dn = self.camera.imaging.electrons_per_dn(self.episode.gain)
+
+    def _deck_pose(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """World pose of the deck frame (as :meth:`Deck.pose <ihrcf_env.sim.deck.Deck.pose>`, faster)."""
+        pos, quat = p.getBasePositionAndOrientation(self.deck.body, physicsClientId=self.client)
+        R = np.array(p.getMatrixFromQuaternion(quat)).reshape(3, 3)
+        return np.array(pos) + R[:, 2] * self._deck_half, R
+
+    def _geometry(
+        self, state: BodyState
+    ) -> tuple[
+        NDArray[np.float64],
+        NDArray[np.float64],
+        NDArray[np.float64],
+        NDArray[np.float64],
+        NDArray[np.float64],
+    ]:
+        """(eye, R_wb, R_wc, R_wd, world points (9, 3): corners, quiet zone, centre)."""
+        R_wb = np.asarray(state.rotation, dtype=np.float64)
+        eye = np.asarray(state.position, dtype=np.float64) + R_wb @ self._cam_offset
+        deck_pos, R_wd = self._deck_pose()
+        return eye, R_wb, R_wb @ R_BODY_CAM, R_wd, deck_pos + self._points_deck @ R_wd.T
+
+    def _rays(
+        self, eye: NDArray[np.float64], R_wc: NDArray[np.float64], pts_w: NDArray[np.float64], axis: bool
+    ) -> tuple[bool, float]:
+        """One ``rayTestBatch``: occlusion of the four corners and the centre (rays stop
+        :data:`RAY_MARGIN_M` short of the deck surface) and, with ``axis``, the depth (m) along the
+        optical axis to the first collision body (else to the ground plane z = 0, as the rendered
+        camera's blur uses the z-buffer at the principal point; NaN without ``axis``)."""
+        targets = pts_w[[0, 1, 2, 3, 8]]
+        d = targets - eye
+        ends = targets - d * (RAY_MARGIN_M / np.sqrt((d * d).sum(axis=1)))[:, None]
+        far = self.camera.far
+        starts = [eye.tolist()] * (6 if axis else 5)
+        end_list = ends.tolist()
+        if axis:
+            end_list.append((eye + R_wc[:, 2] * far).tolist())
+        hits = p.rayTestBatch(starts, end_list, physicsClientId=self.client)
+        occluded = any(h[0] >= 0 for h in hits[:5])
+        depth = math.nan
+        if axis:
+            h = hits[5]
+            if h[0] >= 0:
+                depth = float(h[2]) * far
+            else:
+                down = -float(R_wc[2, 2])
+                depth = float(eye[2]) / down if down > 1e-3 else far
+        return occluded, depth
 
     def features(self, state: BodyState) -> tuple[TagFeatures | None, str]:
         """The frame's :class:`TagFeatures` from the true state, or ``(None, reason)`` when the tag
         is outside the camera's depth range. Occlusion is not checked here (see :meth:`occluded`)."""
-        pos = np.asarray(state.position, dtype=np.float64)
-        R_wb = np.asarray(state.rotation, dtype=np.float64)
-        eye = pos + R_wb @ self._cam_offset
-        R_wc = R_wb @ R_BODY_CAM
-        deck_pos, R_wd = self.deck.pose()
-        pts_w = deck_pos + self._points_deck @ R_wd.T
-        P = (pts_w - eye) @ R_wc  # camera frame
-        c = self.camera
-        if P[:8, 2].min() <= c.near or P[:4, 2].max() >= c.far:
-            return None, REASON_DEPTH
-        px = project_points(P[:8], self.K, self._dist)
-        centre = P[8]
-        cos_view = abs(float(R_wd[:, 2] @ R_wc @ centre)) / float(np.linalg.norm(centre))
-        noise_ratio: NDArray[np.float64] | float = 0.0
-        blur = 0.0
-        ep = self.episode
-        if self.quality == "realistic":
-            if ep is None:
-                raise RuntimeError("the realistic projected camera needs reset(rng) before read")
-            x = P[:4, :2] / P[:4, 2:3]
-            vig = (1.0 + (x * x).sum(axis=1)) ** (-0.5 * self._vignetting_exponent)
-            light = np.asarray(ep.light_direction)
-            shade = min(1.0, ep.ambient + ep.diffuse * max(0.0, float(R_wd[:, 2] @ light)))
-            white = np.minimum(FULL_SCALE_DN * shade * ep.brightness * vig, FULL_SCALE_DN)
-            noise_ratio = noise_to_contrast(white, c.imaging.electrons_per_dn(ep.gain), self._read_noise)
-            omega = np.asarray(state.angular_velocity, dtype=np.float64)
-            v_eye = np.asarray(state.velocity, dtype=np.float64) + np.cross(omega, R_wb @ self._cam_offset)
-            du, dv = image_motion_px(self.K, R_wc, v_eye, omega, self._axis_depth(eye, R_wc), ep.exposure_s)
-            blur = math.hypot(du, dv)
-            if blur <= self._blur_threshold:  # the rendered camera does not blur below it
-                blur = 0.0
-        return (
-            tag_features(px[:4], px[4:], cos_view, c.width, c.height, noise_ratio, blur),
-            "",
-        )
-
-    def _axis_depth(self, eye: NDArray[np.float64], R_wc: NDArray[np.float64]) -> float:
-        """Distance (m) along the optical axis to the first collision body, else to the ground plane
-        z = 0 (as the rendered camera's blur uses the z-buffer at the principal point)."""
-        far = self.camera.far
-        hit = p.rayTestBatch(
-            [eye.tolist()], [(eye + R_wc[:, 2] * far).tolist()], physicsClientId=self.client
-        )[0]
-        if hit[0] >= 0:
-            return float(hit[2]) * far
-        down = -float(R_wc[2, 2])
-        return float(eye[2]) / down if down > 1e-3 else far
+        f, reason, _ = self._observe(state, rays=False)
+        return f, reason
 
     def occluded(self, state: BodyState) -> bool:
         """Whether a collision body lies between the optical centre and any of the tag's four
         corners or its centre (rays stop :data:`RAY_MARGIN_M` short of the deck surface)."""
-        pos = np.asarray(state.position, dtype=np.float64)
-        R_wb = np.asarray(state.rotation, dtype=np.float64)
-        eye = pos + R_wb @ self._cam_offset
-        deck_pos, R_wd = self.deck.pose()
-        targets = deck_pos + self._points_deck[[0, 1, 2, 3, 8]] @ R_wd.T
-        d = targets - eye
-        dist = np.linalg.norm(d, axis=1, keepdims=True)
-        ends = targets - d / dist * RAY_MARGIN_M
-        starts = np.broadcast_to(eye, ends.shape)
-        hits = p.rayTestBatch(starts.tolist(), ends.tolist(), physicsClientId=self.client)
-        return any(h[0] >= 0 for h in hits)
+        eye, _, R_wc, _, pts_w = self._geometry(state)
+        return self._rays(eye, R_wc, pts_w, axis=False)[0]
+
+    def _observe(self, state: BodyState, rays: bool) -> tuple[TagFeatures | None, str, bool]:
+        """(features or None, reason, occluded); the rays are cast only with ``rays`` (then the
+        realistic camera's scene depth comes from the same batch)."""
+        eye, R_wb, R_wc, R_wd, pts_w = self._geometry(state)
+        P = (pts_w - eye) @ R_wc  # camera frame
+        c = self.camera
+        z = P[:8, 2]
+        if z.min() <= c.near or z[:4].max() >= c.far:
+            return None, REASON_DEPTH, False
+        realistic = self.quality == "realistic"
+        occluded, depth = self._rays(eye, R_wc, pts_w, realistic) if rays else (False, math.nan)
+        px = project_points(P[:8], self.K, self._dist)
+        centre = P[8]
+        n_c = R_wd[:, 2] @ R_wc
+        cos_view = abs(float(n_c @ centre)) / math.sqrt(float(centre @ centre))
+        noise_ratio: NDArray[np.float64] | float = 0.0
+        blur = 0.0
+        if realistic:
+            ep = self.episode
+            if ep is None:
+                raise RuntimeError("the realistic projected camera needs reset(rng) before read")
+            x = P[:4, :2] / P[:4, 2:3]
+            vig = (1.0 + (x * x).sum(axis=1)) ** (-0.5 * self._vignetting_exponent)
+            light = ep.light_direction
+            n_w = R_wd[:, 2]
+            cos_light = float(n_w[0] * light[0] + n_w[1] * light[1] + n_w[2] * light[2])
+            shade = min(1.0, ep.ambient + ep.diffuse * max(0.0, cos_light))
+            white = np.minimum(FULL_SCALE_DN * shade * ep.brightness * vig, FULL_SCALE_DN)
+            noise_ratio = noise_to_contrast(white, self._e_per_dn, self._read_noise)
+            omega = np.asarray(state.angular_velocity, dtype=np.float64)
+            r = R_wb @ self._cam_offset
+            v_eye = np.asarray(state.velocity, dtype=np.float64) + np.array(
+                [
+                    omega[1] * r[2] - omega[2] * r[1],
+                    omega[2] * r[0] - omega[0] * r[2],
+                    omega[0] * r[1] - omega[1] * r[0],
+                ]
+            )
+            if math.isnan(depth):
+                depth = self._rays(eye, R_wc, pts_w, True)[1]
+            du, dv = image_motion_px(self.K, R_wc, v_eye, omega, depth, ep.exposure_s)
+            blur = math.hypot(du, dv)
+            if blur <= self._blur_threshold:  # the rendered camera does not blur below it
+                blur = 0.0
+        f = tag_features(px[:4], px[4:], cos_view, c.width, c.height, noise_ratio, blur)
+        return f, "", occluded
 
     def read(self, state: BodyState, dt: float, rng: np.random.Generator) -> dict[str, NDArray]:
         """:func:`~ihrcf_env.sim.sensors.base.tag_reading` of the frame at ``state``. Draws 8
@@ -189,13 +233,13 @@ class ProjectedTagCamera:
         realistic episode first, if :meth:`reset` was not called)."""
         if self.quality == "realistic" and self.episode is None:
             self.reset(rng)  # as the rendered camera: the episode drawn at the first read
-        f, reason = self.features(state)
+        f, reason, occluded = self._observe(state, rays=True)
         self.last_features = f
         if f is None:
             rng.standard_normal((4, 2))
             rng.random()
             return tag_reading(None, reason)
         corners, reason = self.model.corners(f, rng, self.quality, self.track)
-        if corners is not None and self.occluded(state):
+        if corners is not None and occluded:
             return tag_reading(None, REASON_OCCLUDED)
         return tag_reading(corners, reason)
