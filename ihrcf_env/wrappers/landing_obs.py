@@ -242,8 +242,9 @@ def make_deck_landing_v1(
 ) -> gym.Env:
     """Entry point of ``ihrcf_env/DeckLanding-v1``: :class:`~ihrcf_env.envs.landing_v1.DeckLandingV1Env`
     wrapped with the estimators (:class:`DeckPoseObservation`, no image) and
-    :class:`LandingObservation`; ``raw=True`` gives the raw env. Options are checked before any
-    physics client exists; a failed wrapper closes the env."""
+    :class:`LandingObservation`; ``raw=True`` gives the raw env. No image is observed, so the rendered
+    camera renders only the tag's window (``camera_output="corners"`` unless given). Options are
+    checked before any physics client exists; a failed wrapper closes the env."""
     names = check_wrapper_options(calibration, False, False, max_residual, estimators, raw, fused_params)
     if not isinstance(privileged, bool | np.bool_):
         raise TypeError(f"privileged must be True or False, got {type(privileged).__name__} {privileged!r}")
@@ -253,12 +254,14 @@ def make_deck_landing_v1(
         if privileged:
             raise ValueError("privileged is an observation-wrapper option: it has no effect with raw=True")
         return DeckLandingV1Env(**env_kwargs)
-    cal = _load_calibration(calibration)
+    if env_kwargs.get("camera", True) is not False:
+        env_kwargs.setdefault("camera_output", "corners")  # no image in the observation: the tag window
+    _load_calibration(calibration)  # a bad file fails before any physics client exists
     env = DeckLandingV1Env(**env_kwargs)
     try:
         poses = DeckPoseObservation(
             env,
-            calibration=cal,
+            calibration=calibration,  # as given: the env spec records it (gym.make(env.spec) rebuilds)
             keep_image=False,
             max_residual=max_residual,
             estimators=names,

@@ -1,0 +1,242 @@
+"""The RL observation of DeckLanding-v1: one float32 Box, named slices, no ground truth by default,
+check_env (Gymnasium, and SB3 when installed), is_success, determinism, held estimates."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium import spaces
+from gymnasium.utils.env_checker import check_env
+
+import ihrcf_env
+from ihrcf_env.wrappers.landing_obs import (
+    MAX_AGE,
+    POSITION_SCALE,
+    LandingObservation,
+    heading_rotation,
+    landing_obs_fields,
+)
+
+KW = {"horizon_s": 60.0}
+
+
+def make(**kwargs: Any) -> gym.Env:
+    return gym.make(ihrcf_env.ENV_V1_ID, **{**KW, **kwargs})
+
+
+def test_layout_is_documented_and_contiguous() -> None:
+    slices, scales, low, high = landing_obs_fields()
+    assert slices["all"] == slice(0, 50) and low.shape == high.shape == (50,)
+    assert GROUND_TRUTH_FREE(slices)
+    assert slices["ranges"] == slice(0, 4) and slices["nav_velocity"] == slice(17, 20)
+    assert (
+        slices["ihrcf"] == slice(20, 30)
+        and slices["atda"] == slice(30, 40)
+        and slices["fused"] == slice(40, 50)
+    )
+    assert slices["fused.position"] == slice(40, 43) and slices["fused.age"] == slice(49, 50)
+    assert scales["ranges"] == 4.0 and scales["fused.position"] == POSITION_SCALE
+    covered = np.zeros(50, int)
+    for name, sl in slices.items():
+        if "." in name or name in ("ranges", "ranges_valid", "nav_velocity"):
+            covered[sl] += 1
+    assert np.all(covered == 1)  # the leaf fields tile the vector exactly once
+    assert np.all(low < high)
+    p_slices, _, p_low, _ = landing_obs_fields(privileged=True)
+    assert p_slices["all"] == slice(0, 64) and p_slices["ground_truth"] == slice(50, 64)
+    assert np.array_equal(p_low[:50], low)
+
+
+def GROUND_TRUTH_FREE(slices: dict[str, slice]) -> bool:
+    return not any(k.startswith("ground_truth") for k in slices)
+
+
+def test_check_env_passes_without_warnings() -> None:
+    env = make()
+    try:
+        assert isinstance(env.observation_space, spaces.Box) and env.observation_space.dtype == np.float32
+        assert env.observation_space.shape == (50,)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            check_env(env.unwrapped, skip_render_check=True)  # the raw v1 env
+            check_env(env, skip_render_check=True)  # as made (wrappers, TimeLimit)
+        ours = [str(w.message) for w in caught if "different from the unwrapped" not in str(w.message)]
+        assert ours == [], ours
+    finally:
+        env.close()
+
+
+def test_sb3_check_env() -> None:
+    sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
+    env = make()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            sb3_checker.check_env(env, warn=True)
+        assert [str(w.message) for w in caught] == []
+    finally:
+        env.close()
+
+
+def test_no_ground_truth_by_default_and_privileged_block() -> None:
+    """The default observation equals the first 50 values of the privileged one; the 14 more are
+    the true deck pose (heading frame), relative velocity and wind, as in info."""
+    env, priv = make(), make(privileged=True)
+    try:
+        assert GROUND_TRUTH_FREE(env.get_wrapper_attr("obs_slices"))
+        assert priv.observation_space.shape == (64,)
+        obs, info = env.reset(seed=5)
+        pobs, pinfo = priv.reset(seed=5)
+        for _ in range(5):
+            a = np.array([0.2, -0.1, -0.2, 0.0], np.float32)
+            obs, *_, info = env.step(a)
+            pobs, *_, pinfo = priv.step(a)
+        assert np.array_equal(obs, pobs[:50])
+        s = priv.get_wrapper_attr("obs_slices")
+        R_lb, R_lw = heading_rotation(pinfo["drone_quaternion_world"])
+        assert pobs[s["ground_truth.position"]] * POSITION_SCALE == pytest.approx(
+            R_lb @ pinfo["deck_position_body"], abs=1e-5
+        )
+        assert pobs[s["ground_truth.velocity"]] == pytest.approx(R_lw @ pinfo["relative_velocity"], abs=1e-5)
+        assert pobs[s["ground_truth.wind"]] == pytest.approx(R_lw @ pinfo["wind_velocity"], abs=1e-5)
+        # ground truth is always in info, whatever the observation
+        for key in ("deck_position_body", "deck_euler_body", "drone_position_world", "relative_velocity"):
+            assert key in info
+    finally:
+        env.close()
+        priv.close()
+
+
+def test_estimate_blocks_decode_to_the_estimates() -> None:
+    env = make()
+    try:
+        obs, info = env.reset(seed=2)
+        for _ in range(15):  # the fused filter converges in 10 frames
+            obs, *_, info = env.step(np.zeros(4, np.float32))
+        s, sc = env.get_wrapper_attr("obs_slices"), env.get_wrapper_attr("obs_scales")
+        assert env.observation_space.contains(obs)
+        assert obs[s["fused.valid"]][0] == 1.0 and obs[s["atda.valid"]][0] == 1.0
+        # the estimate, in the heading frame, is close to the truth (a few cm at ~2 m)
+        R_lb, _ = heading_rotation(info["drone_quaternion_world"])
+        truth = R_lb @ info["deck_position_body"]
+        assert obs[s["fused.position"]] * sc["fused.position"] == pytest.approx(truth, abs=0.1)
+        assert obs[s["fused.normal"]][2] > 0.97  # the deck tilts a few degrees
+        assert math.hypot(*obs[s["fused.yaw"]]) == pytest.approx(1.0, abs=1e-5)
+        assert obs[s["fused.age"]][0] == pytest.approx(info["fused_age"])
+        assert np.linalg.norm(obs[s["imu.up"]]) == pytest.approx(1.0, abs=1e-5)
+        assert obs[s["imu.linear_acceleration"]][2] == pytest.approx(1.0, abs=0.1)  # hovering
+        assert np.all(obs[s["ranges_valid"]] == np.isin(obs[s["ranges_valid"]], (0.0, 1.0)))
+    finally:
+        env.close()
+
+
+def test_is_success_and_determinism() -> None:
+    env = make()
+    try:
+        rng = np.random.default_rng(0)
+        actions = rng.uniform(-1, 1, (12, 4)).astype(np.float32)
+        runs = []
+        for _ in range(2):
+            obs, info = env.reset(seed=11)
+            assert info["is_success"] is False
+            seq = [obs]
+            for a in actions:
+                obs, _, terminated, truncated, info = env.step(a)
+                assert "is_success" in info and info["is_success"] == (info["outcome"] == "success")
+                seq.append(obs)
+            runs.append(np.array(seq))
+        assert runs[0].tobytes() == runs[1].tobytes()  # bitwise equal
+        other, _ = env.reset(seed=12)
+        assert not np.array_equal(other, runs[0][0])
+    finally:
+        env.close()
+
+
+class _FakePoses(gym.Env):
+    """A minimal stand-in for the estimates wrapper: scripted estimate validity and times."""
+
+    metadata: dict[str, Any] = {"render_modes": []}
+
+    def __init__(self) -> None:
+        self.pose_keys = ("fused", "ground_truth")
+        self.observation_space = spaces.Dict({})
+        self.action_space = spaces.Box(-1, 1, (4,), np.float32)
+        self.config = type("C", (), {"tof": type("T", (), {"max_range": 4.0})()})()
+        self.t = 0.0
+        self.valid = [1, 1, 0, 0, 0, 1]
+
+    def _obs(self) -> tuple[dict, dict]:
+        k = round(self.t / 0.05)
+        v = self.valid[min(k, len(self.valid) - 1)]
+        est = {"position": np.array([0.1 * k, 0.0, -2.0]), "euler": np.zeros(3), "valid": v}
+        imu = {"quaternion": np.array([0, 0, 0, 1.0]), "angular_velocity": np.zeros(3)}
+        imu["linear_acceleration"] = np.array([0, 0, 9.81])
+        obs = {"ranges": np.full(4, 4.0), "ranges_valid": np.zeros(4), "imu": imu, "fused": est}
+        return obs, {"time": self.t, "fused_age": 0.0, "nav_velocity": np.zeros(3)}
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        self.t = 0.0
+        return self._obs()
+
+    def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:
+        self.t += 0.05
+        obs, info = self._obs()
+        return obs, 0.0, False, False, info
+
+
+def test_invalid_estimates_hold_the_last_values_and_age() -> None:
+    env = LandingObservation(_FakePoses())
+    s = env.obs_slices
+    obs, _ = env.reset()
+    assert obs[s["fused.valid"]][0] == 1.0 and obs[s["fused.age"]][0] == 0.0
+    obs, *_ = env.step(np.zeros(4))
+    held = obs[s["fused.position"]].copy()
+    assert held[0] * POSITION_SCALE == pytest.approx(0.1)
+    for k in (2, 3, 4):  # invalid: the values of step 1 stay, their age grows
+        obs, *_ = env.step(np.zeros(4))
+        assert obs[s["fused.valid"]][0] == 0.0
+        assert np.array_equal(obs[s["fused.position"]], held)
+        assert obs[s["fused.age"]][0] == pytest.approx(0.05 * (k - 1))
+    obs, *_ = env.step(np.zeros(4))  # valid again
+    assert obs[s["fused.valid"]][0] == 1.0 and obs[s["fused.age"]][0] == 0.0
+    assert obs[s["fused.position"]][0] * POSITION_SCALE == pytest.approx(0.5)
+    # never valid: zeros and the largest age
+    fake = _FakePoses()
+    fake.valid = [0]
+    never = LandingObservation(fake)
+    obs, _ = never.reset()
+    assert np.all(obs[s["fused.position"]] == 0) and obs[s["fused.age"]][0] == MAX_AGE
+
+
+def test_bad_wrapper_options() -> None:
+    with pytest.raises(TypeError, match="privileged"):
+        make(privileged="yes")
+    with pytest.raises(ValueError, match="privileged"):
+        make(raw=True, privileged=True)
+    with pytest.raises(TypeError, match="max_residual"):
+        make(max_residual="0.01")
+    with pytest.raises(TypeError, match="privileged"):
+        LandingObservation(_FakePoses(), privileged=1)  # type: ignore[arg-type]
+
+
+def test_the_tag_is_in_view_at_the_start() -> None:
+    """ATDA (tag corners + K) is valid at reset: on drawn starts and on the worst corner of the start
+    region (lowest altitude, largest offset, along the image diagonal)."""
+    env = make()
+    base = env.unwrapped
+    try:
+        s = env.get_wrapper_attr("obs_slices")
+        for seed in range(8):
+            obs, info = env.reset(seed=seed)
+            assert obs[s["atda.valid"]][0] == 1.0, (seed, info["atda_reason"])
+        r = base.start_radius(1.5)
+        for yaw in (math.pi / 4, -3 * math.pi / 4):
+            obs, info = env.reset(seed=0, options={"altitude": 1.5, "offset": (r, 0.0), "yaw": yaw})
+            assert obs[s["atda.valid"]][0] == 1.0, (yaw, info["atda_reason"])
+    finally:
+        env.close()
