@@ -87,6 +87,10 @@ class LandingConfig:
     reacquire_speed: float = 0.0
     reacquire_after: float = 0.3
     reacquire_height: float = 0.4
+    # The heave filter is forgotten after ``heave_timeout`` s without ToF heights, and its rate is
+    # clipped to +-``max_deck_velocity`` (m/s) where it is used (inf: as before).
+    heave_timeout: float = math.inf
+    max_deck_velocity: float = math.inf
 
 
 @dataclass
@@ -102,6 +106,7 @@ class Measurement:
     tof_full: bool  # all four beams valid and on one plane
     accel_z: float  # world vertical acceleration (m/s^2, gravity removed)
     tag_height: float | None = None  # height of the body origin above the deck origin (estimate)
+    velocity_z: float | None = None  # the drone's world vertical velocity (m/s), e.g. the autopilot's
 
 
 def _tilt(nx: float, ny: float) -> float:
@@ -157,6 +162,7 @@ class LandingController:
         self.ny.reset()
         self.settled_for = 0.0
         self.since_tag = 0.0
+        self.since_range = 0.0  # s without a ToF height of the deck
         self.seen_tag = False
         self.height: float | None = None
         self.commit_time: float | None = None
@@ -190,11 +196,15 @@ class LandingController:
         tag_normal: NDArray[np.float64] | None,
         ranges: Any,
         ranges_valid: Any,
+        velocity_z: float | None = None,
     ) -> Measurement:
         """The :class:`Measurement` of quantities already in the level heading frame: ``R_lb``
         (level-from-body), the world vertical acceleration ``accel_z`` (m/s^2, gravity removed),
         the deck origin ``tag_level`` (m), yaw (rad) and normal from the estimate (None: no valid
-        estimate), and the ToF ``ranges`` (m) with their validity."""
+        estimate), and the ToF ``ranges`` (m) with their validity; ``velocity_z`` (m/s, optional):
+        the drone's vertical velocity from its navigation, flown on instead of the integrated
+        accelerometer (whose offset, up to ~0.5 m/s^2 on a BMI088, the altitude filter only learns
+        over tens of seconds)."""
         tag_xy = tag_height = None
         if tag_level is not None:
             tag_xy = tag_level[:2]
@@ -215,22 +225,35 @@ class LandingController:
         elif valid.any():
             tof_height = float(np.mean(ranges[valid])) - float(self.sensors[0, 2])
         return Measurement(
-            R_lb, tag_xy, tag_yaw, tag_normal, tof_height, tof_normal, tof_full, accel_z, tag_height
+            R_lb,
+            tag_xy,
+            tag_yaw,
+            tag_normal,
+            tof_height,
+            tof_normal,
+            tof_full,
+            accel_z,
+            tag_height,
+            velocity_z,
         )
 
     def _update_state(self, m: Measurement) -> None:
         """Integrate the IMU altitude, update the heave and deck-normal filters and the tag timers."""
         c, dt = self.cfg, self.dt
-        a_prev = m.accel_z if self.prev_accel_z is None else self.prev_accel_z
-        v_new = self.vz_drone + (0.5 * (a_prev + m.accel_z) - self.accel_bias) * dt
-        self.z_drone += 0.5 * (self.vz_drone + v_new) * dt
-        self.vz_drone = v_new
-        # complementary correction towards the commanded altitude: removes the integration drift
-        # and, through the bias state, a constant accelerometer offset
-        e = self.z_cmd - self.z_drone
-        self.z_drone += c.drift_k1 * e * dt
-        self.vz_drone += c.drift_k2 * e * dt
-        self.accel_bias -= c.drift_k3 * e * dt
+        if m.velocity_z is not None:  # the autopilot's vertical velocity: integrate it
+            self.z_drone += 0.5 * (self.vz_drone + m.velocity_z) * dt
+            self.vz_drone = m.velocity_z
+        else:
+            a_prev = m.accel_z if self.prev_accel_z is None else self.prev_accel_z
+            v_new = self.vz_drone + (0.5 * (a_prev + m.accel_z) - self.accel_bias) * dt
+            self.z_drone += 0.5 * (self.vz_drone + v_new) * dt
+            self.vz_drone = v_new
+            # complementary correction towards the commanded altitude: removes the integration drift
+            # and, through the bias state, a constant accelerometer offset
+            e = self.z_cmd - self.z_drone
+            self.z_drone += c.drift_k1 * e * dt
+            self.vz_drone += c.drift_k2 * e * dt
+            self.accel_bias -= c.drift_k3 * e * dt
         self.prev_accel_z = m.accel_z
         tof_height = m.tof_height
         if c.estimate_height and tof_height is not None and m.tag_height is not None:
@@ -240,6 +263,9 @@ class LandingController:
         if self.height is None and c.estimate_height:
             self.height = m.tag_height
         deck_z = None if tof_height is None else self.z_drone - tof_height
+        self.since_range = 0.0 if deck_z is not None else self.since_range + dt
+        if self.since_range > c.heave_timeout:
+            self.heave.reset()  # no ranges for a while: forget the heave (do not coast on its rate)
         self.heave.update(deck_z, dt)
         n = m.tag_normal if m.tag_normal is not None else m.tof_normal
         self.nx.update(None if n is None else float(n[0]), dt)
@@ -254,7 +280,10 @@ class LandingController:
     @property
     def deck_velocity(self) -> float:
         """Estimated vertical velocity of the deck below the drone (m/s, up positive)."""
-        return self.heave.v if self.heave.x is not None else 0.0
+        if self.heave.x is None:
+            return 0.0
+        limit = self.cfg.max_deck_velocity
+        return float(min(max(self.heave.v, -limit), limit))
 
     def predicted_tilt(self, horizon: float) -> float | None:
         """Deck tilt from the vertical (rad; the relative tilt once the drone is level at touchdown),

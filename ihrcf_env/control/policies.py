@@ -29,10 +29,19 @@ from ihrcf_env.core.rig import SensorRig
 #: The landing controller's tunables on v1: starts up to 3 m high, beyond the ToF's reach in ambient
 #: light and where its cones straddle the deck's edge, so the height comes from the estimate until
 #: the ranges agree with it; a higher hold (0.75 m: the tag stays in view with the drone leaning
-#: into the wind) and a climb when the tag is lost before the drop; no heading alignment (the task
+#: into the wind) and a climb when the tag is lost before the drop; a heave estimate that is forgotten
+#: without ranges and clipped to 0.3 m/s (a glimpse of the ranges high up must not make the drone
+#: chase a phantom heave); no heading alignment (the task
 #: does not need it, and in gusts the autopilot's mixer drops yaw when a motor saturates, so a yaw
 #: command can run away).
-V1_LANDING_CONFIG = LandingConfig(estimate_height=True, k_yaw=0.0, hold_height=0.75, reacquire_speed=0.2)
+V1_LANDING_CONFIG = LandingConfig(
+    estimate_height=True,
+    k_yaw=0.0,
+    hold_height=0.75,
+    reacquire_speed=0.2,
+    heave_timeout=0.5,
+    max_deck_velocity=0.3,
+)
 
 
 class Policy(Protocol):
@@ -118,6 +127,9 @@ class ScriptedLanding:
                 "the v1 observation (ihrcf_env/DeckLanding-v1) with that estimator"
             )
         self.slices, self.scales, self.estimator = dict(slices), dict(scales), estimator
+        #: fly the altitude filter on the autopilot's vertical velocity (``nav_velocity``) rather than
+        #: on the integrated accelerometer
+        self.use_nav_velocity = "nav_velocity" in slices and "nav_velocity" in scales
         self.controller = LandingController(
             control_hz,
             tuple(_max_velocity(max_velocity).tolist()),
@@ -155,5 +167,6 @@ class ScriptedLanding:
             tag_normal,
             self._get(obs, "ranges"),
             self._get(obs, "ranges_valid") > 0.5,
+            float(self._get(obs, "nav_velocity")[2]) if self.use_nav_velocity else None,
         )
         return self.controller.act_measured(m)
