@@ -64,7 +64,8 @@ def test_an_incompatible_sb3_policy(tmp_path: Path, capsys: pytest.CaptureFixtur
 
 
 def test_blind_descent_reports_and_ends_with_the_count(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["--policy", "blind:0.5", "--episodes", "2", "--seed", "3", "--max-steps", "20"]) == 0
+    argv = ["--policy", "blind:0.5", "--episodes", "2", "--seed", "3", "--max-steps", "20"]
+    assert main([*argv, "--camera-model", "projected"]) == 0
     out = capsys.readouterr().out.strip().splitlines()
     assert out[-1] == "success 0/2"
     assert any("timeout" in line for line in out)
@@ -72,22 +73,18 @@ def test_blind_descent_reports_and_ends_with_the_count(capsys: pytest.CaptureFix
 
 
 def test_scripted_lands_through_the_module_command() -> None:
-    """The real entry point (python -m ihrcf_env.evaluate), one episode of the scripted baseline."""
-    cmd = [
-        sys.executable,
-        "-m",
-        "ihrcf_env.evaluate",
-        "--policy",
-        "scripted",
-        "--episodes",
-        "1",
-        "--seed",
-        "1",
-    ]
-    run = subprocess.run(cmd, capture_output=True, text=True, timeout=600, check=False)
+    """The real entry point (python -m ihrcf_env.evaluate), two episodes of the scripted baseline."""
+    args = "--policy scripted --episodes 2 --seed 1 --camera-model projected".split()
+    run = subprocess.run(
+        [sys.executable, "-m", "ihrcf_env.evaluate", *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
     assert run.returncode == 0, run.stderr
     lines = run.stdout.strip().splitlines()
-    assert lines[-1] == "success 1/1", run.stdout
+    assert lines[-1] == "success 2/2", run.stdout
     assert "relative vertical speed" in run.stdout and "offset from the tag centre" in run.stdout
 
 

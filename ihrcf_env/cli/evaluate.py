@@ -268,6 +268,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         ap.error(
             f"argument --policy: {spec!r} is not 'scripted', 'blind:VZ' or a saved stable-baselines3 .zip"
         )
+    if spec.startswith("blind:"):
+        try:
+            vz = float(spec.removeprefix("blind:"))
+        except ValueError:
+            ap.error(f"argument --policy: {spec!r}: VZ must be a number of m/s, e.g. blind:0.3")
+        if not (math.isfinite(vz) and vz > 0):
+            ap.error(f"argument --policy: {spec!r}: VZ must be a positive descent speed (m/s)")
     if spec.endswith(".zip") and not os.path.isfile(spec):
         ap.error(f"argument --policy: no such file {spec!r}")
     kwargs: dict[str, Any] = {}
