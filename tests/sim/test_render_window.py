@@ -1,6 +1,7 @@
 """Rendering and detecting only the tag's window: off-axis windows equal the crop of the full frame
-(ideal, lens distortion, realistic), windowed detection equals full-frame detection, and
-WindowedTagCamera gives the corners of rendering the full frame and detecting in it."""
+(ideal, lens distortion, realistic; up to TinyRenderer's rare texel-edge flips), windowed detection
+equals full-frame detection, the tag-only scene renders the world's pixels, and WindowedTagCamera
+gives the corners of rendering the full frame and detecting in it."""
 
 import math
 from collections.abc import Iterator
@@ -16,13 +17,24 @@ from ihrcf_env.core.profiles import paper_profile
 from ihrcf_env.sim.sensors import CameraConfig, DownCamera
 from ihrcf_env.sim.sensors.base import TAG_CAMERA, BodyState
 from ihrcf_env.sim.sensors.camera import check_window, tiny_render, window_projection
-from ihrcf_env.sim.sensors.tag_window import WindowedTagCamera
+from ihrcf_env.sim.sensors.tag_window import TagScene, WindowedTagCamera
 from ihrcf_env.sim.world import World, WorldConfig
 
 W = H = 512
 DISTORTION = (-0.08, 0.02)
 #: windows touching every border, single pixels, thin strips, the whole frame
 EDGE_WINDOWS = [(0, 0, W, H), (0, 0, 1, 1), (W - 1, H - 1, 1, 1), (0, 200, 40, H - 200), (480, 0, 32, 100)]
+#: TinyRenderer rounds a window's barycentric coordinates differently from the full frame's: a
+#: texture lookup within ~1e-5 texel of a texel edge can land on the other side (measured: 4 of
+#: 4.3 million tag pixels). Allowed fraction of differing pixels; a real error (a shifted or
+#: mis-scaled window) changes thousands.
+FLIPS = 2e-5
+
+
+def assert_same_pixels(a: np.ndarray, b: np.ndarray, allowed: float = FLIPS) -> None:
+    assert a.shape == b.shape
+    differing = int(np.any(a != b, axis=-1).sum()) if a.ndim == 3 else int((a != b).sum())
+    assert differing <= allowed * a.shape[0] * a.shape[1], differing
 
 
 @pytest.fixture(scope="module")
@@ -95,11 +107,11 @@ def test_window_render_is_pixel_identical_to_the_crop(world: World):
             x0, y0, w, h = win
             proj = window_projection(cam._proj, W, H, win)
             rgb_w, _, seg_w = tiny_render(world.client, c, view, proj, None, True, size=(w, h))
-            assert np.array_equal(rgb_w, rgb[y0 : y0 + h, x0 : x0 + w]), win
+            assert_same_pixels(rgb_w, rgb[y0 : y0 + h, x0 : x0 + w])
             assert seg_w is not None and seg is not None
-            assert np.array_equal(seg_w, seg[y0 : y0 + h, x0 : x0 + w]), win
+            assert_same_pixels(seg_w, seg[y0 : y0 + h, x0 : x0 + w])
             img = cam.render_window(state.position, state.rotation, win)
-            assert np.array_equal(img, rgb[y0 : y0 + h, x0 : x0 + w]), win
+            assert_same_pixels(img, rgb[y0 : y0 + h, x0 : x0 + w])
     # the whole frame as a window is the full projection itself
     assert window_projection(cam._proj, W, H, (0, 0, W, H)) == pytest.approx(cam._proj, abs=0.0)
 
@@ -115,13 +127,14 @@ def test_distorted_window_is_the_crop_of_the_distorted_image(world: World):
         if win != (0, 0, W, H) and w * h > 10_000:
             assert src != win  # barrel distortion: the window samples a different pinhole region
         img = cam.render_window(state.position, state.rotation, win)
-        assert np.array_equal(img, full[y0 : y0 + h, x0 : x0 + w]), win
+        assert_same_pixels(img, full[y0 : y0 + h, x0 : x0 + w])
 
 
 @pytest.mark.parametrize("distortion", [(0.0, 0.0), DISTORTION])
 def test_realistic_window_is_the_crop_of_the_realistic_frame(world: World, distortion):
-    """Bit for bit, background (sea) included, with motion blur up to an 11x11 kernel; the random
-    stream is drawn exactly as by the full read."""
+    """The same bytes (background (sea) included, motion blur up to an 11x11 kernel) but for the
+    render's texel-edge flips, spread by the blur; the random stream is drawn exactly as by the
+    full read."""
     cam = DownCamera(world.client, CameraConfig(quality="realistic", distortion=distortion), world.config.rig)
     cam.reset(np.random.default_rng(3))
     rng = np.random.default_rng(4)
@@ -138,7 +151,7 @@ def test_realistic_window_is_the_crop_of_the_realistic_frame(world: World, disto
             full = cam.read(state, 0.05, r_full)["image"]
             x0, y0, w, h = win
             img = cam.read_window(state, win, r_win)
-            assert np.array_equal(img, full[y0 : y0 + h, x0 : x0 + w]), (velocity, win)
+            assert_same_pixels(img, full[y0 : y0 + h, x0 : x0 + w], allowed=121 * FLIPS)
             assert r_full.random() == r_win.random()
 
 
@@ -158,9 +171,9 @@ def test_realistic_window_with_a_long_blur_streak_is_within_one_dn(world: World)
         full = cam.read(state, 0.05, np.random.default_rng(k))["image"]
         x0, y0, w, h = win
         img = cam.read_window(state, win, np.random.default_rng(k))
-        diff = np.abs(img.astype(int) - full[y0 : y0 + h, x0 : x0 + w])
-        assert diff.max() <= 1
-        differing += int(np.any(diff, axis=2).sum())
+        diff = np.abs(img.astype(int) - full[y0 : y0 + h, x0 : x0 + w]).max(axis=2)
+        assert (diff > 1).sum() <= 121 * FLIPS * w * h  # beyond 1 DN: only the render's flips
+        differing += int((diff > 0).sum())
         total += w * h
     assert cam._blur_margin > 6  # the kernel was at least 13x13
     assert differing <= 1e-3 * total
@@ -178,6 +191,106 @@ def test_window_is_validated(world: World):
         cam.render_window(s.position, s.rotation, (0, 0, 10))  # type: ignore[arg-type]
     with pytest.raises(TypeError, match="window"):
         check_window((0.0, 0, 10, 10), W, H)
+
+
+# -- the tag-only scene ----------------------------------------------------------------------------
+
+
+def hover_state(world: World, cam: DownCamera, rng: np.random.Generator, altitude: float) -> BodyState:
+    """Nearly level, nearly unyawed, the tag near the image centre: the window fits in its image."""
+    deck_pos, R_deck = world.deck.pose()
+    yaw = math.atan2(R_deck[1, 0], R_deck[0, 0]) + rng.uniform(-0.05, 0.05)
+    rot = Rotation.from_euler("xyz", [rng.uniform(-0.05, 0.05), rng.uniform(-0.05, 0.05), yaw])
+    pos = deck_pos + np.array([*rng.uniform(-0.05, 0.05, 2), altitude])
+    quat = rot.as_quat()
+    p.resetBasePositionAndOrientation(
+        world.quad.body, pos.tolist(), quat.tolist(), physicsClientId=world.client
+    )
+    return replace(world.body_state(), position=pos, rotation=rot.as_matrix(), quaternion=quat)
+
+
+@pytest.mark.parametrize("quality", ["ideal", "realistic"])
+def test_tag_scene_renders_the_world_pixels(world: World, quality):
+    cam = DownCamera(world.client, CameraConfig(quality=quality), world.config.rig)
+    cam.reset(np.random.default_rng(14))
+    tags = WindowedTagCamera(cam, world.deck, 0.4, 0)
+    scene = tags.scene
+    assert isinstance(scene, TagScene)
+    rng = np.random.default_rng(15)
+    used = 0
+    for altitude in (0.8, 1.0, 1.4, 2.0):
+        state = moving(hover_state(world, cam, rng, altitude), (0.2, 0.1, 0.0), (0.1, -0.2, 0.0))
+        window, inside = tags.tag_window(state)
+        assert window is not None and inside and window != (0, 0, W, H)
+        scene.prepare(state)
+        inner = scene.inner(window)
+        if inner is not None:
+            used += 1
+            x0, y0, w, h = window
+            assert (
+                inner[0] >= x0
+                and inner[1] >= y0
+                and inner[0] + inner[2] <= x0 + w
+                and inner[1] + inner[3] <= y0 + h
+            )
+        with_scene = cam.read_window(state, window, np.random.default_rng(1), scene)
+        world_only = cam.read_window(state, window, np.random.default_rng(1))
+        assert_same_pixels(with_scene, world_only, allowed=121 * FLIPS)
+    assert used >= 3
+    tags.close()
+
+
+def test_tag_scene_steps_aside_for_what_it_does_not_hold(world: World):
+    """A body in front of the tag, a visual of unknown extent, a camera below the tag's plane: the
+    scene offers nothing (or only what the body leaves free) and the window is the world's."""
+    cam = world.camera
+    assert cam is not None
+    tags = WindowedTagCamera(cam, world.deck, 0.4, 0)
+    scene = tags.scene
+    assert scene is not None
+    state = hover_state(world, cam, np.random.default_rng(16), 1.0)
+    window, _ = tags.tag_window(state)
+    assert window is not None
+    scene.prepare(state)
+    assert scene.inner(window) is not None
+    cid = world.client
+    deck_pos, _ = world.deck.pose()
+    box = p.createVisualShape(
+        p.GEOM_BOX, halfExtents=[0.03, 0.03, 0.01], rgbaColor=[1, 0, 0, 1], physicsClientId=cid
+    )
+    body = p.createMultiBody(
+        baseVisualShapeIndex=box, basePosition=(deck_pos + [0, 0, 0.3]).tolist(), physicsClientId=cid
+    )
+    try:
+        scene.prepare(state)
+        assert scene.inner(window) is None  # the box sits in the middle of the window
+        with_scene = cam.render_window(state.position, state.rotation, window, scene)
+        world_only = cam.render_window(state.position, state.rotation, window)
+        assert np.array_equal(with_scene, world_only)
+        assert np.any(
+            np.all(with_scene == with_scene[with_scene.shape[0] // 2, with_scene.shape[1] // 2], axis=2)
+        )
+    finally:
+        p.removeBody(body, physicsClientId=cid)
+    mesh = p.createVisualShape(
+        p.GEOM_MESH,
+        fileName=str(p.getVisualShapeData(world.deck.tag_body, physicsClientId=cid)[0][4].decode()),
+        physicsClientId=cid,
+    )
+    body = p.createMultiBody(baseVisualShapeIndex=mesh, basePosition=[5, 5, 0], physicsClientId=cid)
+    try:
+        scene.prepare(state)
+        assert scene.inner(window) is None  # a mesh of unknown extent somewhere in the world
+    finally:
+        p.removeBody(body, physicsClientId=cid)
+    scene.prepare(state)
+    assert scene.inner(window) is not None
+    below = replace(state, position=deck_pos - np.array([0.0, 0.0, 1.0]))
+    scene.prepare(below)
+    assert scene.inner(window) is None
+    client = scene.client
+    tags.close()
+    assert not p.getConnectionInfo(physicsClientId=client)["isConnected"]
 
 
 # -- windowed detection ----------------------------------------------------------------------------

@@ -14,7 +14,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import cv2
 import numpy as np
@@ -41,6 +41,35 @@ CAMERA_QUALITIES: tuple[str, ...] = ("ideal", "realistic")
 #: A pixel rectangle of the image, ``(x0, y0, width, height)``: columns ``x0 .. x0 + width - 1``,
 #: rows ``y0 .. y0 + height - 1`` (OpenCV convention: x right, y down, (0, 0) the top-left pixel).
 Window = tuple[int, int, int, int]
+
+#: What :func:`tiny_render` returns: RGB (H, W, 3), z-buffer (H, W), segmentation mask (H, W) or None.
+Render = tuple[NDArray[np.uint8], NDArray[np.float32], NDArray[np.int32] | None]
+
+
+class RegionScene(Protocol):
+    """A cheaper stand-in for the world when rendering part of a pixel region of the current frame
+    (e.g. :class:`~ihrcf_env.sim.sensors.tag_window.TagScene`: the tag alone, where it hides
+    everything else). :meth:`DownCamera.read_window` asks :meth:`inner` for the part of the pinhole
+    region it needs that may be rendered here, renders that part with :meth:`render` (None: the
+    result would differ from the world's, the world is rendered instead) and the rest of the
+    region in the world."""
+
+    def inner(self, region: Window) -> Window | None:
+        """The largest rectangle inside ``region`` (pinhole pixels) this scene renders exactly as
+        the world this frame, or None."""
+        ...
+
+    def render(
+        self,
+        config: CameraConfig,
+        view: object,
+        proj: object,
+        light: tuple[Sequence[float], float, float] | None,
+        segmentation: bool,
+        size: tuple[int, int],
+    ) -> Render | None:
+        """:func:`tiny_render` of a region in this scene (world body ids in the mask), or None."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -156,6 +185,7 @@ class DownCamera:
                 config.imaging, config.intrinsics, config.width, config.height, self._maps
             )
         K = config.intrinsics
+        self._K = K
         self._principal_pixel = (int(round(K[0, 2])), int(round(K[1, 2])))  # (column, row)
         # realistic windows: blur margin (px) rendered around the window, from the last frame
         self._blur_margin = _BLUR_MARGIN_MIN
@@ -242,41 +272,52 @@ class DownCamera:
 
     # -- windows: render only a pixel rectangle of the frame ---------------------------------
     def render_window(
-        self, pos: NDArray[np.float64], R_wb: NDArray[np.float64], window: Window
+        self,
+        pos: NDArray[np.float64],
+        R_wb: NDArray[np.float64],
+        window: Window,
+        scene: RegionScene | None = None,
     ) -> NDArray[np.uint8]:
         """Ideal-quality ``window`` = (x0, y0, w, h) of :meth:`render`'s image, (h, w, 3) uint8,
-        rendering only the pixels it needs (:func:`window_projection`): pixel for pixel
-        ``render(pos, R_wb)[y0:y0 + h, x0:x0 + w]``. With lens distortion the window's pixels come
-        from a (larger) window of the pinhole render, where the distortion maps sample; that one
-        is rendered and remapped."""
+        rendering only the pixels it needs (:func:`window_projection`): the pixels of
+        ``render(pos, R_wb)[y0:y0 + h, x0:x0 + w]`` (up to TinyRenderer's rounding, see
+        :func:`window_projection`). With lens distortion the window's pixels come from a (larger)
+        window of the pinhole render, where the distortion maps sample; that one is rendered and
+        remapped. ``scene``: a :class:`RegionScene` that may stand in for the world for part of
+        the region (the same pixels, fewer bodies to draw)."""
         c = self.config
         win = check_window(window, c.width, c.height)
         eye, R_wc = self.pose(np.asarray(pos, dtype=np.float64), np.asarray(R_wb, dtype=np.float64))
         src = self._source_region(win)
-        img = self._render_region(self._view(eye, R_wc), src)[0]
+        img = self._render_region(self._view(eye, R_wc), src, scene=scene)[0]
         return self._distort_region(img, src, win)
 
-    def read_window(self, state: BodyState, window: Window, rng: np.random.Generator) -> NDArray[np.uint8]:
+    def read_window(
+        self, state: BodyState, window: Window, rng: np.random.Generator, scene: RegionScene | None = None
+    ) -> NDArray[np.uint8]:
         """``window`` = (x0, y0, w, h) of the image :meth:`read` returns, (h, w, 3) uint8, rendering
         and processing only what that window needs. Draws from ``rng`` exactly what :meth:`read`
         draws, so the generator's stream does not depend on the window.
 
-        Ideal quality: :meth:`render_window` (pixel for pixel the crop of :meth:`read`'s image).
+        Ideal quality: :meth:`render_window` (the crop of :meth:`read`'s image).
         Realistic quality: the window of the pinhole render the window needs, grown by the motion
         blur's kernel radius (clipped to the image), is rendered with its segmentation mask and
         goes through the realistic pipeline of
         :class:`~ihrcf_env.sim.sensors.imaging.RealisticImager` on that region (background
-        composite, blur, distortion remap, vignetting, the noise bank at the window's offset).
-        Equal to the crop of the full realistic frame except in two measured cases, both
-        +-1 DN on a few pixels: a blur streak longer than 8 px (a kernel of 13 x 13 px or more,
-        which OpenCV's ``filter2D`` convolves by DFT, image-size dependent), and a frame whose
-        z-buffer value at the principal point differs from the full render's by one float ulp
-        (the blur length depends on it; ~0.4 % of the pixels' depths differ so)."""
+        composite, blur, distortion remap, vignetting, the noise bank at the window's offset): the
+        post-processing is exact on the region (same bytes as the full frame's); what differs
+        is the render's own rounding (:func:`window_projection`), plus two rarer cases, +-1 DN
+        on a few pixels: a blur streak longer than 8 px (a kernel of 13 x 13 px or more, which
+        OpenCV's ``filter2D`` convolves by DFT, image-size dependent), and a frame whose z-buffer
+        value at the principal point differs from the full render's by one float ulp (the blur
+        length depends on it).
+
+        ``scene``: a :class:`RegionScene` that may stand in for the world for part of the region."""
         c = self.config
         win = check_window(window, c.width, c.height)
         if self.imager is None:
-            return self.render_window(state.position, state.rotation, win)
-        return self._realistic_window(state, win, rng)
+            return self.render_window(state.position, state.rotation, win, scene)
+        return self._realistic_window(state, win, rng, scene)
 
     def skip_frame(self, rng: np.random.Generator) -> None:
         """Draw from ``rng`` what one :meth:`read` would draw, rendering nothing (a windowed
@@ -295,13 +336,60 @@ class DownCamera:
         region: Window,
         light: tuple[Sequence[float], float, float] | None = None,
         segmentation: bool = False,
-    ) -> tuple[NDArray[np.uint8], NDArray[np.float32], NDArray[np.int32] | None]:
-        """:func:`tiny_render` of the pinhole frame's ``region`` only."""
+        scene: RegionScene | None = None,
+    ) -> Render:
+        """:func:`tiny_render` of the pinhole frame's ``region`` only; with a ``scene``, the part of
+        it the scene offers is rendered there and the rest (up to four strips) in the world."""
         c = self.config
+        if scene is not None:
+            inner = scene.inner(region)
+            if inner is not None:
+                out = self._composite(view, region, inner, light, segmentation, scene)
+                if out is not None:
+                    return out
         if region == (0, 0, c.width, c.height):
             return tiny_render(self.client, c, view, self._proj, light, segmentation)
         proj = window_projection(self._proj, c.width, c.height, region)
         return tiny_render(self.client, c, view, proj, light, segmentation, size=(region[2], region[3]))
+
+    def _composite(
+        self,
+        view: object,
+        region: Window,
+        inner: Window,
+        light: tuple[Sequence[float], float, float] | None,
+        segmentation: bool,
+        scene: RegionScene,
+    ) -> Render | None:
+        """``region`` from ``inner`` rendered in ``scene`` and the strips around it in the world
+        (every part is a window render, equal to the same pixels of the full frame), or None if the
+        scene declined."""
+        c = self.config
+        x0, y0, w, h = region
+        ix, iy, iw, ih = inner
+        proj = window_projection(self._proj, c.width, c.height, inner)
+        part = scene.render(c, view, proj, light, segmentation, (iw, ih))
+        if part is None or inner == region:
+            return part
+        rgb = np.empty((h, w, 3), np.uint8)
+        depth = np.empty((h, w), np.float32)
+        mask = np.empty((h, w), np.int32) if segmentation else None
+        strips = [
+            (x0, y0, w, iy - y0),  # top
+            (x0, iy + ih, w, y0 + h - iy - ih),  # bottom
+            (x0, iy, ix - x0, ih),  # left
+            (ix + iw, iy, x0 + w - ix - iw, ih),  # right
+        ]
+        for sub, out in [(inner, part)] + [
+            (s, self._render_region(view, s, light, segmentation)) for s in strips if s[2] > 0 and s[3] > 0
+        ]:
+            r0, c0 = sub[1] - y0, sub[0] - x0
+            rows, cols = slice(r0, r0 + sub[3]), slice(c0, c0 + sub[2])
+            rgb[rows, cols] = out[0]
+            depth[rows, cols] = out[1]
+            if mask is not None and out[2] is not None:
+                mask[rows, cols] = out[2]
+        return rgb, depth, mask
 
     def _source_region(self, win: Window) -> Window:
         """The region of the pinhole render that ``win`` of the (distorted) image samples: ``win``
@@ -330,7 +418,9 @@ class DownCamera:
         out = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         return np.asarray(out, dtype=np.uint8)
 
-    def _realistic_window(self, state: BodyState, win: Window, rng: np.random.Generator) -> NDArray[np.uint8]:
+    def _realistic_window(
+        self, state: BodyState, win: Window, rng: np.random.Generator, scene: RegionScene | None
+    ) -> NDArray[np.uint8]:
         """:meth:`read_window` for the realistic quality (mirrors :meth:`render_realistic` and
         ``RealisticImager.process`` on a region)."""
         imager = self.imager
@@ -351,7 +441,7 @@ class DownCamera:
         # render with last frame's margin, re-render in the rare frame that needs more
         margin = self._blur_margin
         ext = grow_window(src, margin, c.width, c.height)
-        rgb, depth, seg = self._render_region(view, ext, light, True)
+        rgb, depth, seg = self._render_region(view, ext, light, True, scene)
         col, row = self._principal_pixel
         if ext[0] <= col < ext[0] + ext[2] and ext[1] <= row < ext[1] + ext[3]:
             d = float(depth[row - ext[1], col - ext[0]])
@@ -363,7 +453,7 @@ class DownCamera:
         need = blur_kernel(du, dv).shape[0] // 2 if math.hypot(du, dv) > threshold else 0
         if need > margin:
             ext = grow_window(src, need, c.width, c.height)
-            rgb, _, seg = self._render_region(view, ext, light, True)
+            rgb, _, seg = self._render_region(view, ext, light, True, scene)
         self._blur_margin = max(need + 1, _BLUR_MARGIN_MIN)
         assert seg is not None
         img = np.ascontiguousarray(rgb)
@@ -420,9 +510,16 @@ def window_projection(proj: Sequence[float], width: int, height: int, window: Wi
     bottom-up: hence the principal point (W/2, H/2 - 1), see :attr:`CameraConfig.intrinsics`).
     The window's screen points are the full frame's shifted by (x0, H - h - y0), so the matrix is
     ``A @ proj`` with ``A`` the affine map x' = (W x + W - 2 x0 - w) / w,
-    y' = (H y + H - 2 b - h) / h, b = H - h - y0 (applied in clip coordinates). Measured: RGB and
-    segmentation mask pixel-identical to the crop of the full render; z-buffer values can differ
-    by one float ulp (~0.4 % of the pixels), from TinyRenderer's float32 barycentric arithmetic.
+    y' = (H y + H - 2 b - h) / h, b = H - h - y0 (applied in clip coordinates).
+
+    Equal to the crop of the full render up to TinyRenderer's float32 arithmetic, which computes
+    every pixel's barycentric coordinates from the (differently rounded) screen coordinates of
+    the window: measured on 4.3 million tag-window pixels at random poses, 4 differed, each a
+    texture lookup on the other side of a texel edge (a black/white flip inside the tag); random
+    windows of untextured regions: 0 of 1.8 million; segmentation masks alike; z-buffer values
+    differ by one float ulp on ~0.4 % of the pixels. A flip at a corner of the tag's black square
+    moves that detected corner (up to 0.6 px measured, 1 frame in ~1000; see
+    :class:`~ihrcf_env.sim.sensors.tag_window.WindowedTagCamera`).
     """
     x0, y0, w, h = window
     b = height - h - y0
@@ -532,7 +629,7 @@ def tiny_render(
     light: tuple[Sequence[float], float, float] | None = None,
     segmentation: bool = False,
     size: tuple[int, int] | None = None,
-) -> tuple[NDArray[np.uint8], NDArray[np.float32], NDArray[np.int32] | None]:
+) -> Render:
     """One TinyRenderer frame: RGB (H, W, 3) uint8, the z-buffer (H, W) and, with ``segmentation``,
     the segmentation mask (H, W) int32 (-1 = background). ``light`` = (direction, ambient, diffuse)
     overrides the config's light (the realistic camera's per-episode light). ``size`` = (W, H)
