@@ -78,6 +78,8 @@ class PresetValidation:
         corner_rms: mode -> RMS corner error (px) against the exact projection, over frames where
             both modes found the tag.
         seconds: wall time of the run. replicas: projected runs averaged.
+        trajectory_mae: mode -> estimator -> (trajectories, 6) paired MAE per trajectory (NaN
+            where none): where the modes differ.
     """
 
     preset: str
@@ -90,6 +92,7 @@ class PresetValidation:
     corner_rms: dict[str, float]
     seconds: float
     replicas: int = 1
+    trajectory_mae: dict[str, dict[str, NDArray[np.float64]]] = field(default_factory=dict)
 
     def ratio(self, estimator: str) -> NDArray[np.float64]:
         """(6,) projected / rendered MAE of ``estimator``, per axis."""
@@ -232,6 +235,7 @@ def validate_preset(
         found = dict.fromkeys(channels, 0)
         corner_sq: dict[str, list[float]] = {m: [] for m in MODES}
         n = 0
+        traj_of_frame: list[int] = []
         for traj in range(trajectories):
             ep_rng = np.random.default_rng([seed, traj])
             profile: MotionProfile
@@ -307,11 +311,13 @@ def validate_preset(
                             corner_sq["rendered"].append(float(((cr - truth.corners) ** 2).mean()))
                             corner_sq["projected"].append(float(((cp - truth.corners) ** 2).mean()))
                 n += 1
+                traj_of_frame.append(traj)
             if progress is not None:
                 progress(traj + 1, trajectories)
     finally:
         world.close()
     mae: dict[str, dict[str, NDArray[np.float64]]] = {m: {} for m in MODES}
+    trajectory_mae: dict[str, dict[str, NDArray[np.float64]]] = {}
     paired: dict[str, int] = {}
     valid: dict[str, dict[str, int]] = {m: {} for m in MODES}
     for est in ESTIMATORS:
@@ -325,6 +331,19 @@ def validate_preset(
             projected.append(np.abs(e[ch][both]).mean(axis=0) if both.any() else np.full(6, np.nan))
         mae["rendered"][est] = np.mean(rendered, axis=0)
         mae["projected"][est] = np.mean(projected, axis=0)
+        tid = np.array(traj_of_frame)
+        per = {m: np.full((trajectories, 6), np.nan) for m in MODES}
+        for t in range(trajectories):
+            r_vals, p_vals = [], []
+            for ch in channels[1:]:
+                sel = (tid == t) & ok["rendered"] & ok[ch]
+                if sel.any():
+                    r_vals.append(np.abs(e["rendered"][sel]).mean(axis=0))
+                    p_vals.append(np.abs(e[ch][sel]).mean(axis=0))
+            if r_vals:
+                per["rendered"][t], per["projected"][t] = np.mean(r_vals, axis=0), np.mean(p_vals, axis=0)
+        for m in MODES:
+            trajectory_mae.setdefault(m, {})[est] = per[m]
         paired[est] = int(round(float(np.mean(counts))))
         valid["rendered"][est] = int(ok["rendered"].sum())
         valid["projected"][est] = int(round(float(np.mean([ok[ch].sum() for ch in channels[1:]]))))
@@ -342,6 +361,7 @@ def validate_preset(
         corner_rms={m: math.sqrt(float(np.mean(corner_sq[m]))) if corner_sq[m] else math.nan for m in MODES},
         seconds=time.perf_counter() - t_start,
         replicas=replicas,
+        trajectory_mae=trajectory_mae,
     )
 
 

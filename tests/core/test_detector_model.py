@@ -202,27 +202,33 @@ def test_noise_statistics_match_the_model(quality: str) -> None:
         assert np.all(sd > model().params("ideal").error_moments(f.basis, f.side)[1])
 
 
-def test_temporal_correlation_follows_the_image_motion() -> None:
+def test_correlation_is_a_field_over_the_image() -> None:
+    """Across tracks: the correlation of a corner's error between two frames is
+    corr_max exp(-(D / corr_length)^2) of its displacement D, and a corner back where it was gets
+    its error back (a function of the position, not a chain of steps)."""
     m = model(corr_max=0.9, corr_length_px=0.15, band_fail_prob=0.0)
     c0 = square()
     rng = np.random.default_rng(2)
+    n = 2000
     for step, expected in ((0.0, 0.9), (0.1, 0.9 * math.exp(-((0.1 / 0.15) ** 2))), (1.0, 0.0)):
-        track = CornerTrack()
-        zs = []
-        for k in range(3000):
-            f = features(c0 + np.array([step * (k % 2), 0.0]))  # moves by `step` px every frame
-            out, _ = m.corners(f, rng, "ideal", track)
-            assert out is not None
-            zs.append(((out - f.corners) * f.radial).sum(-1))
-        z = np.array(zs)
-        z = z - z.mean(axis=0)
-        lag1 = float((z[1:] * z[:-1]).mean() / z.var())
-        assert lag1 == pytest.approx(expected, abs=0.05)
+        z = np.empty((n, 3))
+        for k in range(n):
+            track = dm.CornerTrack(rng)
+            for j, shift in enumerate((0.0, step, 0.0)):
+                f = features(c0 + np.array([shift, 0.0]))
+                out, _ = m.corners(f, rng, "ideal", track)
+                assert out is not None
+                z[k, j] = float(((out - f.corners) * f.radial).sum(-1)[0])
+        z = (z - z.mean(axis=0)) / z.std(axis=0)
+        assert float((z[:, 0] * z[:, 1]).mean()) == pytest.approx(expected, abs=0.06)
+        assert float((z[:, 0] * z[:, 2]).mean()) == pytest.approx(0.9, abs=0.06)  # back at the start
     # without a track: independent frames
     f = features(c0)
     z = np.array([((m.corners(f, rng)[0] - f.corners) * f.radial).sum(-1) for _ in range(2000)])  # type: ignore[operator]
     z = z - z.mean(axis=0)
     assert abs(float((z[1:] * z[:-1]).mean() / z.var())) < 0.06
+    # the model's correlation function
+    assert m.params("ideal").correlation(0.15) == pytest.approx(0.9 * math.exp(-1.0))
 
 
 # -- failures -----------------------------------------------------------------------------------
@@ -253,7 +259,7 @@ def test_determinism_and_fixed_draws() -> None:
     frames.append(features(square(centre=(-300.0, 255.0))))  # a failure: same draws
     outs = []
     for _ in range(2):
-        rng, track = np.random.default_rng(7), CornerTrack()
+        rng, track = np.random.default_rng(7), CornerTrack(np.random.default_rng(8))
         outs.append([m.corners(f, rng, "realistic", track) for f in frames])
         assert rng.bit_generator.state == _after(7, len(frames))
     for (a, ra), (b, rb) in zip(*outs, strict=True):

@@ -12,23 +12,29 @@ corner's error is expressed in its local frame: ``r`` the outward bisector of th
 ``t`` = ``r`` turned by +90 deg (image axes). In that frame the error is Gaussian and independent
 between corners and components, with mean and log standard deviation linear in the corner's
 features (:func:`corner_basis`): 1, ``log(L / 100 px)`` (``L`` the geometric mean of the two
-adjacent edge lengths, px) and the first two harmonics of the edges' angle to the pixel grid
-(``cos 4a, sin 4a, cos 8a, sin 8a``, averaged over the two edges). The renderer's edges are
+adjacent edge lengths, px), the first two harmonics of the edges' angle to the pixel grid
+(``cos 4a, sin 4a, cos 8a, sin 8a``, averaged over the two edges) and the cosine of the corner's
+interior angle (perspective: 0 for a right angle). The renderer's edges are
 staircases whose bias depends on that angle: the corners come out ~0.2 px inside the tag (a
 radial bias that grows with ``L``, which shrinks the tag and biases depth), and shifted along
 ``t`` by up to ~0.2 px depending on the sign of the edges' tilt to the pixel grid. The realistic
 camera adds variance ``(noise_gain * noise_ratio)^2 * 100 / L + (blur_gain * blur_px)^2``
 (``noise_ratio``: temporal noise at mid-grey over the white level of the tag, from the episode's
-exposure, gain and light; ``blur_px``: the image motion during the exposure), both fitted (and
-measured to be negligible at the IMX296's levels: sub-pixel refinement averages the noise out).
+exposure, gain and light; ``blur_px``: the image motion during the exposure), both fitted: the
+noise gain comes out 0 (sub-pixel refinement averages the IMX296's 2-4 DN out), the blur adds
+~0.05 px per px of motion. The noise is fitted on the operating range (corner angles 60-120 deg,
+edges >= 20 px); the small-tag and oblique frames only set the detection limits.
 
-**Temporal correlation**. The pose-dependent mean changes slowly with the pose, so it is
-correlated from frame to frame by construction. The remaining (normalised) error follows a
-first-order autoregression per corner and component whose coefficient decays with the corner's
-image motion since the previous frame ``d`` (px): ``rho = corr_max * exp(-(d / corr_length_px)^2)``
-(measured: ~0.7 at 0.08 px, ~0.4 at 0.15 px, ~0 beyond 0.3 px). A hovering drone over a slowly
-moving deck therefore sees strongly correlated errors, as with the renderer, that a filter cannot
-average away; :class:`CornerTrack` holds that state for one episode.
+**Temporal correlation**. The rendered error is a function of where the corners fall on the pixel
+grid: the same pose gives the same error, and errors of a corner ``D`` px apart in two frames of
+a track (however far apart in time) are correlated by ``corr_max * exp(-(D / corr_length_px)^2)``
+(measured: ~0.7 at 0.08 px, ~0.4 at 0.15 px, ~0 beyond 0.3 px; and at 0.3 px accumulated over
+several slow frames it is ~0 too, so a Markov chain of per-frame steps would keep a hovering
+drone's error for far too long). The pose-dependent mean is correlated by construction. The
+normalised remainder is ``sqrt(corr_max)`` times a smooth random field over the image position
+(:class:`CornerTrack`: random Fourier features with that Gaussian covariance, drawn per episode)
+plus ``sqrt(1 - corr_max)`` white noise. A drone hovering over a slowly moving deck therefore sees
+slowly varying errors that a filter cannot average away, as with the renderer.
 
 **Detection failures** (rules fitted per camera quality): the tag's black square closer than
 ``min_margin_px`` to the image border (or outside it); the outer edge of the white quiet zone
@@ -249,19 +255,47 @@ def tag_features(
     )
 
 
+#: Random features of a track's error field (:class:`CornerTrack`).
+FIELD_FEATURES = 32
+
+
 class CornerTrack:
-    """Per-episode state of the correlated corner error: the previous frame's true corners and
-    normalised errors. :meth:`reset` at the start of every episode (or whenever frames are not
-    consecutive)."""
+    """Per-episode state of the correlated corner error: a smooth random field over the image.
 
-    def __init__(self) -> None:
-        self.corners: NDArray[np.float64] | None = None
-        self.z: NDArray[np.float64] | None = None
+    The rendered detector's error is a function of where a corner falls on the pixel grid: the same
+    pose gives the same error, a corner that moved ``D`` px between two frames (whatever their time
+    apart) has errors correlated by ``exp(-(D / corr_length_px)^2)``. The track draws such a field
+    per corner and component (random Fourier features: :data:`FIELD_FEATURES` cosines with
+    Gaussian frequencies, unit variance); :meth:`DetectorModel.corners` evaluates it at the true
+    corners. :meth:`reset` at the start of every episode, with the episode's generator (without
+    one, the field is drawn from the generator of the first :meth:`DetectorModel.corners` call).
+    """
 
-    def reset(self) -> None:
-        """Forget the previous frame."""
-        self.corners = None
-        self.z = None
+    def __init__(self, rng: np.random.Generator | None = None) -> None:
+        self.omega: NDArray[np.float64] | None = None  # (4, 2 * FIELD_FEATURES, 2) unit frequencies
+        self.phase: NDArray[np.float64] | None = None  # (4, 2 * FIELD_FEATURES)
+        self.reset(rng)
+
+    def reset(self, rng: np.random.Generator | None = None) -> None:
+        """Draw a new field from ``rng`` (``4 * 2 * FIELD_FEATURES * 3`` numbers), or forget it."""
+        if rng is None:
+            self.omega = self.phase = None
+            return
+        m = 2 * FIELD_FEATURES
+        self.omega = rng.standard_normal((4, m, 2))
+        self.phase = rng.uniform(0.0, 2.0 * math.pi, (4, m))
+
+    def field(
+        self, corners: NDArray[np.float64], length_px: float, rng: np.random.Generator
+    ) -> NDArray[np.float64]:
+        """The field (4, 2) (unit variance, Gaussian covariance of length ``length_px``) at the
+        corners (4, 2) px; drawn from ``rng`` first if the track has none."""
+        if self.omega is None or self.phase is None:
+            self.reset(rng)
+        assert self.omega is not None and self.phase is not None
+        arg = (self.omega @ corners[:, :, None])[..., 0] * (math.sqrt(2.0) / length_px) + self.phase
+        out: NDArray[np.float64] = np.cos(arg).reshape(4, 2, FIELD_FEATURES).sum(axis=-1)
+        return out * math.sqrt(2.0 / FIELD_FEATURES)
 
 
 # -- parameters -------------------------------------------------------------------------------------
@@ -372,8 +406,8 @@ class QualityParams:
         return mean, np.sqrt(var)
 
     def correlation(self, displacement_px: ArrayLike) -> NDArray[np.float64]:
-        """Frame-to-frame correlation of the normalised error of a corner that moved
-        ``displacement_px`` (px) in the image since the previous frame."""
+        """Correlation of a corner's normalised error between two frames of a track in which the
+        corner lies ``displacement_px`` (px) apart in the image (whatever the time between them)."""
         d = np.asarray(displacement_px, dtype=np.float64) / self.corr_length_px
         out: NDArray[np.float64] = self.corr_max * np.exp(-d * d)
         return out
@@ -443,14 +477,9 @@ class DetectorModel:
         n = rng.standard_normal((4, 2))
         u = float(rng.random())
         c = features.corners
-        if track is not None:
-            if track.corners is not None and track.z is not None:
-                d = np.hypot(*(c - track.corners).T)
-                rho = prm.correlation(d)[:, None]
-                z = rho * track.z + np.sqrt(1.0 - rho * rho) * n
-            else:
-                z = n
-            track.corners, track.z = c, z
+        if track is not None and prm.corr_max > 0.0:
+            g = track.field(c, prm.corr_length_px, rng)
+            z = math.sqrt(prm.corr_max) * g + math.sqrt(1.0 - prm.corr_max) * n
         else:
             z = n
         if features.margin < prm.min_margin_px:
@@ -585,6 +614,8 @@ class DetectorSamples:
 
 #: Detected corners further than this from the projection are not used to fit the noise (px).
 OUTLIER_PX = 5.0
+#: Frames up to this many steps apart within a track inform the fit of the correlation.
+MAX_LAG = 5
 #: The noise is fitted on frames whose corners' interior angles are within acos(+-0.5) = 60..120 deg
 #: and whose shortest edge is at least 20 px: the operating range (the small-tag and oblique frames
 #: only fit the detection limits; beyond the range the linear features extrapolate).
@@ -704,40 +735,48 @@ def fit_quality(samples: DetectorSamples, with_extra: bool) -> tuple[QualityPara
     report["raw_mean_xy_px"] = [float(v) for v in err[use].reshape(-1, 2).mean(axis=0)]
     report["raw_rms_px"] = float(np.sqrt((err[use] ** 2).mean()))
 
-    # 2. temporal correlation of the normalised error between consecutive frames of a track
-    pair = use[:-1] & use[1:] & (s.track[:-1] == s.track[1:])
-    idx = np.flatnonzero(pair)
-    d = np.hypot(*(s.corners[idx + 1] - s.corners[idx]).transpose(2, 0, 1))  # (M, 4)
-    z0, z1 = z[idx], z[idx + 1]
+    # 2. correlation of the normalised error between frames of a track, against the corners' image
+    # displacement between them (pairs up to MAX_LAG frames apart: a function of the displacement,
+    # not a Markov chain of small steps)
+    ii, jj = [], []
+    for lag in range(1, MAX_LAG + 1):
+        ok = use[:-lag] & use[lag:] & (s.track[:-lag] == s.track[lag:])
+        i = np.flatnonzero(ok)
+        ii.append(i)
+        jj.append(i + lag)
+    i0, i1 = np.concatenate(ii), np.concatenate(jj)
+    d = np.hypot(*(s.corners[i1] - s.corners[i0]).transpose(2, 0, 1))  # (pairs, 4)
     dd = np.repeat(d[..., None], 2, axis=-1).ravel()
-    a, b = z0.ravel(), z1.ravel()
+    a, b = z[i0].ravel(), z[i1].ravel()
+    near_pairs = dd < 1.0  # beyond 1 px the correlation is ~0: only the near pairs inform the fit
 
     def corr_nll(v: NDArray[np.float64]) -> float:
-        rho = np.clip(v[0], 0.0, 0.999) * np.exp(-((dd / v[1]) ** 2))
+        rho = v[0] * np.exp(-((dd[near_pairs] / v[1]) ** 2))
         q = 1.0 - rho * rho
-        return float(np.sum(0.5 * np.log(q) + 0.5 * (b - rho * a) ** 2 / q))
+        x, y = a[near_pairs], b[near_pairs]
+        return float(np.sum(0.5 * np.log(q) + (x * x - 2.0 * rho * x * y + y * y) / (2.0 * q)))
 
     corr_max, corr_length = 0.0, 0.15
-    if idx.size >= 10:
+    if near_pairs.sum() >= 20:
         best = min(
             (
-                minimize(corr_nll, [r0, l0], method="L-BFGS-B", bounds=[(0.0, 0.999), (0.01, 20.0)])
+                minimize(corr_nll, [r0, l0], method="L-BFGS-B", bounds=[(0.0, 0.999), (0.02, 5.0)])
                 for r0 in (0.5, 0.9)
                 for l0 in (0.1, 0.5)
             ),
             key=lambda r: float(r.fun),
         )
         corr_max, corr_length = float(best.x[0]), float(best.x[1])
-    report["pairs"] = int(idx.size)
-    lag1 = {}
+    report["pairs"] = int(i0.size)
+    by_d = {}
     for lo, hi in ((0.0, 0.1), (0.1, 0.2), (0.2, 0.4), (0.4, 1e9)):
         m = (dd >= lo) & (dd < hi)
         if m.sum() >= 20:
-            lag1[f"{lo}-{hi if hi < 1e9 else 'inf'} px"] = [
+            by_d[f"{lo}-{hi if hi < 1e9 else 'inf'} px"] = [
                 int(m.sum()),
                 float(np.corrcoef(a[m], b[m])[0, 1]),
             ]
-    report["lag1_correlation_by_displacement"] = lag1
+    report["correlation_by_displacement"] = by_d
 
     # 3. detection rules
     cos = s.cos_view
