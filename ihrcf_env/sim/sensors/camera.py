@@ -204,7 +204,10 @@ class DownCamera:
 
     def reset(self, rng: np.random.Generator) -> None:
         """Realistic quality: draw the episode's light, exposure/gain, background placement and
-        noise bank from ``rng``. Ideal quality: nothing (draws nothing from ``rng``)."""
+        noise bank from ``rng``. Ideal quality: nothing (draws nothing from ``rng``). Either way
+        the windows' blur margin starts afresh, so an episode's windows do not depend on the
+        previous episode's."""
+        self._blur_margin = _BLUR_MARGIN_MIN
         if self.imager is not None:
             self.imager.reset(rng)
 
