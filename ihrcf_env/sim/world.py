@@ -273,10 +273,18 @@ class World:
             self.controller.reset(np.asarray(est), self.controller.yaw_ref)
 
     def close(self) -> None:
-        """Disconnect the client and remove temporary files; safe to call twice."""
+        """Disconnect the client (and any a sensor holds: the tag window's tag scene) and remove
+        temporary files; safe to call twice."""
         if self._closed:
             return
         self._closed = True
+        for sensor in getattr(self, "sensors", {}).values():
+            close = getattr(sensor, "close", None)
+            if callable(close):
+                try:
+                    close()
+                except p.error:
+                    pass
         try:
             p.disconnect(physicsClientId=self.client)
         except p.error:
