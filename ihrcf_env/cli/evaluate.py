@@ -72,6 +72,15 @@ class SB3Policy:
         return np.asarray(action, dtype=np.float32)
 
 
+def _brief(space: Any) -> str:
+    """A short description of a space: ``Box(50,)`` or ``Dict(keys...)``."""
+    if isinstance(space, gym.spaces.Box):
+        return f"Box{space.shape}"
+    if isinstance(space, gym.spaces.Dict):
+        return f"Dict({', '.join(space.spaces)})"
+    return type(space).__name__
+
+
 def load_sb3(path: str, algo: str, env: gym.Env) -> SB3Policy:
     """Load ``path`` with stable-baselines3's ``algo`` class and check its spaces against ``env``'s."""
     try:
@@ -98,8 +107,8 @@ def load_sb3(path: str, algo: str, env: gym.Env) -> SB3Policy:
     )
     if not same:
         raise PolicyError(
-            f"--policy {path!r}: its observation space {space} does not match the env's {want} "
-            "(another env id, estimator set or privileged observation?)"
+            f"--policy {path!r}: its observation space {_brief(space)} does not match the env's "
+            f"{_brief(want)} (another env id, estimator set or privileged observation?)"
         )
     if getattr(model.action_space, "shape", None) != env.action_space.shape:
         raise PolicyError(
