@@ -26,6 +26,13 @@ For ``action_mode="velocity"`` of ``ihrcf_env/DeckLanding-v0``. The controller r
 Without a tag detection (e.g. a frame the detector misses) the drone holds its x/y and creeps down
 on the ranges until the tag is found; after ``tag_timeout`` it may commit on the ranges alone as long
 as all four beams see a plane (i.e. the drone is over the deck).
+
+For higher starts in wind (``ihrcf_env/DeckLanding-v1``, :mod:`ihrcf_env.control.policies`) some
+:class:`LandingConfig` options, all off by default (v0's behaviour), fly the height on the estimate
+while the ranges are missing or disagree (``estimate_height``), climb to re-acquire a lost tag
+(``reacquire_speed``), forget and clip the heave estimate (``heave_timeout``,
+``max_deck_velocity``), and :attr:`Measurement.velocity_z` replaces the integrated accelerometer by
+the autopilot's vertical velocity.
 """
 
 from __future__ import annotations

@@ -28,8 +28,9 @@ the deck origin less the 0.10 m of its legs (m, >= 0) and ``|v_rel|`` the speed 
 deck (m/s; at touchdown the approach speed along the deck normal). The progress term is
 potential-based shaping (Ng, Harada & Russell 1999; the design of Gymnasium's LunarLander): over an
 episode it sums to ``Phi(last) - Phi(start)``, bounded (about 20 with the defaults), so the
-terminal terms decide the order of returns: a success (about +100 + 15) > a hover until the
-timeout (about -12 over 30 s) > a crash (about -100 + 5).
+terminal terms decide the order of returns. Measured (seeds 0-49, projected camera): the scripted
+landing returns +111.6 on average, a hover until the 30 s limit -12.7 (10 seeds, -18 to -4), a
+blind descent, crashing in 96 % of the episodes, -81 to -89.
 
 ``info`` adds to v0's ground truth ``nav_velocity`` (the autopilot's velocity estimate, world, m/s:
 a sensor, not ground truth), ``wind_velocity``, ``relative_velocity`` (world, m/s), ``tag_offset``
