@@ -116,8 +116,10 @@ class Quadrotor:
     def wrench_to_speeds(self, thrust: float, torque: Sequence[float]) -> list[float]:
         """Rotor speeds realising a collective thrust (N) and body torque (N m) as well as the limits allow.
 
-        When saturated, yaw is given up first, then roll/pitch authority is scaled down and the
-        thrust shifted to fit the motor range. Scalar maths (runs at the physics rate).
+        When saturated, roll/pitch and thrust are fitted first (roll/pitch authority scaled down and
+        the thrust shifted to fit the motor range), then as much of the yaw torque as the remaining
+        margin of every motor allows (a PX4-style mixer: yaw is scaled down, not dropped, so a yaw
+        command under saturation still turns the drone, slower). Scalar maths (physics rate).
         """
         tx, ty, tz = torque
         M = self._mixer_rows
@@ -134,6 +136,15 @@ class Quadrotor:
             hi = max(f)
             if hi > fmax:
                 f = [fi - (hi - fmax) for fi in f]
+            yaw = [r[3] * tz for r in M]
+            scale = 1.0
+            for fi, yi in zip(f, yaw, strict=True):
+                if yi > 0.0:
+                    scale = min(scale, (fmax - fi) / yi)
+                elif yi < 0.0:
+                    scale = min(scale, fi / -yi)
+            scale = max(scale, 0.0)
+            f = [fi + scale * yi for fi, yi in zip(f, yaw, strict=True)]
         kf = self._kf
         return [math.sqrt(min(max(fi, 0.0), fmax) / kf) for fi in f]
 

@@ -257,3 +257,21 @@ def test_motion_beyond_the_checked_horizon_stalls_instead_of_crashing(world):
     legs = world.deck.leg_lengths()
     geo = world.config.stewart
     assert np.all(legs <= geo.max_leg + 1e-4)
+
+
+@pytest.mark.parametrize("tz", [0.05, -0.05])
+def test_saturated_mixer_keeps_yaw_within_the_motor_range(world, tz):
+    """Under saturation (collective thrust near the top) yaw is scaled to the margin, not dropped:
+    the realised yaw torque has the command's sign, and every motor stays within its range."""
+    quad = world.quad
+    kf, km, fmax = quad._kf, quad._km, quad._fmax
+    unsaturated = [kf * w * w for w in quad.wrench_to_speeds(2.0 * fmax, (0.0, 0.0, tz))]
+    f = [kf * w * w for w in quad.wrench_to_speeds(3.7 * fmax, (0.02, 0.0, tz))]
+    assert all(0.0 <= fi <= fmax * (1 + 1e-9) for fi in f)
+
+    def yaw(forces: list[float]) -> float:
+        return -(km / kf) * sum(s * fi for s, fi in zip(quad._spin_list, forces, strict=True))
+
+    assert yaw(unsaturated) == pytest.approx(tz, rel=1e-6)
+    assert math.copysign(1.0, yaw(f)) == math.copysign(1.0, tz)
+    assert 0.05 * abs(tz) < abs(yaw(f)) <= abs(tz) * (1 + 1e-9)
