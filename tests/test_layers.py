@@ -21,6 +21,7 @@ import ihrcf_env
 PKG = Path(ihrcf_env.__file__).resolve().parent
 
 # layer -> top-level modules / ihrcf_env sub-packages it must not import
+_LEARNING = ("ihrcf_env.rl", "torch", "stable_baselines3", "ray")
 FORBIDDEN: dict[str, tuple[str, ...]] = {
     "core": (
         "pybullet",
@@ -31,6 +32,7 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
         "ihrcf_env.control",
         "ihrcf_env.experiments",
         "ihrcf_env.cli",
+        *_LEARNING,
     ),
     "control": (
         "pybullet",
@@ -40,11 +42,21 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
         "ihrcf_env.wrappers",
         "ihrcf_env.experiments",
         "ihrcf_env.cli",
+        *_LEARNING,
     ),
-    "sim": ("gymnasium", "ihrcf_env.envs", "ihrcf_env.wrappers", "ihrcf_env.experiments", "ihrcf_env.cli"),
-    "envs": ("ihrcf_env.wrappers", "ihrcf_env.experiments", "ihrcf_env.cli"),
-    "wrappers": ("ihrcf_env.experiments", "ihrcf_env.cli"),
-    "experiments": ("ihrcf_env.cli",),
+    "sim": (
+        "gymnasium",
+        "ihrcf_env.envs",
+        "ihrcf_env.wrappers",
+        "ihrcf_env.experiments",
+        "ihrcf_env.cli",
+        *_LEARNING,
+    ),
+    "envs": ("ihrcf_env.wrappers", "ihrcf_env.experiments", "ihrcf_env.cli", *_LEARNING),
+    "wrappers": ("ihrcf_env.experiments", "ihrcf_env.cli", *_LEARNING),
+    "experiments": ("ihrcf_env.cli", *_LEARNING),
+    # learning glue (SB3 / RLlib) sits on the Gymnasium API: envs by id, never the simulator
+    "rl": ("pybullet", "ihrcf_env.sim", "ihrcf_env.experiments", "ihrcf_env.cli"),
 }
 
 

@@ -94,9 +94,7 @@ def _all_cores() -> Iterator[None]:
 
 
 def _make_projected(control_hz: int) -> Callable[[], gym.Env]:
-    def make() -> gym.Env:
-        import ihrcf_env  # noqa: F401  (registers the envs in the worker)
-
+    def make() -> gym.Env:  # the worker imports this module, which registers the envs
         return gym.make(
             WRAPPED,
             camera_model="projected",

@@ -200,7 +200,7 @@ class World:
         self.sensors["imu"] = self.imu_sensor
         self.disturbances: list[Disturbance] = []
         self.tick = 0
-        self._camera_held = {}
+        self._camera_held: dict[str, NDArray] = {}
         self.camera_time = math.nan  # s, simulated time of the last camera frame (NaN: none yet)
         self._motor_cmd = [0.0] * 4
         self._acc_world = np.zeros(3)
@@ -245,7 +245,7 @@ class World:
             plate_half_thickness=self.config.deck.thickness / 2,
         )
         self.tick = 0
-        self._camera_held: dict[str, NDArray] = {}
+        self._camera_held = {}
         self.camera_time = math.nan
         self.deck.set_trajectory(traj)
         deck_pos, _ = self.deck.pose()
