@@ -12,12 +12,13 @@ with the default 1200 frames per quality.
 The frames (no physics: poses and velocities are placed directly):
 
 * tracks of 6 consecutive 20 Hz frames (``--frames`` per quality): camera-to-tag distance along
-  the optical axis 0.4-3 m, deck roll/pitch to +-0.23 rad (the ``paper`` profile's ~13 deg peaks;
-  ``sea_state``'s 8/5 deg are inside), drone roll/pitch to +-0.2 rad, random yaw, the tag centre
-  anywhere in the image (35 % of the tracks out to 1.15x the half field of view, so the tag
-  crosses the border), drone velocity to 1.5 m/s and rate to 3 rad/s, deck rates of a few cm/s
-  and deg/s; 30 % of the tracks nearly still (drone to 1 cm/s and 0.01 rad/s, deck five times
-  slower: corners moving 0.02-0.1 px per frame), for the correlation at sub-pixel motion;
+  the optical axis 0.4-3 m (log-uniform: as many frames of tags 150-450 px wide as of 60-150 px),
+  deck roll/pitch to +-0.23 rad (the ``paper`` profile's ~13 deg peaks; ``sea_state``'s 8/5 deg
+  are inside), drone roll/pitch to +-0.2 rad, random yaw, the tag centre anywhere in the image
+  (35 % of the tracks out to 1.15x the half field of view, so the tag crosses the border), drone
+  velocity to 1.5 m/s and rate to 3 rad/s, deck rates of a few cm/s and deg/s; 30 % of the tracks
+  nearly still (drone to 1 cm/s and 0.01 rad/s, deck five times slower: corners moving 0.02-0.1 px
+  per frame), for the correlation at sub-pixel motion;
 * single frames of a small tag, 6-40 m away (camera far plane moved to 45 m for them), for the
   size limit (``--frames`` / 10);
 * single frames of a deck tilted 30-88 deg, for the obliqueness limit (``--frames`` / 10).
@@ -101,7 +102,8 @@ def collect_samples(
         deck = world.deck
         rig = world.config.rig
         tag_size = world.config.deck.tag_size
-        dummy = DetectorModel({q: QualityParams(*[(0.0,) * N_BASIS] * 4) for q in QUALITIES})
+        zeros = (0.0,) * N_BASIS
+        dummy = DetectorModel({q: QualityParams(zeros, zeros, zeros, zeros) for q in QUALITIES})
         far_cfg = replace(cam_cfg, far=45.0)
         cams = {
             "near": (
@@ -131,7 +133,7 @@ def collect_samples(
             R_wd = _euler(rng.uniform(-0.23, 0.23), rng.uniform(-0.23, 0.23), rng.uniform(-0.1, 0.1))
             R_wb = _euler(rng.uniform(-0.2, 0.2), rng.uniform(-0.2, 0.2), rng.uniform(-math.pi, math.pi))
             if kind == "track":
-                depth = rng.uniform(0.4, 3.0)
+                depth = math.exp(rng.uniform(math.log(0.4), math.log(3.0)))  # log-uniform
                 wide = rng.random() < 0.35
                 xn = rng.uniform(-1.15, 1.15, 2) if wide else rng.uniform(-0.7, 0.7, 2)
                 still = rng.random() < 0.3

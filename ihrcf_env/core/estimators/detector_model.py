@@ -11,8 +11,8 @@ simulator): the same model can corrupt corners projected from logged poses.
 corner's error is expressed in its local frame: ``r`` the outward bisector of the corner's angle,
 ``t`` = ``r`` turned by +90 deg (image axes). In that frame the error is Gaussian and independent
 between corners and components, with mean and log standard deviation linear in the corner's
-features (:func:`corner_basis`): 1, ``log(L / 100 px)`` (``L`` the geometric mean of the two
-adjacent edge lengths, px), the first two harmonics of the edges' angle to the pixel grid
+features (:func:`corner_basis`): 1, ``log(L / 100 px)`` and its square (``L`` the geometric mean
+of the two adjacent edge lengths, px), the first two harmonics of the edges' angle to the pixel grid
 (``cos 4a, sin 4a, cos 8a, sin 8a``, averaged over the two edges) and the cosine of the corner's
 interior angle (perspective: 0 for a right angle). The renderer's edges are
 staircases whose bias depends on that angle: the corners come out ~0.2 px inside the tag (a
@@ -72,7 +72,16 @@ QUALITIES: tuple[str, ...] = ("ideal", "realistic")
 #: Outer edge of the tag's white quiet zone, in units of the tag size (one cell of eight each side).
 QUIET_ZONE_SCALE = 1.25
 #: Names of the per-corner features (columns of :func:`corner_basis`).
-BASIS_NAMES: tuple[str, ...] = ("1", "log(L/100px)", "cos4a", "sin4a", "cos8a", "sin8a", "cos(angle)")
+BASIS_NAMES: tuple[str, ...] = (
+    "1",
+    "log(L/100px)",
+    "cos4a",
+    "sin4a",
+    "cos8a",
+    "sin8a",
+    "cos(angle)",
+    "log(L/100px)^2",
+)
 N_BASIS = len(BASIS_NAMES)
 
 #: Failure reasons (``reason`` of :meth:`DetectorModel.corners`).
@@ -149,8 +158,10 @@ def corner_basis(
     h4 = 0.5 * (q_out + q_in)
     h8 = 0.5 * (q_out * q_out + q_in * q_in)
     cos_angle = -(u_out * np.conj(u_in)).real  # interior angle of the corner
+    log_side = np.log(side / 100.0)
     basis = np.stack(
-        [np.ones_like(side), np.log(side / 100.0), h4.real, h4.imag, h8.real, h8.imag, cos_angle], axis=-1
+        [np.ones_like(side), log_side, h4.real, h4.imag, h8.real, h8.imag, cos_angle, log_side * log_side],
+        axis=-1,
     )
     return radial, tangential, basis, side
 
@@ -213,7 +224,8 @@ def _one_quad(
         side.append(L)
         lengths.append(l_out)
         cos_angle = -(u_out * u_in.conjugate()).real
-        basis.append([1.0, math.log(L / 100.0), h4.real, h4.imag, h8.real, h8.imag, cos_angle])
+        log_side = math.log(L / 100.0)
+        basis.append([1.0, log_side, h4.real, h4.imag, h8.real, h8.imag, cos_angle, log_side * log_side])
     margin = min(min(p.real + 0.5, width - 0.5 - p.real, p.imag + 0.5, height - 0.5 - p.imag) for p in z)
     return np.array(radial), np.array(tangential), np.array(basis), np.array(side), margin, min(lengths)
 
