@@ -183,7 +183,7 @@ def check_wrapper_options(
     return check_estimator_names(estimators)
 
 
-def _load_calibration(calibration: Calibration | str | os.PathLike[str] | None) -> Calibration:
+def load_calibration(calibration: Calibration | str | os.PathLike[str] | None) -> Calibration:
     """The calibration itself, the file at a path, or the shipped file for None."""
     if isinstance(calibration, Calibration):
         return calibration
@@ -282,7 +282,7 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
                 "camera=False leaves IHRCF and ATDA without an image: use camera=True, or raw=True "
                 "(gym.make) / the raw env for a camera-less simulation"
             )
-        cal = _load_calibration(calibration)
+        cal = load_calibration(calibration)
         cal.check_matches(cam.width, cam.height, cam.fov, base.rig, distortion=cam.distortion)
         self.calibration = cal
         deck = base.config.deck
@@ -465,7 +465,7 @@ def make_deck_landing(
         return DeckLandingEnv(**env_kwargs)
     if (keep_image is False or flatten) and env_kwargs.get("camera", True) is not False:
         env_kwargs.setdefault("camera_output", "corners")
-    cal = _load_calibration(calibration)
+    cal = load_calibration(calibration)
     env = DeckLandingEnv(**env_kwargs)
     try:
         return DeckPoseObservation(

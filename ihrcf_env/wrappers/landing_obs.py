@@ -55,8 +55,8 @@ from ihrcf_env.core.frames import matrix_from_euler, matrix_from_quat
 from ihrcf_env.wrappers.estimates import (
     GROUND_TRUTH,
     DeckPoseObservation,
-    _load_calibration,
     check_wrapper_options,
+    load_calibration,
 )
 
 if TYPE_CHECKING:
@@ -256,7 +256,7 @@ def make_deck_landing_v1(
         return DeckLandingV1Env(**env_kwargs)
     if env_kwargs.get("camera", True) is not False:
         env_kwargs.setdefault("camera_output", "corners")  # no image in the observation: the tag window
-    _load_calibration(calibration)  # a bad file fails before any physics client exists
+    load_calibration(calibration)  # a bad file fails before any physics client exists
     env = DeckLandingV1Env(**env_kwargs)
     try:
         poses = DeckPoseObservation(
