@@ -196,7 +196,7 @@ def component_costs(frames: int = 100, sensor_preset: str = "ideal") -> dict[str
             imu = timed("imu", lambda: main.sensors["imu"].read(state(), dt, rng))
             main.deck.update_visuals()
             image = timed("render", lambda: main.sensors["camera"].read(state(), dt, rng))["image"]
-            corners = timed("detect", lambda img=image: est.detector.detect(img))
+            corners = timed("detect", lambda img=image: est.detector.detect(img))  # type: ignore[misc]
             timed("window", lambda: win.sensors[TAG_CAMERA].read(win.body_state(), dt, rngs[2]))
             timed("projected", lambda: proj.sensors[TAG_CAMERA].read(proj.body_state(), dt, rngs[1]))
             frame = SensorFrame(
