@@ -48,7 +48,7 @@ from ihrcf_env.core.estimators.detector_model import (
     DetectorSamples,
     QualityParams,
     default_detector_model_path,
-    fit_quality,
+    fit_detector_params,
 )
 from ihrcf_env.core.frames import R_BODY_CAM, matrix_from_euler, quat_from_matrix
 
@@ -253,21 +253,22 @@ def fit_detector_model(
     from ihrcf_env import __version__
     from ihrcf_env.sim.sensors.camera import CameraConfig
 
-    params: dict[str, QualityParams] = {}
-    reports: dict[str, Any] = {}
+    collected: dict[str, DetectorSamples] = {}
+    timings: dict[str, float] = {}
     t0 = time.perf_counter()
     for i, quality in enumerate(QUALITIES):
         t1 = time.perf_counter()
         cb = None if progress is None else (lambda d, n, q=quality: progress(q, d, n))
-        samples = collect_samples(quality, frames, seed + i, cb)
+        collected[quality] = collect_samples(quality, frames, seed + i, cb)
         if samples_dir is not None:
             Path(samples_dir).mkdir(parents=True, exist_ok=True)
-            save_samples(samples, Path(samples_dir) / f"{quality}.npz")
-        t2 = time.perf_counter()
-        params[quality], report = fit_quality(samples, with_extra=quality == "realistic")
-        report["render_seconds"] = round(t2 - t1, 1)
-        report["fit_seconds"] = round(time.perf_counter() - t2, 1)
-        reports[quality] = report
+            save_samples(collected[quality], Path(samples_dir) / f"{quality}.npz")
+        timings[quality] = round(time.perf_counter() - t1, 1)
+    t2 = time.perf_counter()
+    params, reports = fit_detector_params(collected)
+    for quality, seconds in timings.items():
+        reports[quality]["render_seconds"] = seconds
+    reports["pooled"]["fit_seconds"] = round(time.perf_counter() - t2, 1)
     cam = CameraConfig()
     fit = {
         "command": f"{FIT_COMMAND} --seed {seed} --frames {frames}",

@@ -30,10 +30,10 @@ W = H = 512
 
 def params(**kw: float) -> QualityParams:
     base: dict = {
-        "mean_radial": (-0.2, -0.06, -0.07, 0.0, 0.05, 0.0, 0.3, 0.0),
-        "log_sd_radial": (math.log(0.2), -0.3, 0.2, 0.0, 0.2, 0.0, 0.5, 0.1),
-        "mean_tangential": (0.0, 0.0, 0.0, 0.19, 0.0, -0.03, 0.0, 0.0),
-        "log_sd_tangential": (math.log(0.27), -0.4, 0.35, 0.0, 0.1, 0.0, 0.2, 0.1),
+        "mean_radial": (-0.2, -0.06, -0.07, 0.0, 0.05, 0.0, 0.3, 0.0, 0.02, 0.0, 0.0, 0.0),
+        "log_sd_radial": (math.log(0.2), -0.3, 0.2, 0.0, 0.2, 0.0, 0.5, 0.1, 0.0, 0.0, 0.0, 0.0),
+        "mean_tangential": (0.0, 0.0, 0.0, 0.19, 0.0, -0.03, 0.0, 0.0, 0.0, 0.05, 0.0, 0.0),
+        "log_sd_tangential": (math.log(0.27), -0.4, 0.35, 0.0, 0.1, 0.0, 0.2, 0.1, 0.0, 0.0, 0.0, 0.0),
         "corr_max": 0.9,
         "corr_length_px": 0.15,
         "min_margin_px": 0.3,
@@ -171,7 +171,7 @@ def test_missing_file_names_file_and_fit_command(tmp_path: Path) -> None:
 
 def test_bad_params_raise_naming_them() -> None:
     with pytest.raises(ValueError, match="mean_radial"):
-        params(mean_radial=(0.0,) * 7)  # type: ignore[arg-type]
+        params(mean_radial=(0.0,) * 11)  # type: ignore[arg-type]
     with pytest.raises(TypeError, match="miss_prob"):
         params(miss_prob="0.1")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="band_high_px"):

@@ -12,8 +12,8 @@ corner's error is expressed in its local frame: ``r`` the outward bisector of th
 ``t`` = ``r`` turned by +90 deg (image axes). In that frame the error is Gaussian and independent
 between corners and components, with mean and log standard deviation linear in the corner's
 features (:func:`corner_basis`): 1, ``log(L / 100 px)`` and its square (``L`` the geometric mean
-of the two adjacent edge lengths, px), the first two harmonics of the edges' angle to the pixel grid
-(``cos 4a, sin 4a, cos 8a, sin 8a``, averaged over the two edges) and the cosine of the corner's
+of the two adjacent edge lengths, px), the first four harmonics of the edges' angle to the pixel
+grid (``cos 4ka, sin 4ka``, k = 1..4, averaged over the two edges) and the cosine of the corner's
 interior angle (perspective: 0 for a right angle). The renderer's edges are
 staircases whose bias depends on that angle: the corners come out ~0.2 px inside the tag (a
 radial bias that grows with ``L``, which shrinks the tag and biases depth), and shifted along
@@ -53,7 +53,7 @@ import json
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -81,6 +81,10 @@ BASIS_NAMES: tuple[str, ...] = (
     "sin8a",
     "cos(angle)",
     "log(L/100px)^2",
+    "cos12a",
+    "sin12a",
+    "cos16a",
+    "sin16a",
 )
 N_BASIS = len(BASIS_NAMES)
 
@@ -156,11 +160,26 @@ def corner_basis(
     side = np.sqrt(l_out * l_in)
     q_out, q_in = u_out**4, u_in**4  # exp(4 i a) of each edge
     h4 = 0.5 * (q_out + q_in)
-    h8 = 0.5 * (q_out * q_out + q_in * q_in)
+    h8 = 0.5 * (q_out**2 + q_in**2)
+    h12 = 0.5 * (q_out**3 + q_in**3)
+    h16 = 0.5 * (q_out**4 + q_in**4)
     cos_angle = -(u_out * np.conj(u_in)).real  # interior angle of the corner
     log_side = np.log(side / 100.0)
     basis = np.stack(
-        [np.ones_like(side), log_side, h4.real, h4.imag, h8.real, h8.imag, cos_angle, log_side * log_side],
+        [
+            np.ones_like(side),
+            log_side,
+            h4.real,
+            h4.imag,
+            h8.real,
+            h8.imag,
+            cos_angle,
+            log_side * log_side,
+            h12.real,
+            h12.imag,
+            h16.real,
+            h16.imag,
+        ],
         axis=-1,
     )
     return radial, tangential, basis, side
@@ -219,13 +238,20 @@ def _one_quad(
         radial.append([r.real, r.imag])
         tangential.append([-r.imag, r.real])
         q_out, q_in = (u_out * u_out) ** 2, (u_in * u_in) ** 2
-        h4, h8 = 0.5 * (q_out + q_in), 0.5 * (q_out * q_out + q_in * q_in)
+        q2_out, q2_in = q_out * q_out, q_in * q_in
+        h4, h8 = 0.5 * (q_out + q_in), 0.5 * (q2_out + q2_in)
+        h12, h16 = 0.5 * (q2_out * q_out + q2_in * q_in), 0.5 * (q2_out * q2_out + q2_in * q2_in)
         L = math.sqrt(l_out * l_in)
         side.append(L)
         lengths.append(l_out)
         cos_angle = -(u_out * u_in.conjugate()).real
         log_side = math.log(L / 100.0)
-        basis.append([1.0, log_side, h4.real, h4.imag, h8.real, h8.imag, cos_angle, log_side * log_side])
+        basis.append(
+            [
+                *(1.0, log_side, h4.real, h4.imag, h8.real, h8.imag, cos_angle, log_side * log_side),
+                *(h12.real, h12.imag, h16.real, h16.imag),
+            ]
+        )
     margin = min(min(p.real + 0.5, width - 0.5 - p.real, p.imag + 0.5, height - 0.5 - p.imag) for p in z)
     return np.array(radial), np.array(tangential), np.array(basis), np.array(side), margin, min(lengths)
 
@@ -481,9 +507,9 @@ class DetectorModel:
         ``(None, reason)``.
 
         Always draws 8 standard normals and one uniform from ``rng`` (whatever the outcome), so a
-        seeded run is reproducible and the stream does not depend on detections. ``track`` carries
-        the correlated error between consecutive frames of one episode (None: independent frames);
-        it is advanced on failures too (the error process follows the geometry, not the detector).
+        seeded run is reproducible and the stream does not depend on detections (plus the track's
+        field at its first use if it was reset without a generator). ``track`` carries the
+        episode's correlated error field (None: independent frames).
         """
         prm = self.params(quality)
         n = rng.standard_normal((4, 2))
@@ -856,3 +882,53 @@ def fit_quality(samples: DetectorSamples, with_extra: bool) -> tuple[QualityPara
         "oblique": int(ob.sum()),
     }
     return prm, report
+
+
+def merge_samples(*samples: DetectorSamples) -> DetectorSamples:
+    """One :class:`DetectorSamples` of several (same image size); track ids are kept apart."""
+    if not samples:
+        raise ValueError("merge_samples needs at least one DetectorSamples")
+    w, h = samples[0].width, samples[0].height
+    if any((s.width, s.height) != (w, h) for s in samples):
+        raise ValueError("merge_samples: the samples must share one image size")
+    offset, tracks = 0, []
+    for s in samples:
+        tracks.append(s.track + offset)
+        offset += int(s.track.max(initial=-1)) + 1
+    return DetectorSamples(
+        corners=np.concatenate([s.corners for s in samples]),
+        quiet_zone=np.concatenate([s.quiet_zone for s in samples]),
+        cos_view=np.concatenate([s.cos_view for s in samples]),
+        noise_ratio=np.concatenate([s.noise_ratio for s in samples]),
+        blur_px=np.concatenate([s.blur_px for s in samples]),
+        detected=np.concatenate([s.detected for s in samples]),
+        track=np.concatenate(tracks),
+        width=w,
+        height=h,
+    )
+
+
+#: The parameters of the corner error (fitted on all qualities' frames together).
+NOISE_FIELDS: tuple[str, ...] = (*_COEFFICIENTS, "noise_gain", "blur_gain", "corr_max", "corr_length_px")
+
+
+def fit_detector_params(
+    samples: Mapping[str, DetectorSamples],
+) -> tuple[dict[str, QualityParams], dict[str, Any]]:
+    """Fit every quality of ``samples`` (quality -> frames): the detection rules on each quality's
+    own frames, the corner error (:data:`NOISE_FIELDS`) on all frames together (the renderer's
+    aliasing is the same for both qualities; the realistic frames' noise ratio and blur carry the
+    extra variance, zero on ideal frames). Returns the parameters and the reports (per quality,
+    and ``"pooled"`` for the error fit)."""
+    qualities = list(samples)
+    if not qualities:
+        raise ValueError("fit_detector_params needs the samples of at least one quality")
+    pooled, pooled_report = fit_quality(merge_samples(*samples.values()), with_extra=True)
+    shared = {name: getattr(pooled, name) for name in NOISE_FIELDS}
+    params: dict[str, QualityParams] = {}
+    reports: dict[str, Any] = {"pooled": pooled_report}
+    for q in qualities:
+        own, report = fit_quality(samples[q], with_extra=q != "ideal")
+        params[q] = replace(own, **shared)
+        reports[q] = report
+    return params, reports
