@@ -29,10 +29,11 @@ trajectories. Acceptance (issue 10): ratio within 1 +- 0.25 on every axis of eve
 detection rates within 3 percentage points.
 
 Measured (``--trajectories 60 --frames 40 --replicas 3``, seed 0, shipped model and calibration;
-2 x 2400 frames, ~2 min per preset): detection 54.7 / 53.8 % (ideal), 53.4 / 53.7 % (realistic);
-corner RMS against the projection 0.32 px in both modes; every ratio of IHRCF and ATDA within
-0.86-1.08, of the fused filter within 0.87-1.15 except one axis per run that its interval leaves
-open (realistic yaw 0.68, interval 0.46-0.99; with other projected noise draws of the same run 1.04).
+2 x 2400 frames, ~2 min per preset): detection 54.7 / 55.0 % (ideal), 53.4 / 52.9 % (realistic);
+corner RMS against the projection 0.32 / 0.33 px; every MAE ratio of IHRCF and ATDA within
+0.89-1.11, of the fused filter within 0.92-1.09 (realistic) but 0.74-1.36 (ideal: Y 1.36, interval
+1.06-1.70; pitch 0.74, 0.58-0.97; Z 1.21): with exact ranges its error is the ATDA-seeded
+convergence transient, the least reproducible quantity here.
 
 ``python -m ihrcf_env.experiments.camera_validation [--trajectories N] [--frames F] [--seed S]
 [--replicas R]`` prints the Markdown table (exit status 1 if a bound is missed).

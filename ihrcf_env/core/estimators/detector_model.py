@@ -21,19 +21,22 @@ radial bias that grows with ``L``, which shrinks the tag and biases depth), and 
 camera adds variance ``(noise_gain * noise_ratio)^2 * 100 / L + (blur_gain * blur_px)^2``
 (``noise_ratio``: temporal noise at mid-grey over the white level of the tag, from the episode's
 exposure, gain and light; ``blur_px``: the image motion during the exposure), both fitted: the
-noise gain comes out 0 (sub-pixel refinement averages the IMX296's 2-4 DN out), the blur adds
-~0.05 px per px of motion. The noise is fitted on the operating range (corner angles 60-120 deg,
-edges >= 20 px); the small-tag and oblique frames only set the detection limits.
+IMX296's 2-4 DN add only ~0.05 px (sub-pixel refinement averages them out), the blur ~0.05 px per
+px of motion. The error is fitted on the frames of both qualities together (the renderer's
+aliasing is the same) and on the operating range (corner angles 60-120 deg, edges >= 20 px); the
+small-tag and oblique frames only set the detection limits. Shipped fit (seed 0, 2 x 1200
+frames): radial bias -0.19 px and s.d. 0.21 (radial) / 0.27 px (tangential) at L = 100 px.
 
 **Temporal correlation**. The rendered error is a function of where the corners fall on the pixel
 grid: the same pose gives the same error, and errors of a corner ``D`` px apart in two frames of
 a track (however far apart in time) are correlated by ``corr_max * exp(-(D / corr_length_px)^2)``
-(measured: ~0.7 at 0.08 px, ~0.4 at 0.15 px, ~0 beyond 0.3 px; and at 0.3 px accumulated over
-several slow frames it is ~0 too, so a Markov chain of per-frame steps would keep a hovering
-drone's error for far too long). The pose-dependent mean is correlated by construction. The
-normalised remainder is ``sqrt(corr_max)`` times a smooth random field over the image position
-(:class:`CornerTrack`: random Fourier features with that Gaussian covariance, drawn per episode)
-plus ``sqrt(1 - corr_max)`` white noise. A drone hovering over a slowly moving deck therefore sees
+(measured: ~0.7 at 0.05 px, ~0.4 at 0.15 px, ~0.07 at 0.3 px, ~0 beyond; the same at 0.3 px
+accumulated over several slow frames, so a Markov chain of per-frame steps would keep a hovering
+drone's error for far too long; shipped fit ``corr_max`` 0.88, ``corr_length_px`` 0.16). The
+pose-dependent mean is correlated by construction. The normalised remainder is
+``sqrt(corr_max)`` times a smooth random field over the image position (:class:`CornerTrack`:
+random Fourier features with that Gaussian covariance, drawn per episode) plus
+``sqrt(1 - corr_max)`` white noise. A drone hovering over a slowly moving deck therefore sees
 slowly varying errors that a filter cannot average away, as with the renderer.
 
 **Detection failures** (rules fitted per camera quality): the tag's black square closer than
