@@ -6,8 +6,11 @@
 
 Speed: env steps per second and real-time factor (simulated seconds per wall-clock second) of the
 raw env with zero velocity actions over the "paper" deck profile, without a camera and with the
-camera at each size (rendered once per control step). Estimation: tag detection + IHRCF + ATDA per
-512x512 frame with the shipped calibration.
+camera at each size (rendered once per control step); then the wrapped env (IHRCF + ATDA + fused)
+at the 1 m hover per camera model (image kept, tag window, projected: ratios from one run), the cost
+of each component per control step (:func:`ihrcf_env.experiments.speed.component_costs`) and, with
+``--vector``, ``AsyncVectorEnv`` scaling with 2 workers. Estimation: tag detection + IHRCF + ATDA +
+fused per 512x512 frame with the shipped calibration.
 
 Accuracy: the paper's experiment. A hovering drone 1 m (and 2 m) above the deck on the "paper"
 profile (ideal preset: zero velocity commands, the autopilot holds position; realistic preset: the
