@@ -39,7 +39,7 @@ import numpy as np
 import ihrcf_env  # noqa: F401  (registers the envs)
 from ihrcf_env.core.metrics import table2_markdown
 from ihrcf_env.experiments.accuracy import accuracy
-from ihrcf_env.experiments.speed import component_costs, mode_speeds, vector_scaling
+from ihrcf_env.experiments.speed import component_costs, mode_speeds, steps_per_second, vector_scaling
 from ihrcf_env.sim.sensors.camera import realism_cost_ms
 
 
@@ -48,17 +48,9 @@ def speed(size: int, steps: int, control_hz: int = 20) -> tuple[float, float]:
     kw = {"camera": False} if size == 0 else {"camera_width": size, "camera_height": size}
     env = gym.make("ihrcf_env/DeckLandingRaw-v0", control_hz=control_hz, max_episode_steps=steps + 10, **kw)
     try:
-        env.reset(seed=0)
-        a = np.zeros(4, dtype=np.float32)
-        for _ in range(5):  # warm-up
-            env.step(a)
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            env.step(a)
-        wall = time.perf_counter() - t0
+        sps = steps_per_second(env, steps)
     finally:
         env.close()
-    sps = steps / wall
     return sps, sps / control_hz
 
 

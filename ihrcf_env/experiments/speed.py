@@ -39,6 +39,21 @@ class Speed:
     real_time_factor: float
 
 
+def steps_per_second(
+    env: gym.Env, steps: int, warmup: int = 5, options: dict[str, Any] | None = None
+) -> float:
+    """Env steps per wall-clock second of ``env`` (already made; reset here with seed 0 and
+    ``options``) under zero actions, ``warmup`` steps not counted. Does not close ``env``."""
+    env.reset(seed=0, options=options)
+    a = np.zeros(4, dtype=np.float32)  # the deck-landing action: hold position
+    for _ in range(warmup):
+        env.step(a)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        env.step(a)
+    return steps / (time.perf_counter() - t0)
+
+
 def _hover_kwargs(control_hz: int) -> dict[str, Any]:
     return {"deck_profile": "paper", "control_hz": control_hz, "start_altitude_jitter": 0.0}
 
@@ -57,17 +72,9 @@ def wrapped_speed(
         kw.setdefault("flatten", True)
     env = gym.make(WRAPPED, max_episode_steps=None, horizon_s=(steps + warmup) / control_hz + 5, **kw)
     try:
-        env.reset(seed=0, options={"altitude": 1.0, "offset": (0.0, 0.0), "yaw": 0.0})
-        a = np.zeros(4, dtype=np.float32)
-        for _ in range(warmup):
-            env.step(a)
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            env.step(a)
-        wall = time.perf_counter() - t0
+        sps = steps_per_second(env, steps, warmup, {"altitude": 1.0, "offset": (0.0, 0.0), "yaw": 0.0})
     finally:
         env.close()
-    sps = steps / wall
     return Speed(label, sps, sps / control_hz)
 
 
@@ -113,14 +120,7 @@ def vector_scaling(steps: int = 600, workers: int = 2, control_hz: int = 20) -> 
     make = _make_projected(control_hz)
     single = make()
     try:
-        single.reset(seed=0)
-        a = np.zeros(4, dtype=np.float32)
-        for _ in range(5):
-            single.step(a)
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            single.step(a)
-        sps_single = steps / (time.perf_counter() - t0)
+        sps_single = steps_per_second(single, steps)
     finally:
         single.close()
     with _all_cores():
