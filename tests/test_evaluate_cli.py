@@ -51,6 +51,7 @@ def test_a_file_that_is_not_a_policy(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert ("not installed" in err) or ("cannot be loaded" in err)
 
 
+@pytest.mark.rl  # needs stable-baselines3: runs in the [rl] venv (`pytest -m rl`, .ci/run)
 def test_an_incompatible_sb3_policy(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A policy trained on another observation space is refused, naming --policy."""
     sb3 = pytest.importorskip("stable_baselines3")

@@ -71,6 +71,7 @@ def test_check_env_passes_without_warnings() -> None:
         env.close()
 
 
+@pytest.mark.rl  # needs stable-baselines3: runs in the [rl] venv (`pytest -m rl`, .ci/run)
 def test_sb3_check_env() -> None:
     sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
     env = make()
