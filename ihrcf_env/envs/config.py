@@ -162,6 +162,15 @@ def _non_negative(name: str, value: float, unit: str = "") -> None:
         raise ValueError(f"{name} must be >= 0{unit}, got {value!r}")
 
 
+def check_non_negative_fields(obj: object, name: Callable[[str], str]) -> None:
+    """Check every field of the frozen dataclass ``obj`` is a finite real >= 0 (errors named by
+    ``name(field)``) and store it as a float."""
+    for f in dataclasses.fields(obj):  # type: ignore[arg-type]
+        v = check_real(name(f.name), getattr(obj, f.name))
+        _non_negative(name(f.name), v)
+        _set(obj, f.name, v)
+
+
 def _set(obj: object, attr: str, value: object) -> None:
     """Normalise a field of a frozen dataclass in ``__post_init__``."""
     object.__setattr__(obj, attr, value)
@@ -257,10 +266,7 @@ class RewardWeights:
     crash: float = 100.0
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            v = check_real(f"RewardWeights.{f.name}", getattr(self, f.name))
-            _non_negative(f"RewardWeights.{f.name}", v)
-            _set(self, f.name, v)
+        check_non_negative_fields(self, lambda n: f"RewardWeights.{n}")
 
 
 ProfileSpec = str | Callable[[float], Any] | MotionProfile

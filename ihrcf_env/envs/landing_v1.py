@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ihrcf_env.envs.config import check_bool, check_real
+from ihrcf_env.envs.config import check_bool, check_non_negative_fields, check_real
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
 from ihrcf_env.sim.disturbances import Disturbance, Wind, WindParams
 from ihrcf_env.sim.world import Snapshot, Touchdown
@@ -111,11 +111,7 @@ class RewardWeightsV1:
     near_miss: float = 20.0
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            v = check_real(f"reward_weights[{f.name!r}]", getattr(self, f.name))
-            if v < 0:
-                raise ValueError(f"reward_weights[{f.name!r}] must be >= 0, got {v!r}")
-            object.__setattr__(self, f.name, v)
+        check_non_negative_fields(self, lambda n: f"reward_weights[{n!r}]")
         if self.near_miss > self.crash:
             raise ValueError(
                 f"reward_weights['near_miss'] ({self.near_miss}) must not exceed reward_weights['crash'] "
