@@ -54,10 +54,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--eval-every", type=int, default=50_000, help="steps between evaluations")
     ap.add_argument("--eval-episodes", type=int, default=20)
     ap.add_argument("--checkpoint-every", type=int, default=50_000)
+    ap.add_argument(
+        "--max-wall-min",
+        type=float,
+        default=None,
+        help="stop after this many minutes of training wall time, counting a resumed run's earlier "
+        "segments (then evaluate, checkpoint and save as at the end)",
+    )
     args = ap.parse_args(argv)
     for name in ("total_steps", "n_envs", "n_steps", "batch_size", "eval_every", "eval_episodes"):
         if getattr(args, name) < 1:
             ap.error(f"--{name.replace('_', '-')} must be >= 1")
+    if args.max_wall_min is not None and not args.max_wall_min > 0:
+        ap.error("--max-wall-min must be > 0 (minutes)")
 
     import torch as th
     from stable_baselines3 import PPO
@@ -101,12 +110,15 @@ def main(argv: list[str] | None = None) -> int:
     train_log = CsvLog(out / "train.csv", TRAIN_FIELDS, keep_until=keep)
     eval_log = CsvLog(out / "eval.csv", EVAL_FIELDS, keep_until=keep)
     seeds = range(EVAL_SEED_BASE, EVAL_SEED_BASE + args.eval_episodes)
+    evaluator = sb3.HeldOutEvalCallback(thunk, seeds, args.eval_every, eval_log, out / "best.zip")
     callbacks = [  # evaluation and checkpoint see the statistics the policy was trained with
         sb3.EpisodeCsvCallback(train_log),
         ckpt,
-        sb3.HeldOutEvalCallback(thunk, seeds, args.eval_every, eval_log, out / "best.zip"),
+        evaluator,
         sb3.NormUpdateCallback(),
     ]
+    if args.max_wall_min is not None:  # evaluator.start_time already counts earlier segments
+        callbacks.append(sb3.WallClockBudgetCallback(evaluator.start_time + 60.0 * args.max_wall_min))
     print(f"training PPO on {env_id} (camera_model={args.camera_model}, {args.n_envs} envs)", flush=True)
     t0 = time.time()
     try:

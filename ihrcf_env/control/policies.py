@@ -57,7 +57,7 @@ class Policy(Protocol):
 
 def _max_velocity(max_velocity: Sequence[float]) -> NDArray[np.float64]:
     mv = np.asarray(max_velocity, dtype=np.float64)
-    if mv.shape != (4,) or not np.all(np.isfinite(mv)) or np.any(mv <= 0):
+    if mv.shape != (4,) or not np.isfinite(mv).all() or np.any(mv <= 0):
         raise ValueError(
             f"max_velocity must be 4 positive numbers (m/s, m/s, m/s, rad/s), got {max_velocity!r}"
         )

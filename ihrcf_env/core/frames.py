@@ -35,7 +35,7 @@ def as_array(x: ArrayLike, shape: tuple[int, ...], name: str) -> NDArray[np.floa
     a = np.asarray(x, dtype=np.float64)
     if a.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got {a.shape}")
-    if not np.all(np.isfinite(a)):
+    if not np.isfinite(a).all():
         raise ValueError(f"{name} contains NaN or inf")
     return a
 

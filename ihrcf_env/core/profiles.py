@@ -281,7 +281,7 @@ class CallableProfile(MotionProfile):
                 cause: Exception | None = e
             else:
                 cause = None
-                if arr.shape != (6,) or not np.all(np.isfinite(arr)):
+                if arr.shape != (6,) or not np.isfinite(arr).all():
                     problem = (
                         f"deck profile callable must return (offset (3,), rpy (3,)) or a finite (6,) "
                         f"array; got {arr.shape} / non-finite at t = {ti:.3f} s"

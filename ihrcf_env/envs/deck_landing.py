@@ -254,7 +254,7 @@ class DeckLandingEnv(gym.Env):
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (4,):
             raise ValueError(f"action must have shape (4,), got {a.shape}")
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ValueError(f"action contains NaN or inf: {a.tolist()}")
         a = np.clip(a, -1.0, 1.0)
         if self.config.action_mode == "velocity":

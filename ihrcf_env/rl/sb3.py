@@ -248,6 +248,23 @@ class HeldOutEvalCallback(BaseCallback):
             self._env = None
 
 
+class WallClockBudgetCallback(BaseCallback):
+    """Stops training (after the current step; the other callbacks' end-of-training work still runs)
+    once ``time.time()`` passes ``deadline`` (a ``time.time()`` value), so a run fits a wall-clock
+    budget and ends with its final evaluation and checkpoint."""
+
+    def __init__(self, deadline: float):
+        super().__init__()
+        self.deadline = float(deadline)
+        self.stopped = False
+
+    def _on_step(self) -> bool:
+        if time.time() >= self.deadline:
+            self.stopped = True
+            return False
+        return True
+
+
 class ResumableCheckpointCallback(BaseCallback):
     """Between updates, once every ``every`` environment steps, and at the end, saves the model to
     ``<directory>/latest.zip`` (and a :class:`VecNormalize` wrapper's statistics to

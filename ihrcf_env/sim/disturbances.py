@@ -43,7 +43,7 @@ class ConstantForce:
 
     def __init__(self, force: Sequence[float] | NDArray[np.float64]) -> None:
         f = np.asarray(force, dtype=np.float64)
-        if f.shape != (3,) or not np.all(np.isfinite(f)):
+        if f.shape != (3,) or not np.isfinite(f).all():
             raise ValueError(f"force must be 3 finite numbers (N), got {force!r}")
         self.force = (float(f[0]), float(f[1]), float(f[2]))
 

@@ -315,7 +315,7 @@ class World:
     def set_velocity_setpoint(self, setpoint: NDArray[np.float64]) -> None:
         """(vx, vy, vz, yaw_rate) in m/s and rad/s, see :class:`VelocityController`."""
         sp = np.asarray(setpoint, dtype=np.float64)
-        if sp.shape != (4,) or not np.all(np.isfinite(sp)):
+        if sp.shape != (4,) or not np.isfinite(sp).all():
             raise ValueError(f"velocity setpoint must be 4 finite numbers, got {setpoint!r}")
         self._setpoint = tuple(sp.tolist())
         if not self._mode_velocity:  # coming from motor commands: hold from where the drone is now

@@ -612,3 +612,39 @@ def test_range_offset_state_off_by_default_is_bit_for_bit() -> None:
     for ea, eb in zip(a.estimates, b.estimates, strict=True):
         np.testing.assert_array_equal(ea.position, eb.position)
         np.testing.assert_array_equal(ea.euler, eb.euler)
+
+
+def test_shared_frame_work_is_computed_once_and_changes_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
+    """IHRCF, ATDA and the fused filter on one frame: IHRCF's corners and ATDA's IPPE solutions are
+    computed once per frame (SensorFrame.memo), and every estimate equals the one of an estimator
+    that ran alone on its own copy of the frame."""
+    from ihrcf_env.core.estimators import atda as atda_mod
+    from ihrcf_env.core.estimators import ihrcf as ihrcf_mod
+
+    calls = {"ihrcf": 0, "atda": 0}
+    real_corners, real_cands = ihrcf_mod.ihrcf_corners, atda_mod.atda_candidates
+
+    def count(name: str, fn: Callable) -> Callable:
+        def wrapped(*a: object, **k: object) -> object:
+            calls[name] += 1
+            return fn(*a, **k)
+
+        return wrapped
+
+    monkeypatch.setattr(ihrcf_mod, "ihrcf_corners", count("ihrcf", real_corners))
+    monkeypatch.setattr(atda_mod, "atda_candidates", count("atda", real_cands))
+    cfg = EstimatorConfig(rig=RIG, tag_size=TAG, K=K, dist=None, touch_pixels=touch_pixels, max_residual=0.01)
+    shared = build_estimators(cfg, ("ihrcf", "atda", "fused"))
+    alone = {n: build_estimators(cfg, (n,))[n] for n in ("ihrcf", "atda", "fused")}
+    run = simulate(1.0, paper_like_deck, estimator=FusedEstimator(touch_pixels, RIG, TAG, K))
+    for logged in run.frames:  # fresh frames: simulate()'s own filter filled the logged ones' memo
+        frame = SensorFrame(logged.time, logged.corners, logged.ranges, logged.ranges_valid, imu=logged.imu)
+        before = dict(calls)
+        out = {n: s.update(frame) for n, s in shared.items()}
+        assert calls["ihrcf"] - before["ihrcf"] == 1 and calls["atda"] - before["atda"] == 1
+        for n, source in alone.items():
+            copy = SensorFrame(frame.time, frame.corners, frame.ranges, frame.ranges_valid, imu=frame.imu)
+            ref = source.update(copy)
+            assert ref.valid == out[n].valid and ref.reason == out[n].reason
+            np.testing.assert_array_equal(ref.position, out[n].position)
+            np.testing.assert_array_equal(ref.rotation, out[n].rotation)

@@ -122,3 +122,10 @@ def test_train_ppo_saves_a_policy_that_reloads_and_resumes(
     evals2 = read_csv(out / "eval.csv")
     assert [int(r["timesteps"]) for r in evals2] == [128, 256, 384] and evals2[:2] == evals
     assert PPO.load(out / "final.zip", device="cpu").num_timesteps == 384
+
+    # a wall-clock budget already spent (earlier segments count): stops at once, still saves
+    args = ["--total-steps", "100000", "--out", str(out), "--resume", "--max-wall-min", "0.001", *TINY]
+    assert train_ppo.main(args) == 0
+    stopped = PPO.load(out / "final.zip", device="cpu").num_timesteps
+    assert 384 < stopped < 384 + 128
+    assert int(read_csv(out / "eval.csv")[-1]["timesteps"]) == stopped

@@ -109,7 +109,7 @@ def check_real_array(
         raise ValueError(f"{field} must be an array with shape {want}, got a ragged nested array") from None
     if a.ndim != len(shape) or any(n is not None and n != m for n, m in zip(shape, a.shape, strict=True)):
         raise ValueError(f"{field} must have shape {want}, got {a.shape}")
-    if finite and not np.all(np.isfinite(a)):
+    if finite and not np.isfinite(a).all():
         raise ValueError(f"{field} must be finite, got NaN or inf")
     return a
 

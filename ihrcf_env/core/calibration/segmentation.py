@@ -53,7 +53,7 @@ def rgb_to_ycbcr(image: ArrayLike) -> NDArray[np.float64]:
         rgb = a.astype(np.float64) / 255.0
     elif np.issubdtype(a.dtype, np.floating):
         rgb = a.astype(np.float64)
-        if not np.all(np.isfinite(rgb)) or rgb.min(initial=0.0) < 0.0 or rgb.max(initial=0.0) > 1.0:
+        if not np.isfinite(rgb).all() or rgb.min(initial=0.0) < 0.0 or rgb.max(initial=0.0) > 1.0:
             raise ValueError("a float image must hold finite values in [0, 1] (uint8 images use 0..255)")
     else:
         raise ValueError(f"image must be uint8 or float in [0, 1], got dtype {a.dtype}")

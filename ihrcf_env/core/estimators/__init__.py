@@ -8,7 +8,14 @@ IMU in a causal Kalman filter), ``detector`` (tag corners), ``registry`` (name -
 place to add one), ``pipeline`` (one frame through all of them).
 """
 
-from ihrcf_env.core.estimators.atda import AMBIGUITY_RATIO, R_DECK_MARKER, ATDAEstimator, atda_estimate
+from ihrcf_env.core.estimators.atda import (
+    AMBIGUITY_RATIO,
+    R_DECK_MARKER,
+    ATDAEstimator,
+    atda_candidates,
+    atda_choose,
+    atda_estimate,
+)
 from ihrcf_env.core.estimators.base import (
     DEGENERATE_REL_TOL,
     TAG_NOT_FOUND,
@@ -41,6 +48,7 @@ from ihrcf_env.core.estimators.ihrcf import (
     ihrcf_corners,
     ihrcf_estimate,
     ihrcf_fit,
+    ihrcf_measure,
 )
 from ihrcf_env.core.estimators.pipeline import DeckPoseEstimator
 from ihrcf_env.core.estimators.registry import (
@@ -79,6 +87,8 @@ __all__ = [
     "TagDetector",
     "TagFeatures",
     "TouchPixels",
+    "atda_candidates",
+    "atda_choose",
     "atda_estimate",
     "build_estimators",
     "check_estimator_names",
@@ -88,6 +98,7 @@ __all__ = [
     "ihrcf_corners",
     "ihrcf_estimate",
     "ihrcf_fit",
+    "ihrcf_measure",
     "noise_to_contrast",
     "project_points",
     "tag_features",

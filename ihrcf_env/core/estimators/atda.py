@@ -57,6 +57,73 @@ def _marker_object_points(tag_size: float) -> NDArray[np.float64]:
     return np.array([[-h, h, 0.0], [h, h, 0.0], [h, -h, 0.0], [-h, -h, 0.0]])
 
 
+#: One IPPE solution: (RMS reprojection error px, ``R_body_deck`` (3, 3), ``p_body_deck`` (3,) m).
+Candidate = tuple[float, NDArray[np.float64], NDArray[np.float64]]
+
+
+def atda_candidates(
+    corners_px: ArrayLike,
+    K: ArrayLike,
+    dist: ArrayLike | None,
+    tag_size: float,
+    rig: SensorRig,
+    refine: bool = True,
+) -> list[Candidate] | str:
+    """The IPPE solutions of :func:`atda_estimate` in front of the camera, lowest reprojection
+    error first (the part that does not depend on the prior), or the reason (str) there are none."""
+    corners = _shape_checked(corners_px, (4, 2), "corners_px")
+    Km = as_array(K, (3, 3), "K")
+    d = np.zeros(5) if dist is None else np.asarray(dist, dtype=np.float64).ravel()
+    if not np.isfinite(corners).all():
+        return "non-finite tag corners"
+    if quad_is_degenerate(corners, DEGENERATE_REL_TOL):
+        return "degenerate tag corners"
+    obj = _marker_object_points(tag_size)
+    img = corners.reshape(4, 1, 2)
+    try:
+        n, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, img, Km, d, flags=cv2.SOLVEPNP_IPPE_SQUARE)
+    except cv2.error as e:
+        return f"solvePnP failed: {e.err}"
+    if n == 0:
+        return "solvePnP found no solution"
+
+    def reproj_rms(rvec: NDArray, tvec: NDArray) -> float:
+        proj, _ = cv2.projectPoints(obj, rvec, tvec, Km, d)
+        return float(np.sqrt(np.mean(np.sum((proj.reshape(4, 2) - corners) ** 2, axis=1))))
+
+    cands: list[Candidate] = []
+    for rvec0, tvec0 in zip(rvecs, tvecs, strict=True):
+        rvec = np.array(rvec0, dtype=np.float64).reshape(3, 1)
+        tvec = np.array(tvec0, dtype=np.float64).reshape(3, 1)
+        if refine:  # both IPPE solutions are polished before choosing (see module docstring)
+            r_lm, t_lm = cv2.solvePnPRefineLM(obj, img, Km, d, rvec, tvec)
+            rvec = np.asarray(r_lm, dtype=np.float64).reshape(3, 1)
+            tvec = np.asarray(t_lm, dtype=np.float64).reshape(3, 1)
+        t = tvec.ravel()
+        if not (np.isfinite(t).all() and t[2] > 0):
+            continue
+        R_cm, _ = cv2.Rodrigues(rvec)
+        R_bd, p_bd = cam_pose_to_body(R_cm @ R_DECK_MARKER.T, t, rig.camera_position)
+        cands.append((reproj_rms(rvec, tvec), R_bd, p_bd))
+    if not cands:
+        return "tag behind the camera"
+    cands.sort(key=lambda c: c[0])
+    return cands
+
+
+def atda_choose(cands: list[Candidate] | str, prior_rotation: ArrayLike | None = None) -> PoseEstimate:
+    """The estimate of :func:`atda_candidates`' solutions: the lowest error, or of the two best the
+    one nearer ``prior_rotation`` when their errors are within :data:`AMBIGUITY_RATIO`."""
+    prior = None if prior_rotation is None else as_array(prior_rotation, (3, 3), "prior_rotation")
+    if isinstance(cands, str):
+        return PoseEstimate.invalid(cands)
+    best = cands[0]
+    if prior is not None and len(cands) > 1 and cands[1][0] <= AMBIGUITY_RATIO * max(cands[0][0], 1e-9):
+        best = min(cands[:2], key=lambda c: rotation_angle(prior, c[1]))
+    err, R_bd, p_bd = best
+    return PoseEstimate.from_body_pose(R_bd, p_bd, err)
+
+
 def atda_estimate(
     corners_px: ArrayLike,
     K: ArrayLike,
@@ -81,49 +148,28 @@ def atda_estimate(
         A :class:`PoseEstimate` whose residual is the RMS reprojection error (px); invalid with a
         reason for degenerate corners or a failed solve.
     """
-    corners = _shape_checked(corners_px, (4, 2), "corners_px")
-    Km = as_array(K, (3, 3), "K")
-    d = np.zeros(5) if dist is None else np.asarray(dist, dtype=np.float64).ravel()
-    prior = None if prior_rotation is None else as_array(prior_rotation, (3, 3), "prior_rotation")
-    if not np.all(np.isfinite(corners)):
-        return PoseEstimate.invalid("non-finite tag corners")
-    if quad_is_degenerate(corners, DEGENERATE_REL_TOL):
-        return PoseEstimate.invalid("degenerate tag corners")
-    obj = _marker_object_points(tag_size)
-    img = corners.reshape(4, 1, 2)
-    try:
-        n, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, img, Km, d, flags=cv2.SOLVEPNP_IPPE_SQUARE)
-    except cv2.error as e:
-        return PoseEstimate.invalid(f"solvePnP failed: {e.err}")
-    if n == 0:
-        return PoseEstimate.invalid("solvePnP found no solution")
+    if prior_rotation is not None:
+        as_array(prior_rotation, (3, 3), "prior_rotation")
+    return atda_choose(atda_candidates(corners_px, K, dist, tag_size, rig, refine), prior_rotation)
 
-    def reproj_rms(rvec: NDArray, tvec: NDArray) -> float:
-        proj, _ = cv2.projectPoints(obj, rvec, tvec, Km, d)
-        return float(np.sqrt(np.mean(np.sum((proj.reshape(4, 2) - corners) ** 2, axis=1))))
 
-    cands = []
-    for rvec0, tvec0 in zip(rvecs, tvecs, strict=True):
-        rvec = np.array(rvec0, dtype=np.float64).reshape(3, 1)
-        tvec = np.array(tvec0, dtype=np.float64).reshape(3, 1)
-        if refine:  # both IPPE solutions are polished before choosing (see module docstring)
-            r_lm, t_lm = cv2.solvePnPRefineLM(obj, img, Km, d, rvec, tvec)
-            rvec = np.asarray(r_lm, dtype=np.float64).reshape(3, 1)
-            tvec = np.asarray(t_lm, dtype=np.float64).reshape(3, 1)
-        t = tvec.ravel()
-        if not (np.all(np.isfinite(t)) and t[2] > 0):
-            continue
-        R_cm, _ = cv2.Rodrigues(rvec)
-        R_bd, p_bd = cam_pose_to_body(R_cm @ R_DECK_MARKER.T, t, rig.camera_position)
-        cands.append((reproj_rms(rvec, tvec), R_bd, p_bd))
-    if not cands:
-        return PoseEstimate.invalid("tag behind the camera")
-    cands.sort(key=lambda c: c[0])
-    best = cands[0]
-    if prior is not None and len(cands) > 1 and cands[1][0] <= AMBIGUITY_RATIO * max(cands[0][0], 1e-9):
-        best = min(cands[:2], key=lambda c: rotation_angle(prior, c[1]))
-    err, R_bd, p_bd = best
-    return PoseEstimate.from_body_pose(R_bd, p_bd, err)
+def atda_frame_candidates(
+    frame: SensorFrame,
+    K: NDArray[np.float64],
+    dist: NDArray[np.float64] | None,
+    tag_size: float,
+    rig: SensorRig,
+    refine: bool = True,
+) -> list[Candidate] | str:
+    """:func:`atda_candidates` of ``frame``'s corners, once per frame and set of inputs
+    (:meth:`SensorFrame.memo`: the ATDA estimator and the fused filter share it)."""
+    if frame.corners is None:
+        raise ValueError("atda_frame_candidates needs a frame with tag corners")
+    Kb = np.ascontiguousarray(K, dtype=np.float64).tobytes()
+    db = None if dist is None else np.ascontiguousarray(dist, dtype=np.float64).tobytes()
+    key = ("atda", Kb, db, float(tag_size), id(rig), bool(refine))
+    corners = frame.corners
+    return frame.memo(key, lambda: atda_candidates(corners, K, dist, tag_size, rig, refine))
 
 
 class ATDAEstimator:
@@ -171,9 +217,8 @@ class ATDAEstimator:
         """ATDA estimate of ``frame``; invalid with the frame's reason when it has no corners."""
         if frame.corners is None:
             return PoseEstimate.invalid(frame.corners_reason)
-        est = atda_estimate(
-            frame.corners, self.K, self.dist, self.tag_size, self.rig, self._prior, self.refine
-        )
+        cands = atda_frame_candidates(frame, self.K, self.dist, self.tag_size, self.rig, self.refine)
+        est = atda_choose(cands, self._prior)
         if est.valid:
             self._prior = np.array(est.rotation)
         return est

@@ -16,13 +16,16 @@ temporal filter can propagate on the IMU and the ranges.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ihrcf_env.core.frames import as_array, euler_from_matrix
+
+_T = TypeVar("_T")
 
 #: Collinearity tolerance (see geometry.collinear) for the touch-pixel, sensor and corner quadrilaterals.
 DEGENERATE_REL_TOL: float = 1e-2
@@ -155,6 +158,17 @@ class SensorFrame:
             raise TypeError(f"imu must be an ImuSample or None, got {type(self.imu).__name__}")
         if math.isinf(self.time):
             raise ValueError(f"time must be finite (s) or NaN (unknown), got {self.time!r}")
+        object.__setattr__(self, "_memo", {})
+
+    def memo(self, key: Hashable, compute: Callable[[], _T]) -> _T:
+        """``compute()``, once per ``key`` for this frame: a product derived from the frame that
+        several estimators need (IHRCF's 3-D corners, ATDA's candidate poses) is computed once.
+        ``key`` must capture every input of ``compute`` besides the frame's own (read-only)
+        arrays; the result is shared, so callers must not modify it."""
+        memo: dict[Hashable, Any] = self._memo  # type: ignore[attr-defined]
+        if key not in memo:
+            memo[key] = compute()
+        return memo[key]
 
 
 @runtime_checkable

@@ -151,9 +151,9 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2
 
 from ihrcf_env.core.constants import GRAVITY
-from ihrcf_env.core.estimators.atda import atda_estimate
+from ihrcf_env.core.estimators.atda import atda_choose, atda_frame_candidates
 from ihrcf_env.core.estimators.base import ImuSample, PoseEstimate, SensorFrame
-from ihrcf_env.core.estimators.ihrcf import IHRCFCorners, TouchPixels, ihrcf_corners, ihrcf_fit
+from ihrcf_env.core.estimators.ihrcf import IHRCFCorners, TouchPixels, ihrcf_fit, ihrcf_measure
 from ihrcf_env.core.frames import (
     R_BODY_CAM,
     as_array,
@@ -366,6 +366,32 @@ class _Imm:
         self.rejected_run = 0  # consecutive frames whose every measurement was rejected
         self.last_accepted = time  # time of the last accepted measurement, s
         self._combined: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+        #: per (dt, q_white): Markov switch T (n, n), transition F (9, 9), process noise (n, 9, 9)
+        #: without the q_value term (the filter runs at a fixed frame rate: computed once)
+        self._model_cache: dict[tuple[float, bytes], tuple[NDArray[np.float64], ...]] = {}
+        self._H_cache: dict[tuple[int, ...], NDArray[np.float64]] = {}
+
+    def _model(self, dt: float, q_white: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
+        """(T, F, Q) of one prediction over ``dt`` s (see :meth:`predict`), cached."""
+        key = (dt, q_white.tobytes())
+        hit = self._model_cache.get(key)
+        if hit is not None:
+            return hit
+        n = len(self.mu)
+        stay = math.exp(-dt / self.switch_time)
+        T = np.full((n, n), (1.0 - stay) / (n - 1)) if n > 1 else np.ones((1, 1))
+        np.fill_diagonal(T, stay if n > 1 else 1.0)
+        F1, Qw, Qd = _kinematics(float(dt))
+        F = _per_axis(F1, np.ones(3))
+        Q = _per_axis(Qw, np.square(q_white))[None] + np.stack(
+            [_per_axis(Qd, np.square(d)) for d in self.drifts]
+        )
+        for m in (T, F, Q):
+            m.setflags(write=False)
+        if len(self._model_cache) >= 8:
+            self._model_cache.clear()
+        self._model_cache[key] = (T, F, Q)
+        return T, F, Q
 
     def _mix(self, W: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Moment-matched states (m, 9) and covariances (m, 9, 9) of the mixtures with weights
@@ -411,19 +437,13 @@ class _Imm:
         if dt <= 0:
             return
         n = len(self.mu)
+        T, F, Q0 = self._model(float(dt), np.asarray(q_white, dtype=np.float64))
         if n > 1:
-            stay = math.exp(-dt / self.switch_time)
-            T = np.full((n, n), (1.0 - stay) / (n - 1))
-            np.fill_diagonal(T, stay)
             c = self.mu @ T  # predicted model probabilities
             W = (T * self.mu[:, None]).T / np.maximum(c, 1e-300)[:, None]  # W[j, i] = P(i | j)
             self.X, self.Ps = self._mix(W / W.sum(axis=1, keepdims=True))
             self.mu = c / c.sum()
-        F1, Qw, Qd = _kinematics(float(dt))
-        F = _per_axis(F1, np.ones(3))
-        Q = _per_axis(Qw, np.square(q_white))[None] + np.stack(
-            [_per_axis(Qd, np.square(d)) for d in self.drifts]
-        )
+        Q = Q0.copy()
         Q[:, 0:3, 0:3] += q_value * dt
         self.X = self.X @ F.T
         if u is not None:
@@ -454,8 +474,11 @@ class _Imm:
         if not math.isfinite(d2) or (gate is not None and d2 > gate):
             return False, d2
         # every model: Kalman update (Joseph form) and the likelihood of its innovation
-        H = np.zeros((k, 9))
-        H[np.arange(k), rows] = 1.0
+        H = self._H_cache.get(tuple(rows))
+        if H is None:
+            H = np.zeros((k, 9))
+            H[np.arange(k), rows] = 1.0
+            self._H_cache[tuple(rows)] = H
         NU = z[None, :] - self.X[:, rows]  # (n, k)
         if self.angles:
             NU = _wrap(NU)
@@ -481,9 +504,7 @@ class _Imm:
         return True, d2
 
     def finite(self) -> bool:
-        return bool(
-            np.all(np.isfinite(self.X)) and np.all(np.isfinite(self.Ps)) and np.all(np.isfinite(self.mu))
-        )
+        return bool(np.isfinite(self.X).all() and np.isfinite(self.Ps).all() and np.isfinite(self.mu).all())
 
     def value_sigma(self) -> float:
         """Largest 1-sigma of the (combined) values."""
@@ -656,9 +677,7 @@ class FusedEstimator:
         if imu is None:  # no IMU: the last attitude (identity before any), no acceleration input
             return (self._R_wb if self._R_wb is not None else np.eye(3)), None
         q, f = imu.quaternion, imu.specific_force
-        if not (
-            np.all(np.isfinite(q)) and np.all(np.isfinite(f)) and np.all(np.isfinite(imu.angular_velocity))
-        ):
+        if not (np.isfinite(q).all() and np.isfinite(f).all() and np.isfinite(imu.angular_velocity).all()):
             return "non-finite IMU sample: frame ignored"
         if float(np.linalg.norm(q)) < 1e-6:
             return "zero IMU quaternion: frame ignored"
@@ -725,14 +744,16 @@ class FusedEstimator:
         offset_state = p.range_offset_sigma > 0 and self.K is not None and p.use_atda_position
         ranges = frame.ranges - self._bias[0] if offset_state else frame.ranges
         # IHRCF up to its 3-D corners, then its own rigid fit
-        corners = ihrcf_corners(frame.corners, ranges, frame.ranges_valid, self.touch_pixels, self.rig)
+        corners, ihrcf_est = ihrcf_measure(
+            frame, ranges, self.touch_pixels, self.rig, self.tag_size, self.max_residual
+        )
         ihrcf: PoseEstimate | None = None
         if isinstance(corners, str):
             ihrcf_reason = corners
             corners_ok: IHRCFCorners | None = None
         else:
             corners_ok = corners
-            ihrcf = ihrcf_fit(corners.corners_cam, self.rig, self.tag_size, self.max_residual)
+            ihrcf = ihrcf_est
             ihrcf_reason = ihrcf.reason
             if ihrcf.valid:
                 self._update_range_noise(frame)
@@ -743,12 +764,8 @@ class FusedEstimator:
         atda_reason = "ATDA not used"
         if self.K is not None and (p.use_atda_attitude or p.use_atda_position):
             prior = self._filtered_R_bd(R_wb)
-            est = atda_estimate(
-                frame.corners,
-                self.K,
-                self.dist,
-                self.tag_size,
-                self.rig,
+            est = atda_choose(
+                atda_frame_candidates(frame, self.K, self.dist, self.tag_size, self.rig),
                 prior if prior is not None else self._atda_prior,
             )
             atda_reason = est.reason

@@ -62,7 +62,7 @@ def ihrcf_corners(
     corners = _shape_checked(corners_px, (4, 2), "corners_px")
     r = _shape_checked(ranges, (4,), "ranges")
     rv = _shape_checked(ranges_valid, (4,), "ranges_valid", dtype=bool)
-    if not np.all(np.isfinite(corners)):
+    if not np.isfinite(corners).all():
         return "non-finite tag corners"
     sensor_xy = rig.sensor_xy_cam  # (4, 2) ps1..ps4, camera frame, m
 
@@ -78,7 +78,7 @@ def ihrcf_corners(
     except ValueError as e:
         return f"deck plane undefined: {e}"
     full_ranges = np.where(valid, r, predicted)  # missing ranges predicted from the plane
-    if not (np.all(np.isfinite(full_ranges)) and np.all(full_ranges > 0)):
+    if not (np.isfinite(full_ranges).all() and np.all(full_ranges > 0)):
         return "predicted range not positive"
 
     # Touch pixels from the calibration table (paper section 2.2).
@@ -87,7 +87,7 @@ def ihrcf_corners(
     inside = _shape_checked(inside, (4,), "touch_pixels()[1]", dtype=bool)
     if not np.all(inside):
         return "range outside calibration table"
-    if not np.all(np.isfinite(tp)):
+    if not np.isfinite(tp).all():
         return "non-finite touch pixels"
     if quad_is_degenerate(sensor_xy, DEGENERATE_REL_TOL):
         return "degenerate sensor layout"
@@ -104,13 +104,16 @@ def ihrcf_corners(
         return f"homography failed: {e}"
     # Section 2.5: inverse homography of the tag corners -> camera-frame XY on the deck plane.
     xy = apply_homography(H_inv, corners)
-    if not np.all(np.isfinite(xy)):
+    if not np.isfinite(xy).all():
         return "tag corner maps to infinity"
     # Section 2.6, eq. (22): Z from the plane.
     z = plane_z(normal, offset, xy)
     if not np.all(z > 0):
         return "tag corner behind the camera"
-    return IHRCFCorners(np.column_stack([xy, z]), normal, float(offset), valid)
+    corners_cam = np.column_stack([xy, z])
+    for a in (corners_cam, normal, valid):  # shared between estimators (SensorFrame.memo)
+        a.setflags(write=False)
+    return IHRCFCorners(corners_cam, normal, float(offset), valid)
 
 
 def ihrcf_estimate(
@@ -164,6 +167,33 @@ def ihrcf_fit(
     return PoseEstimate.from_body_pose(R_bd, p_bd, rms)
 
 
+def ihrcf_measure(
+    frame: SensorFrame,
+    ranges: ArrayLike,
+    touch_pixels: TouchPixels,
+    rig: SensorRig,
+    tag_size: float,
+    max_residual: float = 0.01,
+) -> tuple[IHRCFCorners | str, PoseEstimate]:
+    """IHRCF on ``frame``'s corners and validity flags with ``ranges`` (m; the frame's or corrected
+    ones): (the 3-D corners or why there are none, the estimate). Computed once per frame and set of
+    inputs (:meth:`SensorFrame.memo`): the IHRCF estimator and the fused filter share it. The frame
+    must have corners."""
+    corners = frame.corners
+    if corners is None:
+        raise ValueError("ihrcf_measure needs a frame with tag corners")
+    r = _shape_checked(ranges, (4,), "ranges")
+
+    def compute() -> tuple[IHRCFCorners | str, PoseEstimate]:
+        measured = ihrcf_corners(corners, r, frame.ranges_valid, touch_pixels, rig)
+        if isinstance(measured, str):
+            return measured, PoseEstimate.invalid(measured)
+        return measured, ihrcf_fit(measured.corners_cam, rig, tag_size, max_residual)
+
+    key = ("ihrcf", id(touch_pixels), id(rig), float(tag_size), float(max_residual), r.tobytes())
+    return frame.memo(key, compute)
+
+
 class IHRCFEstimator:
     """IHRCF as a :class:`~ihrcf_env.core.estimators.base.DeckPoseSource`: stateless, one
     :func:`ihrcf_estimate` per frame on the frame's corners and ranges.
@@ -201,12 +231,6 @@ class IHRCFEstimator:
         """IHRCF estimate of ``frame``; invalid with the frame's reason when it has no corners."""
         if frame.corners is None:
             return PoseEstimate.invalid(frame.corners_reason)
-        return ihrcf_estimate(
-            frame.corners,
-            frame.ranges,
-            frame.ranges_valid,
-            self.touch_pixels,
-            self.rig,
-            self.tag_size,
-            self.max_residual,
-        )
+        return ihrcf_measure(
+            frame, frame.ranges, self.touch_pixels, self.rig, self.tag_size, self.max_residual
+        )[1]

@@ -137,7 +137,7 @@ class CameraConfig:
         if not (0.0 < self.near < self.far):
             raise ValueError(f"camera near/far must satisfy 0 < near < far, got {self.near}, {self.far}")
         k = np.asarray(self.distortion, dtype=np.float64)
-        if k.shape != (2,) or not np.all(np.isfinite(k)) or np.any(np.abs(k) > 1.0):
+        if k.shape != (2,) or not np.isfinite(k).all() or np.any(np.abs(k) > 1.0):
             raise ValueError(
                 f"camera distortion must be two finite numbers (k1, k2) in [-1, 1], got {self.distortion!r}"
             )
