@@ -151,7 +151,9 @@ def component_costs(frames: int = 100, sensor_preset: str = "ideal") -> dict[str
     ``physics`` (``World.step``: 12 physics steps, deck drive, autopilot, Python), ``tof``, ``imu``,
     ``render`` (the full frame), ``detect`` (the tag in the full frame), ``window`` (rendering the
     tag's window + detecting there), ``projected`` (the projected camera model), and each estimator
-    (``ihrcf``, ``atda``, ``fused``) on the full-frame corners."""
+    (``ihrcf``, ``atda``, ``fused``) on the full-frame corners, in that order: IHRCF's 3-D corners
+    and ATDA's IPPE solutions are computed once per frame and shared (``SensorFrame.memo``), so the
+    fused filter's figure is its own work on top of them, as in the wrapped env."""
     from ihrcf_env.core.calibration import Calibration, default_calibration_path
     from ihrcf_env.core.estimators import ImuSample, SensorFrame
     from ihrcf_env.envs.config import make_config
