@@ -28,12 +28,12 @@ seeded by the first ATDA attitudes, so a few trajectories decide it and its rati
 trajectories. Acceptance (issue 10): ratio within 1 +- 0.25 on every axis of every estimator,
 detection rates within 3 percentage points.
 
-Measured (``--trajectories 60 --frames 40 --replicas 3``, seed 0, shipped model and calibration;
-2 x 2400 frames, ~2 min per preset): detection 54.7 / 55.0 % (ideal), 53.4 / 52.9 % (realistic);
-corner RMS against the projection 0.32 / 0.33 px; every MAE ratio of IHRCF and ATDA within
-0.89-1.11, of the fused filter within 0.92-1.09 (realistic) but 0.74-1.36 (ideal: Y 1.36, interval
-1.06-1.70; pitch 0.74, 0.58-0.97; Z 1.21): with exact ranges its error is the ATDA-seeded
-convergence transient, the least reproducible quantity here.
+Measured (``--trajectories 200 --frames 40 --replicas 3 --seed 1``, shipped model and calibration;
+2 x 8000 frames, ~18 min per preset on one core): detection 54.5 / 54.6 % (ideal), 56.5 / 56.5 %
+(realistic); corner RMS against the projection 0.32 / 0.33 px; every MAE ratio within 0.96-1.14
+(IHRCF 0.97-1.01, ATDA 0.99-1.08, fused 0.96-1.14; largest: fused roll, realistic, 1.14). A first
+run with 60 trajectories (seed 0) had the fused filter's ideal-preset Y at 1.36 and pitch at 0.74:
+sampling noise of its convergence transients, gone at 200 trajectories.
 
 ``python -m ihrcf_env.experiments.camera_validation [--trajectories N] [--frames F] [--seed S]
 [--replicas R]`` prints the Markdown table (exit status 1 if a bound is missed).

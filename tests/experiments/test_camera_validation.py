@@ -1,23 +1,20 @@
 """The projected camera model against the rendered camera + TagDetector, paired on the same states and
-the same ToF/IMU readings (ihrcf_env.experiments.camera_validation), both sensor presets (~50 s).
+the same ToF/IMU readings (ihrcf_env.experiments.camera_validation), both sensor presets (~2 min).
 
 Errors within a trajectory are strongly correlated (a hovering drone keeps its corner errors, in
-both modes), so trajectories, not frames, are the independent samples, and a minute of rendering
-buys ~120 of them. At that size one axis's MAE ratio has a sampling spread of ~8-10 % (measured:
-the same states with another projected noise draw moved single ratios by 10 %), so 24 per-axis
-ratios cannot all be held to +-25 % without the test failing on noise. What is held here:
+both modes), so trajectories, not frames, are the independent samples. At 120 starts one axis's MAE
+ratio has a sampling spread of ~8-10 % (ATDA's Y ratio was 1.27 there); at 360 starts ~5 %, and
+every ratio of this fixed set is within 0.96-1.12 (90 % intervals within 0.90-1.22). Held here:
 
 * **detection rate** within 3 percentage points and **corner RMS** within 10 % (both presets);
-* **IHRCF and ATDA**, 120 starts of 4 frames (the first two fed but not scored, so ATDA has its
-  flip prior), 1-3 m: per estimator the mean of its six axis ratios within +-25 % (spread ~4 %),
-  every single axis within +-40 %;
+* **IHRCF and ATDA**, 360 starts of 4 frames (the first two fed but not scored, so ATDA has its
+  flip prior), 1-3 m: **every axis's MAE ratio within +-25 %** (the issue's bound);
 * **the fused filter**, 3 trajectories of 30 frames: it converges and stays valid on projected
-  corners as on rendered ones (over 1.5 s its error is mostly the convergence transient seeded by
-  the first ATDA attitudes; one trajectory can move its MAE by a factor of 5).
-
-Per-axis +-25 % for all three estimators is the large run's job
-(``python -m ihrcf_env.experiments.camera_validation --trajectories 60 --frames 40 --replicas 3``,
-~4 min; its table is in the issue's report).
+  corners as on rendered ones. Its per-axis ratios need long trajectories and many of them (over
+  1.5 s its error is mostly the convergence transient seeded by the first ATDA attitudes; one
+  trajectory can move its MAE by a factor of 5): that is the large run's job
+  (``python -m ihrcf_env.experiments.camera_validation --trajectories 200 --frames 40 --replicas 3
+  --seed 1``, ~18 min per preset on one core; every ratio within 0.96-1.14, see the README).
 """
 
 from __future__ import annotations
@@ -38,7 +35,7 @@ PRESETS = ("ideal", "realistic")
 @pytest.fixture(scope="module")
 def single_frame() -> CameraValidation:
     return validate_camera_model(
-        trajectories=120,
+        trajectories=360,
         frames=4,
         warmup=2,
         seed=1,
@@ -60,14 +57,12 @@ def filtered() -> CameraValidation:
 def test_single_frame_estimators_and_detection(single_frame: CameraValidation, preset: str) -> None:
     v = single_frame.presets[preset]
     report = single_frame.markdown()
-    assert v.frames == 240
+    assert v.frames == 720
     assert abs(v.detection["projected"] - v.detection["rendered"]) <= DETECTION_TOLERANCE, report
     assert v.corner_rms["projected"] == pytest.approx(v.corner_rms["rendered"], rel=0.10), report
     for est in ("ihrcf", "atda"):
         assert v.paired[est] >= 10, (est, v.paired)  # realistic IHRCF: rarely valid at 1-3 m (VL53L1X)
-        ratio = v.ratio(est)
-        assert abs(float(ratio.mean()) - 1.0) <= MAE_TOLERANCE, (est, report)
-        assert np.all(np.abs(ratio - 1.0) <= 0.40), (est, report)
+        assert np.all(np.abs(v.ratio(est) - 1.0) <= MAE_TOLERANCE), (est, report)
 
 
 @pytest.mark.parametrize("preset", PRESETS)
