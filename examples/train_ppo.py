@@ -45,6 +45,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--env-id", default=None, help="default: ihrcf_env/DeckLanding-v1 (v0 if v1 is absent)")
     ap.add_argument("--camera-model", default="projected", choices=("projected", "rendered"))
     ap.add_argument("--max-episode-steps", type=int, default=None, help="default: the env's limit")
+    ap.add_argument(
+        "--deck-motion",
+        action="store_true",
+        help="v1 observation with the fused filter's deck motion (evaluate with --deck-motion too)",
+    )
     ap.add_argument("--n-steps", type=int, default=1024, help="rollout length per env")
     ap.add_argument("--batch-size", type=int, default=256)
     ap.add_argument("--n-epochs", type=int, default=10)
@@ -77,7 +82,11 @@ def main(argv: list[str] | None = None) -> int:
 
     th.set_num_threads(1)  # the env processes need the cores; a 64x64 MLP gains nothing from threads
     env_id = args.env_id or default_env_id()
-    env_kw = {} if args.max_episode_steps is None else {"max_episode_steps": args.max_episode_steps}
+    env_kw: dict[str, object] = (
+        {} if args.max_episode_steps is None else {"max_episode_steps": args.max_episode_steps}
+    )
+    if args.deck_motion:
+        env_kw["deck_motion"] = True
     thunk = functools.partial(make_env, env_id, args.camera_model, **env_kw)
     vec_cls = SubprocVecEnv if args.n_envs > 1 else DummyVecEnv
     venv = VecMonitor(vec_cls([thunk] * args.n_envs), info_keywords=("is_success",))

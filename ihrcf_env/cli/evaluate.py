@@ -108,7 +108,7 @@ def load_sb3(path: str, algo: str, env: gym.Env) -> SB3Policy:
     if not same:
         raise PolicyError(
             f"--policy {path!r}: its observation space {_brief(space)} does not match the env's "
-            f"{_brief(want)} (another env id, estimator set or privileged observation?)"
+            f"{_brief(want)} (another env id, estimator set, privileged observation or --deck-motion?)"
         )
     if getattr(model.action_space, "shape", None) != env.action_space.shape:
         raise PolicyError(
@@ -264,6 +264,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--algo", choices=SB3_ALGOS, default="PPO", help="stable-baselines3 class of a .zip policy"
     )
     ap.add_argument("--max-steps", type=int, default=None, help="episode limit in steps (default: the env's)")
+    ap.add_argument(
+        "--deck-motion",
+        action="store_true",
+        help="v1 observation with the fused filter's deck motion (deck_motion=True; for policies trained so)",
+    )
     ap.add_argument("--quiet", action="store_true", help="only the summary")
     args = ap.parse_args(argv)
     if args.episodes < 1:
@@ -293,7 +298,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         kwargs["sensor_preset"] = args.sensor_preset
     if args.max_steps is not None:
         kwargs["max_episode_steps"] = args.max_steps
-    env = gym.make(args.env_id, **kwargs)
+    if args.deck_motion:
+        kwargs["deck_motion"] = True
+    try:
+        env = gym.make(args.env_id, **kwargs)
+    except (TypeError, ValueError) as e:  # e.g. --deck-motion on an env without that option
+        ap.error(f"cannot make {args.env_id} with {kwargs}: {e}")
     try:
         try:
             policy = make_policy(spec, env, args.algo)

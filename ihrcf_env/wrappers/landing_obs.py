@@ -25,6 +25,13 @@ per estimator ``E`` (``ihrcf``, ``atda``, ``fused``), 10 values each:
 ``E.age``                      1     1 s       age of the values shown (s, <= 10)
 =============================  ====  ========  ===================================================
 
+``deck_motion=True`` (opt-in; default off, so the default layout stays 50 values) appends the fused
+filter's deck motion, the rates a memoryless policy cannot take from one observation: ``motion.velocity``
+(3, 1 m/s: the deck origin's velocity relative to the drone, heading frame) and ``motion.normal_rate``
+(3, 1/s: the rate of change of the deck normal, heading frame), from
+:meth:`~ihrcf_env.core.estimators.fused.FusedEstimator.motion` (sensor-derived, not ground truth);
+held like an estimate block while the filter is not converged (zeros before it ever was).
+
 While an estimate is invalid its block keeps the last valid values and ``age`` grows (the time
 since the camera frame behind them, ``info[f"{E}_age"]`` of the estimates wrapper included); before
 the first valid estimate the block is zeros with age 10. No ground truth is in the observation
@@ -50,7 +57,7 @@ from numpy.typing import NDArray
 
 from ihrcf_env.core.calibration import Calibration
 from ihrcf_env.core.constants import GRAVITY
-from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedParams
+from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedEstimator, FusedParams
 from ihrcf_env.core.frames import matrix_from_euler, matrix_from_quat
 from ihrcf_env.wrappers.estimates import (
     GROUND_TRUTH,
@@ -89,22 +96,34 @@ TRUTH_FIELDS: tuple[tuple[str, int, float, float], ...] = (
     ("velocity", 3, 1.0, 20.0),
     ("wind", 3, 1.0, 40.0),
 )
+MOTION_FIELDS: tuple[tuple[str, int, float, float], ...] = (
+    ("velocity", 3, 1.0, 20.0),
+    ("normal_rate", 3, 1.0, 20.0),
+)
+#: Observation block of the fused filter's deck motion (``deck_motion=True``).
+MOTION = "motion"
 #: Fields whose scaled values lie in [0, bound] rather than [-bound, bound].
 NON_NEGATIVE = ("ranges", "ranges_valid", "valid", "age")
 
 
 def landing_obs_fields(
-    estimators: Iterable[str] = DEFAULT_ESTIMATORS, max_range: float = 4.0, privileged: bool = False
+    estimators: Iterable[str] = DEFAULT_ESTIMATORS,
+    max_range: float = 4.0,
+    privileged: bool = False,
+    deck_motion: bool = False,
 ) -> tuple[dict[str, slice], dict[str, float], NDArray[np.float32], NDArray[np.float32]]:
     """(slices, scales, low, high) of the observation (module docstring) for these estimators,
-    ToF ``max_range`` (m) and ``privileged``. ``slices`` also has each estimator's whole block under
-    its name and ``"all"``; ``scales[name]`` turns a slice back into physical units."""
+    ToF ``max_range`` (m), ``privileged`` and ``deck_motion``. ``slices`` also has each estimator's
+    whole block under its name and ``"all"``; ``scales[name]`` turns a slice back into physical
+    units."""
     slices: dict[str, slice] = {}
     scales: dict[str, float] = {}
     lows: list[float] = []
     highs: list[float] = []
     blocks: list[tuple[str, tuple[tuple[str, int, float, float], ...]]] = [("", SENSOR_FIELDS)]
     blocks += [(name, ESTIMATE_FIELDS) for name in estimators]
+    if deck_motion:
+        blocks.append((MOTION, MOTION_FIELDS))
     if privileged:
         blocks.append((GROUND_TRUTH, TRUTH_FIELDS))
     i = 0
@@ -141,33 +160,48 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         env: a :class:`~ihrcf_env.wrappers.estimates.DeckPoseObservation`-wrapped deck-landing env
             (Dict observation, with or without the image: the image is dropped).
         privileged: append the ground-truth block (asymmetric actor-critic); default False.
+        deck_motion: append the fused filter's deck motion (module docstring; needs the ``fused``
+            estimator); default False.
 
     Attributes: ``obs_slices`` (name -> slice), ``obs_scales`` (name -> scale: physical = value *
-    scale), ``estimator_names``, ``privileged``.
+    scale), ``estimator_names``, ``privileged``, ``deck_motion``.
     """
 
-    def __init__(self, env: gym.Env, privileged: bool = False) -> None:
-        if not isinstance(privileged, bool | np.bool_):
-            raise TypeError(
-                f"privileged must be True or False, got {type(privileged).__name__} {privileged!r}"
-            )
-        gym.utils.RecordConstructorArgs.__init__(self, privileged=bool(privileged))
+    def __init__(self, env: gym.Env, privileged: bool = False, deck_motion: bool = False) -> None:
+        for name, flag in (("privileged", privileged), ("deck_motion", deck_motion)):
+            if not isinstance(flag, bool | np.bool_):
+                raise TypeError(f"{name} must be True or False, got {type(flag).__name__} {flag!r}")
+        gym.utils.RecordConstructorArgs.__init__(
+            self, privileged=bool(privileged), deck_motion=bool(deck_motion)
+        )
         gym.Wrapper.__init__(self, env)
         pose_keys = env.get_wrapper_attr("pose_keys")
         self.estimator_names: tuple[str, ...] = tuple(k for k in pose_keys if k != GROUND_TRUTH)
         self.privileged = bool(privileged)
+        self.deck_motion = bool(deck_motion)
+        self._fused: FusedEstimator | None = None
+        if self.deck_motion:
+            fused = env.get_wrapper_attr("estimators").get("fused")
+            if not isinstance(fused, FusedEstimator):
+                raise ValueError(
+                    "deck_motion needs the fused estimator (estimators must include 'fused'), "
+                    f"got estimators {self.estimator_names}"
+                )
+            self._fused = fused
         base = cast("DeckLandingEnv", env.unwrapped)
         self._max_range = float(base.config.tof.max_range)
         self.obs_slices, self.obs_scales, low, high = landing_obs_fields(
-            self.estimator_names, self._max_range, self.privileged
+            self.estimator_names, self._max_range, self.privileged, self.deck_motion
         )
         self.observation_space = spaces.Box(low, high, low.shape, np.float32)
         self._low, self._high = low, high
         self._held: dict[str, NDArray[np.float64]] = {}  # estimator -> last valid scaled block
         self._held_time: dict[str, float] = {}  # estimator -> time (s) of the frame behind it
+        self._motion = np.zeros(6)  # last deck motion block (heading frame)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
         self._held, self._held_time = {}, {}
+        self._motion = np.zeros(6)
         obs, info = self.env.reset(seed=seed, options=options)
         return self._flatten(obs, info), info
 
@@ -205,6 +239,11 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             else:
                 out[sl[f"{name}.age"]] = MAX_AGE
             out[sl[f"{name}.valid"]] = float(int(est["valid"]))
+        if self._fused is not None:
+            motion = self._fused.motion()
+            if motion is not None:
+                self._motion = np.concatenate([R_lw @ motion[0], R_lw @ motion[1]])
+            out[sl[MOTION]] = self._motion
         if self.privileged:
             base = cast("DeckLandingEnv", self.env.unwrapped)
             s = base.world.snapshot()
@@ -234,6 +273,7 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
 def make_deck_landing_v1(
     raw: bool = False,
     privileged: bool = False,
+    deck_motion: bool = False,
     calibration: Calibration | str | os.PathLike[str] | None = None,
     max_residual: float = 0.01,
     estimators: Iterable[str] = DEFAULT_ESTIMATORS,
@@ -246,13 +286,19 @@ def make_deck_landing_v1(
     camera renders only the tag's window (``camera_output="corners"`` unless given). Options are
     checked before any physics client exists; a failed wrapper closes the env."""
     names = check_wrapper_options(calibration, False, False, max_residual, estimators, raw, fused_params)
-    if not isinstance(privileged, bool | np.bool_):
-        raise TypeError(f"privileged must be True or False, got {type(privileged).__name__} {privileged!r}")
+    for name, flag in (("privileged", privileged), ("deck_motion", deck_motion)):
+        if not isinstance(flag, bool | np.bool_):
+            raise TypeError(f"{name} must be True or False, got {type(flag).__name__} {flag!r}")
+    if deck_motion and "fused" not in names:
+        raise ValueError(
+            f"deck_motion needs the fused estimator (estimators must include 'fused'), got {names}"
+        )
     from ihrcf_env.envs.landing_v1 import DeckLandingV1Env
 
     if raw:
-        if privileged:
-            raise ValueError("privileged is an observation-wrapper option: it has no effect with raw=True")
+        for name, flag in (("privileged", privileged), ("deck_motion", deck_motion)):
+            if flag:
+                raise ValueError(f"{name} is an observation-wrapper option: it has no effect with raw=True")
         return DeckLandingV1Env(**env_kwargs)
     if env_kwargs.get("camera", True) is not False:
         env_kwargs.setdefault("camera_output", "corners")  # no image in the observation: the tag window
@@ -267,7 +313,7 @@ def make_deck_landing_v1(
             estimators=names,
             fused_params=fused_params,
         )
-        return LandingObservation(poses, privileged=bool(privileged))
+        return LandingObservation(poses, privileged=bool(privileged), deck_motion=bool(deck_motion))
     except BaseException:
         env.close()
         raise

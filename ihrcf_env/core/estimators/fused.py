@@ -620,6 +620,19 @@ class FusedEstimator:
         """True while the filter has a state (position and attitude)."""
         return self._pos is not None and self._att is not None
 
+    def motion(self, horizon: float = 0.01) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """The filter's deck motion after the last :meth:`update`, in the filter's (the IMU's) world
+        axes: (velocity of the deck origin relative to the drone (3,) m/s, rate of change of the deck
+        normal (3,) 1/s, by central differences over +-``horizon`` s of the Euler rates); None until
+        the filter has converged (as the pose output's validity) or after it lost its state."""
+        if not self._converged or self._pos is None or self._att is None:
+            return None
+        x_att = self._att.x
+        angles, rates = x_att[0:3], x_att[3:6]
+        ahead = matrix_from_euler(*(angles + horizon * rates))[:, 2]
+        behind = matrix_from_euler(*(angles - horizon * rates))[:, 2]
+        return np.array(self._pos.x[3:6]), (ahead - behind) / (2.0 * horizon)
+
     def update(self, frame: SensorFrame) -> PoseEstimate:
         """Fuse ``frame`` (time non-decreasing) and return the filtered deck pose in the body frame."""
         p = self.params
