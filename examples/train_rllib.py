@@ -44,6 +44,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--env-id", default=None, help="default: ihrcf_env/DeckLanding-v1")
     ap.add_argument("--camera-model", default="projected", choices=("projected", "rendered"))
     ap.add_argument("--max-episode-steps", type=int, default=None, help="default: the env's limit")
+    ap.add_argument(
+        "--deck-motion", action="store_true", help="v1 observation with the fused filter's deck motion"
+    )
     ap.add_argument("--train-batch-size", type=int, default=4000, help="env steps per iteration")
     ap.add_argument("--minibatch-size", type=int, default=256)
     ap.add_argument("--num-epochs", type=int, default=10)
@@ -72,6 +75,8 @@ def main(argv: list[str] | None = None) -> int:
     env_config: dict[str, object] = {"env_id": args.env_id, "camera_model": args.camera_model}
     if args.max_episode_steps is not None:
         env_config["max_episode_steps"] = args.max_episode_steps
+    if args.deck_motion:
+        env_config["deck_motion"] = True
     frag = max(1, args.train_batch_size // max(1, args.num_env_runners * args.num_envs_per_env_runner))
     config = (
         PPOConfig()
