@@ -148,8 +148,6 @@ def atda_estimate(
         A :class:`PoseEstimate` whose residual is the RMS reprojection error (px); invalid with a
         reason for degenerate corners or a failed solve.
     """
-    if prior_rotation is not None:
-        as_array(prior_rotation, (3, 3), "prior_rotation")
     return atda_choose(atda_candidates(corners_px, K, dist, tag_size, rig, refine), prior_rotation)
 
 
