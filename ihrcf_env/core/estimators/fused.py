@@ -378,9 +378,11 @@ class _Imm:
         if hit is not None:
             return hit
         n = len(self.mu)
-        stay = math.exp(-dt / self.switch_time)
-        T = np.full((n, n), (1.0 - stay) / (n - 1)) if n > 1 else np.ones((1, 1))
-        np.fill_diagonal(T, stay if n > 1 else 1.0)
+        T = np.ones((1, 1))  # one model: no switching
+        if n > 1:
+            stay = math.exp(-dt / self.switch_time)
+            T = np.full((n, n), (1.0 - stay) / (n - 1))
+            np.fill_diagonal(T, stay)
         F1, Qw, Qd = _kinematics(float(dt))
         F = _per_axis(F1, np.ones(3))
         Q = _per_axis(Qw, np.square(q_white))[None] + np.stack(

@@ -142,10 +142,23 @@ def ihrcf_estimate(
         A :class:`PoseEstimate`; invalid with a reason for any bad measurement (never raises for
         those). Raises ValueError only for wrongly shaped inputs.
     """
+    return _corners_and_fit(corners_px, ranges, ranges_valid, touch_pixels, rig, tag_size, max_residual)[1]
+
+
+def _corners_and_fit(
+    corners_px: ArrayLike,
+    ranges: ArrayLike,
+    ranges_valid: ArrayLike,
+    touch_pixels: TouchPixels,
+    rig: SensorRig,
+    tag_size: float,
+    max_residual: float,
+) -> tuple[IHRCFCorners | str, PoseEstimate]:
+    """(:func:`ihrcf_corners`, the estimate of its rigid fit or invalid with its reason)."""
     measured = ihrcf_corners(corners_px, ranges, ranges_valid, touch_pixels, rig)
     if isinstance(measured, str):
-        return PoseEstimate.invalid(measured)
-    return ihrcf_fit(measured.corners_cam, rig, tag_size, max_residual)
+        return measured, PoseEstimate.invalid(measured)
+    return measured, ihrcf_fit(measured.corners_cam, rig, tag_size, max_residual)
 
 
 def ihrcf_fit(
@@ -185,10 +198,7 @@ def ihrcf_measure(
     r = _shape_checked(ranges, (4,), "ranges")
 
     def compute() -> tuple[IHRCFCorners | str, PoseEstimate]:
-        measured = ihrcf_corners(corners, r, frame.ranges_valid, touch_pixels, rig)
-        if isinstance(measured, str):
-            return measured, PoseEstimate.invalid(measured)
-        return measured, ihrcf_fit(measured.corners_cam, rig, tag_size, max_residual)
+        return _corners_and_fit(corners, r, frame.ranges_valid, touch_pixels, rig, tag_size, max_residual)
 
     key = ("ihrcf", id(touch_pixels), id(rig), float(tag_size), float(max_residual), r.tobytes())
     return frame.memo(key, compute)
