@@ -34,6 +34,12 @@ from ihrcf_env.rl.envs import default_env_id, make_env
 TRAIN_SEED_BASE, EVAL_SEED_BASE = 10_000, 20_000
 
 
+def _curriculum_env(make: functools.partial) -> object:
+    from ihrcf_env.rl.curriculum import StartCurriculum
+
+    return StartCurriculum(make())
+
+
 def main(argv: list[str] | None = None) -> int:
     """Command line entry point; returns the exit code."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -50,6 +56,14 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="v1 observation with the fused filter's deck motion (evaluate with --deck-motion too)",
     )
+    ap.add_argument(
+        "--curriculum-steps",
+        type=int,
+        default=0,
+        help="start curriculum (ihrcf_env.rl.curriculum): low starts near the tag widening to the "
+        "task's over this many steps (0: off; evaluations always use the task's starts)",
+    )
+    ap.add_argument("--ent-coef", type=float, default=0.0, help="PPO entropy bonus")
     ap.add_argument("--n-steps", type=int, default=1024, help="rollout length per env")
     ap.add_argument("--batch-size", type=int, default=256)
     ap.add_argument("--n-epochs", type=int, default=10)
@@ -67,6 +81,8 @@ def main(argv: list[str] | None = None) -> int:
         "segments (then evaluate, checkpoint and save as at the end)",
     )
     args = ap.parse_args(argv)
+    if args.curriculum_steps < 0:
+        ap.error("--curriculum-steps must be >= 0")
     for name in ("total_steps", "n_envs", "n_steps", "batch_size", "eval_every", "eval_episodes"):
         if getattr(args, name) < 1:
             ap.error(f"--{name.replace('_', '-')} must be >= 1")
@@ -88,8 +104,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.deck_motion:
         env_kw["deck_motion"] = True
     thunk = functools.partial(make_env, env_id, args.camera_model, **env_kw)
+    train_thunk = functools.partial(_curriculum_env, thunk) if args.curriculum_steps else thunk
     vec_cls = SubprocVecEnv if args.n_envs > 1 else DummyVecEnv
-    venv = VecMonitor(vec_cls([thunk] * args.n_envs), info_keywords=("is_success",))
+    venv = VecMonitor(vec_cls([train_thunk] * args.n_envs), info_keywords=("is_success",))
     out, ckpt = args.out, sb3.ResumableCheckpointCallback(args.out / "checkpoints", args.checkpoint_every)
     resume = args.resume and ckpt.model_path.exists()
     if resume:
@@ -106,6 +123,7 @@ def main(argv: list[str] | None = None) -> int:
             n_epochs=args.n_epochs,
             learning_rate=args.learning_rate,
             gamma=args.gamma,
+            ent_coef=args.ent_coef,
             seed=args.seed,
             device="cpu",
             policy_kwargs={
@@ -126,6 +144,8 @@ def main(argv: list[str] | None = None) -> int:
         evaluator,
         sb3.NormUpdateCallback(),
     ]
+    if args.curriculum_steps:
+        callbacks.append(sb3.CurriculumCallback(args.curriculum_steps))
     if args.max_wall_min is not None:  # evaluator.start_time already counts earlier segments
         callbacks.append(sb3.WallClockBudgetCallback(evaluator.start_time + 60.0 * args.max_wall_min))
     print(f"training PPO on {env_id} (camera_model={args.camera_model}, {args.n_envs} envs)", flush=True)

@@ -265,6 +265,32 @@ class WallClockBudgetCallback(BaseCallback):
         return True
 
 
+class CurriculumCallback(BaseCallback):
+    """Raises the level of every training env's :class:`~ihrcf_env.rl.curriculum.StartCurriculum`
+    linearly from 0 to 1 over the first ``steps`` environment steps (set before each rollout, so a
+    resumed run goes on at its level)."""
+
+    def __init__(self, steps: int):
+        super().__init__()
+        if steps < 1:
+            raise ValueError(f"steps must be >= 1, got {steps!r}")
+        self.steps = int(steps)
+        self.level = 0.0
+
+    def _set_level(self) -> None:
+        self.level = min(1.0, self.model.num_timesteps / self.steps)
+        self.training_env.env_method("set_curriculum_level", self.level)
+
+    def _on_training_start(self) -> None:
+        self._set_level()
+
+    def _on_rollout_start(self) -> None:
+        self._set_level()
+
+    def _on_step(self) -> bool:
+        return True
+
+
 class ResumableCheckpointCallback(BaseCallback):
     """Between updates, once every ``every`` environment steps, and at the end, saves the model to
     ``<directory>/latest.zip`` (and a :class:`VecNormalize` wrapper's statistics to

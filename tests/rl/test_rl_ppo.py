@@ -129,3 +129,28 @@ def test_train_ppo_saves_a_policy_that_reloads_and_resumes(
     stopped = PPO.load(out / "final.zip", device="cpu").num_timesteps
     assert 384 < stopped < 384 + 128
     assert int(read_csv(out / "eval.csv")[-1]["timesteps"]) == stopped
+
+
+def test_curriculum_callback_raises_the_level_with_the_steps() -> None:
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from ihrcf_env.rl.curriculum import StartCurriculum
+    from ihrcf_env.rl.envs import make_env
+    from ihrcf_env.rl.sb3 import CurriculumCallback
+
+    venv = DummyVecEnv(
+        [lambda: StartCurriculum(make_env("ihrcf_env/DeckLanding-v1", CAMERA, max_episode_steps=30))]
+    )
+    try:
+        model = PPO("MlpPolicy", venv, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu")
+        cb = CurriculumCallback(256)
+        model.learn(192, callback=cb)  # rollouts start at 0, 64 and 128 steps
+        assert cb.level == 0.5 and venv.get_attr("level") == [0.5]
+        model.learn(128, callback=cb, reset_num_timesteps=False)  # 192, 256: then the task's start
+        assert cb.level == 1.0 and venv.get_attr("level") == [1.0]
+    finally:
+        venv.close()
+    with pytest.raises(ValueError, match="steps"):
+        CurriculumCallback(0)

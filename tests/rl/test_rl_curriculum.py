@@ -1,0 +1,85 @@
+"""The start curriculum (``ihrcf_env.rl.curriculum``, no torch): starts between the easy and the
+task's distribution by level, the env's own start at level 1, seeded, and bad input rejected."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ihrcf_env.rl.curriculum import StartCurriculum
+from ihrcf_env.rl.envs import make_env
+
+
+@pytest.fixture(scope="module")
+def env():
+    e = StartCurriculum(make_env("ihrcf_env/DeckLanding-v1", "projected"), full_fraction=0.0)
+    yield e
+    e.close()
+
+
+def _start(e: StartCurriculum, seed: int) -> tuple[float, float]:
+    e.reset(seed=seed)
+    s = e.unwrapped.world.snapshot()
+    return float(s.drone_position[2] - s.deck_position[2]), e.unwrapped.tag_offset(s)
+
+
+def test_level_interpolates_the_start_between_easy_and_the_task(env: StartCurriculum) -> None:
+    for level, (lo, hi), radius in ((0.0, (0.4, 0.8), 0.1), (0.5, (0.95, 1.9), 0.55)):
+        env.set_curriculum_level(level)
+        starts = [_start(env, seed) for seed in range(12)]
+        alts = [a for a, _ in starts]
+        assert all(lo - 0.02 <= a <= hi + 0.02 for a in alts), (level, alts)
+        assert max(alts) - min(alts) > 0.3 * (hi - lo)  # spread over the interval, not one point
+        assert all(off <= radius + 0.02 for _, off in starts), (level, starts)
+    env.set_curriculum_level(0.0)
+    assert _start(env, 7) == _start(env, 7)  # seeded
+
+
+def test_level_one_is_the_task_start_bitwise(env: StartCurriculum) -> None:
+    env.set_curriculum_level(1.0)
+    plain = make_env("ihrcf_env/DeckLanding-v1", "projected")
+    try:
+        for seed in (0, 5):
+            obs, info = env.reset(seed=seed)
+            ref, _ = plain.reset(seed=seed)
+            assert np.array_equal(obs, ref) and info["curriculum_level"] == 1.0
+    finally:
+        plain.close()
+
+
+def test_full_fraction_and_explicit_options_keep_the_task_start() -> None:
+    plain = make_env("ihrcf_env/DeckLanding-v1", "projected")
+    always = StartCurriculum(make_env("ihrcf_env/DeckLanding-v1", "projected"), full_fraction=1.0)
+    try:
+        assert np.array_equal(always.reset(seed=3)[0], plain.reset(seed=3)[0])
+        always.full_fraction = 0.0
+        opts = {"altitude": 2.0, "offset": (0.1, 0.0)}
+        assert np.array_equal(always.reset(seed=4, options=opts)[0], plain.reset(seed=4, options=opts)[0])
+    finally:
+        plain.close()
+        always.close()
+
+
+def test_bad_input_names_the_parameter() -> None:
+    e = make_env("ihrcf_env/DeckLanding-v1", "projected")
+    try:
+        with pytest.raises(ValueError, match="easy_altitude"):
+            StartCurriculum(e, easy_altitude=(0.1, 0.5))
+        with pytest.raises(ValueError, match="easy_altitude"):
+            StartCurriculum(e, easy_altitude=(1.0, 0.5))
+        with pytest.raises(TypeError, match="easy_altitude"):
+            StartCurriculum(e, easy_altitude="low")  # type: ignore[arg-type]
+        with pytest.raises(ValueError, match="easy_offset"):
+            StartCurriculum(e, easy_offset=2.0)
+        with pytest.raises(ValueError, match="full_fraction"):
+            StartCurriculum(e, full_fraction=1.5)
+        with pytest.raises(ValueError, match="level"):
+            StartCurriculum(e).set_curriculum_level(1.2)
+    finally:
+        e.close()
+    v0 = make_env("ihrcf_env/DeckLanding-v0", "projected")
+    try:
+        with pytest.raises(TypeError, match="DeckLanding-v1"):
+            StartCurriculum(v0)
+    finally:
+        v0.close()
