@@ -19,6 +19,8 @@ them, dropping the curve rows logged after them). The policy normalises its obse
 Seeds: training env k starts from ``reset(seed=10_000 + 100 * SEED + k)`` and runs on from there;
 the periodic evaluations use seeds 20_000 .. 20_000 + EVAL_EPISODES - 1; seeds below 10_000 (e.g.
 the CLI's ``--seed 0 --episodes 50``) are never seen in training or model selection.
+``--curriculum-steps N``: training starts low near the tag, widening to the task's starts over N steps
+(``ihrcf_env.rl.curriculum``); the evaluations always use the task's starts.
 """
 
 from __future__ import annotations
@@ -28,16 +30,11 @@ import functools
 import time
 from pathlib import Path
 
+from ihrcf_env.rl.curriculum import curriculum_env
 from ihrcf_env.rl.curves import EVAL_FIELDS, TRAIN_FIELDS, CsvLog, plot_curves, summary
 from ihrcf_env.rl.envs import default_env_id, make_env
 
 TRAIN_SEED_BASE, EVAL_SEED_BASE = 10_000, 20_000
-
-
-def _curriculum_env(make: functools.partial) -> object:
-    from ihrcf_env.rl.curriculum import StartCurriculum
-
-    return StartCurriculum(make())
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -51,18 +48,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--env-id", default=None, help="default: ihrcf_env/DeckLanding-v1 (v0 if v1 is absent)")
     ap.add_argument("--camera-model", default="projected", choices=("projected", "rendered"))
     ap.add_argument("--max-episode-steps", type=int, default=None, help="default: the env's limit")
-    ap.add_argument(
-        "--deck-motion",
-        action="store_true",
-        help="v1 observation with the fused filter's deck motion (evaluate with --deck-motion too)",
-    )
-    ap.add_argument(
-        "--curriculum-steps",
-        type=int,
-        default=0,
-        help="start curriculum (ihrcf_env.rl.curriculum): low starts near the tag widening to the "
-        "task's over this many steps (0: off; evaluations always use the task's starts)",
-    )
+    ap.add_argument("--deck-motion", action="store_true", help="v1 deck_motion=True (evaluate so too)")
+    ap.add_argument("--curriculum-steps", type=int, default=0, help="start curriculum length (0: off)")
     ap.add_argument("--ent-coef", type=float, default=0.0, help="PPO entropy bonus")
     ap.add_argument("--n-steps", type=int, default=1024, help="rollout length per env")
     ap.add_argument("--batch-size", type=int, default=256)
@@ -73,13 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--eval-every", type=int, default=50_000, help="steps between evaluations")
     ap.add_argument("--eval-episodes", type=int, default=20)
     ap.add_argument("--checkpoint-every", type=int, default=50_000)
-    ap.add_argument(
-        "--max-wall-min",
-        type=float,
-        default=None,
-        help="stop after this many minutes of training wall time, counting a resumed run's earlier "
-        "segments (then evaluate, checkpoint and save as at the end)",
-    )
+    ap.add_argument("--max-wall-min", type=float, default=None, help="wall budget (min), resumes counted")
     args = ap.parse_args(argv)
     if args.curriculum_steps < 0:
         ap.error("--curriculum-steps must be >= 0")
@@ -98,13 +79,11 @@ def main(argv: list[str] | None = None) -> int:
 
     th.set_num_threads(1)  # the env processes need the cores; a 64x64 MLP gains nothing from threads
     env_id = args.env_id or default_env_id()
-    env_kw: dict[str, object] = (
-        {} if args.max_episode_steps is None else {"max_episode_steps": args.max_episode_steps}
-    )
-    if args.deck_motion:
-        env_kw["deck_motion"] = True
+    env_kw: dict[str, object] = {"deck_motion": True} if args.deck_motion else {}
+    if args.max_episode_steps is not None:
+        env_kw["max_episode_steps"] = args.max_episode_steps
     thunk = functools.partial(make_env, env_id, args.camera_model, **env_kw)
-    train_thunk = functools.partial(_curriculum_env, thunk) if args.curriculum_steps else thunk
+    train_thunk = functools.partial(curriculum_env, thunk) if args.curriculum_steps else thunk
     vec_cls = SubprocVecEnv if args.n_envs > 1 else DummyVecEnv
     venv = VecMonitor(vec_cls([train_thunk] * args.n_envs), info_keywords=("is_success",))
     out, ckpt = args.out, sb3.ResumableCheckpointCallback(args.out / "checkpoints", args.checkpoint_every)

@@ -14,6 +14,7 @@ without the wrapper.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
@@ -99,3 +100,8 @@ class StartCurriculum(gym.Wrapper[Any, Any, Any, Any]):
         obs, info = self.env.reset(seed=seed, options=opts or None)
         info["curriculum_level"] = self.level
         return obs, info
+
+
+def curriculum_env(make: Callable[[], gym.Env]) -> StartCurriculum:
+    """``StartCurriculum(make())`` with the default curriculum (a picklable env factory)."""
+    return StartCurriculum(make())
