@@ -9,12 +9,11 @@ result on the rendered camera with the evaluate CLI. Needs the ``[rl]`` extra::
     python -m ihrcf_env.evaluate --env-id ihrcf_env/DeckLanding-v1 --policy out/ppo/final.zip \\
         --episodes 50 --seed 0 --camera-model rendered
 
-Files written to ``--out``: ``final.zip`` (the policy after the last update), ``best.zip`` (the best
-periodic evaluation), ``train.csv`` (one row per training episode), ``eval.csv`` (one row per
-evaluation), ``curves.png`` (return and success rate against steps), ``checkpoints/latest.zip`` and
-``checkpoints/vecnormalize.pkl`` (every ``--checkpoint-every`` steps: ``--resume`` continues from
-them, dropping the curve rows logged after them). The policy normalises its observation itself
-(``ihrcf_env.rl.sb3.RunningNormExtractor``), so the ``.zip`` is all an evaluation needs.
+Writes to ``--out``: ``final.zip`` (last update), ``best.zip`` (best periodic evaluation),
+``train.csv`` / ``eval.csv`` (one row per training episode / evaluation), ``curves.png``,
+``checkpoints/`` (every ``--checkpoint-every`` steps; ``--resume`` continues from them). The policy
+normalises its observation itself (``ihrcf_env.rl.sb3.RunningNormExtractor``): the ``.zip`` is all
+an evaluation needs.
 
 Seeds: training env k starts from ``reset(seed=10_000 + 100 * SEED + k)`` and runs on from there;
 the periodic evaluations use seeds 20_000 .. 20_000 + EVAL_EPISODES - 1; seeds below 10_000 (e.g.
@@ -32,7 +31,7 @@ from pathlib import Path
 
 from ihrcf_env.rl.curriculum import curriculum_env
 from ihrcf_env.rl.curves import EVAL_FIELDS, TRAIN_FIELDS, CsvLog, plot_curves, summary
-from ihrcf_env.rl.envs import default_env_id, make_env
+from ihrcf_env.rl.envs import default_env_id, make_env, name_value
 
 TRAIN_SEED_BASE, EVAL_SEED_BASE = 10_000, 20_000
 
@@ -51,6 +50,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--deck-motion", action="store_true", help="v1 deck_motion=True (evaluate so too)")
     ap.add_argument("--curriculum-steps", type=int, default=0, help="start curriculum length (0: off)")
     ap.add_argument("--ent-coef", type=float, default=0.0, help="PPO entropy bonus")
+    ap.add_argument("--log-std-init", type=float, default=0.0, help="initial log std of the actions")
+    ap.add_argument("--reward-weights", nargs="*", type=name_value, default=[], metavar="NAME=W")
     ap.add_argument("--n-steps", type=int, default=1024, help="rollout length per env")
     ap.add_argument("--batch-size", type=int, default=256)
     ap.add_argument("--n-epochs", type=int, default=10)
@@ -62,11 +63,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--checkpoint-every", type=int, default=50_000)
     ap.add_argument("--max-wall-min", type=float, default=None, help="wall budget (min), resumes counted")
     args = ap.parse_args(argv)
-    if args.curriculum_steps < 0:
-        ap.error("--curriculum-steps must be >= 0")
-    for name in ("total_steps", "n_envs", "n_steps", "batch_size", "eval_every", "eval_episodes"):
-        if getattr(args, name) < 1:
-            ap.error(f"--{name.replace('_', '-')} must be >= 1")
+    positive = ("total_steps", "n_envs", "n_steps", "batch_size", "eval_every", "eval_episodes")
+    for name in ("curriculum_steps", *positive):
+        if getattr(args, name) < (name in positive):
+            ap.error(f"--{name.replace('_', '-')} must be >= {int(name in positive)}")
     if args.max_wall_min is not None and not args.max_wall_min > 0:
         ap.error("--max-wall-min must be > 0 (minutes)")
 
@@ -80,6 +80,8 @@ def main(argv: list[str] | None = None) -> int:
     th.set_num_threads(1)  # the env processes need the cores; a 64x64 MLP gains nothing from threads
     env_id = args.env_id or default_env_id()
     env_kw: dict[str, object] = {"deck_motion": True} if args.deck_motion else {}
+    if args.reward_weights:  # shapes the training signal only: success is the task's
+        env_kw["reward_weights"] = dict(args.reward_weights)
     if args.max_episode_steps is not None:
         env_kw["max_episode_steps"] = args.max_episode_steps
     thunk = functools.partial(make_env, env_id, args.camera_model, **env_kw)
@@ -108,6 +110,7 @@ def main(argv: list[str] | None = None) -> int:
             policy_kwargs={
                 "net_arch": list(args.net_arch),
                 "features_extractor_class": sb3.RunningNormExtractor,
+                "log_std_init": args.log_std_init,
             },
         )
     done = model.num_timesteps
@@ -117,12 +120,8 @@ def main(argv: list[str] | None = None) -> int:
     eval_log = CsvLog(out / "eval.csv", EVAL_FIELDS, keep_until=keep)
     seeds = range(EVAL_SEED_BASE, EVAL_SEED_BASE + args.eval_episodes)
     evaluator = sb3.HeldOutEvalCallback(thunk, seeds, args.eval_every, eval_log, out / "best.zip")
-    callbacks = [  # evaluation and checkpoint see the statistics the policy was trained with
-        sb3.EpisodeCsvCallback(train_log),
-        ckpt,
-        evaluator,
-        sb3.NormUpdateCallback(),
-    ]
+    # (the norm update comes after evaluation and checkpoint: they see the training statistics)
+    callbacks = [sb3.EpisodeCsvCallback(train_log), ckpt, evaluator, sb3.NormUpdateCallback()]
     if args.curriculum_steps:
         callbacks.append(sb3.CurriculumCallback(args.curriculum_steps))
     if args.max_wall_min is not None:  # evaluator.start_time already counts earlier segments

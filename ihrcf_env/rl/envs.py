@@ -8,6 +8,7 @@ on the paper's hover env as well.
 
 from __future__ import annotations
 
+import math
 from typing import Any, SupportsFloat
 
 import gymnasium as gym
@@ -51,3 +52,15 @@ def make_env(env_id: str | None = None, camera_model: str = "projected", **kwarg
         env.close()
         raise ValueError(f"{env_id} gives a {type(env.observation_space).__name__} observation: need a Box")
     return SuccessInfo(env)
+
+
+def name_value(text: str) -> tuple[str, float]:
+    """``"NAME=NUMBER"`` -> (NAME, NUMBER), e.g. a reward weight on a command line; ValueError else."""
+    name, sep, value = text.partition("=")
+    try:
+        number = float(value)
+    except ValueError:
+        number = float("nan")
+    if not sep or not name or not math.isfinite(number):
+        raise ValueError(f"expected NAME=NUMBER, got {text!r}")
+    return name, number

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ihrcf_env.rl.curriculum import StartCurriculum
-from ihrcf_env.rl.envs import make_env
+from ihrcf_env.rl.envs import make_env, name_value
 
 
 @pytest.fixture(scope="module")
@@ -83,3 +83,10 @@ def test_bad_input_names_the_parameter() -> None:
             StartCurriculum(v0)
     finally:
         v0.close()
+
+
+def test_name_value_parses_command_line_weights() -> None:
+    assert name_value("time=2") == ("time", 2.0) and name_value("crash=1e2") == ("crash", 100.0)
+    for bad in ("time", "=2", "time=x", "time=nan", "time=inf"):
+        with pytest.raises(ValueError, match="NAME=NUMBER"):
+            name_value(bad)

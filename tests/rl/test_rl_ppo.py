@@ -117,7 +117,8 @@ def test_train_ppo_saves_a_policy_that_reloads_and_resumes(
     assert res.mean_return == pytest.approx(float(evals[-1]["mean_return"]), rel=1e-6, abs=1e-9)
     assert res.success_rate == float(evals[-1]["success_rate"])
 
-    assert train_ppo.main(["--total-steps", "384", "--out", str(out), "--resume", *TINY]) == 0
+    more = ["--curriculum-steps", "1000", "--reward-weights", "time=2", "success=150"]  # training options
+    assert train_ppo.main(["--total-steps", "384", "--out", str(out), "--resume", *more, *TINY]) == 0
     assert "resuming from" in capsys.readouterr().out
     evals2 = read_csv(out / "eval.csv")
     assert [int(r["timesteps"]) for r in evals2] == [128, 256, 384] and evals2[:2] == evals
