@@ -50,6 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--deck-motion", action="store_true", help="v1 deck_motion=True (evaluate so too)")
     ap.add_argument("--curriculum-steps", type=int, default=0, help="start curriculum length (0: off)")
     ap.add_argument("--ent-coef", type=float, default=0.0, help="PPO entropy bonus")
+    ap.add_argument("--init-action-mean", type=float, nargs="+", default=None, help="e.g. 0 0 -0.3 0")
     ap.add_argument("--log-std-init", type=float, default=0.0, help="initial log std of the actions")
     ap.add_argument("--reward-weights", nargs="*", type=name_value, default=[], metavar="NAME=W")
     ap.add_argument("--n-steps", type=int, default=1024, help="rollout length per env")
@@ -113,6 +114,8 @@ def main(argv: list[str] | None = None) -> int:
                 "log_std_init": args.log_std_init,
             },
         )
+        if args.init_action_mean is not None:  # an untrained policy that already does this on average
+            sb3.set_initial_action_mean(model, args.init_action_mean)
     done = model.num_timesteps
     venv.seed(TRAIN_SEED_BASE + 100 * args.seed + done)  # first reset of each env process (+ its index)
     keep = done if resume else None
@@ -120,7 +123,6 @@ def main(argv: list[str] | None = None) -> int:
     eval_log = CsvLog(out / "eval.csv", EVAL_FIELDS, keep_until=keep)
     seeds = range(EVAL_SEED_BASE, EVAL_SEED_BASE + args.eval_episodes)
     evaluator = sb3.HeldOutEvalCallback(thunk, seeds, args.eval_every, eval_log, out / "best.zip")
-    # (the norm update comes after evaluation and checkpoint: they see the training statistics)
     callbacks = [sb3.EpisodeCsvCallback(train_log), ckpt, evaluator, sb3.NormUpdateCallback()]
     if args.curriculum_steps:
         callbacks.append(sb3.CurriculumCallback(args.curriculum_steps))

@@ -82,6 +82,20 @@ def norm_extractors(model: BaseAlgorithm) -> list[RunningNormExtractor]:
     return [m for m in model.policy.modules() if isinstance(m, RunningNormExtractor)]
 
 
+def set_initial_action_mean(model: BaseAlgorithm, mean: Sequence[float]) -> None:
+    """Set the bias of a fresh Gaussian policy's action layer to ``mean`` (action units). SB3
+    initialises that layer's weights 100x smaller than the others, so the untrained policy's mean
+    action is ``mean`` (up to ~1e-2): e.g. a landing policy that starts by descending."""
+    net = getattr(model.policy, "action_net", None)
+    if not isinstance(net, th.nn.Linear):
+        raise TypeError(f"the policy has no linear action_net, got {type(net).__name__}")
+    m = np.asarray(mean, dtype=np.float64)
+    if m.shape != (net.out_features,) or not np.isfinite(m).all():
+        raise ValueError(f"mean must be {net.out_features} finite numbers, got {list(mean)!r}")
+    with th.no_grad():
+        net.bias.copy_(th.as_tensor(m, dtype=net.bias.dtype))
+
+
 class NormUpdateCallback(BaseCallback):
     """Feeds each rollout's observations to the policy's :class:`RunningNormExtractor` after the
     update that trains on them, so that a rollout is collected and trained on with the same

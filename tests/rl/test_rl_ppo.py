@@ -155,3 +155,25 @@ def test_curriculum_callback_raises_the_level_with_the_steps() -> None:
         venv.close()
     with pytest.raises(ValueError, match="steps"):
         CurriculumCallback(0)
+
+
+def test_initial_action_mean_sets_the_untrained_policys_mean() -> None:
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+
+    from ihrcf_env.rl.envs import make_env
+    from ihrcf_env.rl.sb3 import RunningNormExtractor, set_initial_action_mean
+
+    env = make_env("ihrcf_env/DeckLanding-v1", CAMERA)
+    try:
+        kw = {"features_extractor_class": RunningNormExtractor, "log_std_init": -1.0}
+        model = PPO("MlpPolicy", env, seed=0, device="cpu", policy_kwargs=kw)
+        set_initial_action_mean(model, [0.0, 0.0, -0.3, 0.0])
+        obs, _ = env.reset(seed=0)
+        action, _ = model.predict(obs, deterministic=True)
+        np.testing.assert_allclose(action, [0.0, 0.0, -0.3, 0.0], atol=0.05)  # the small weights' part
+        for bad in ([0.0, 0.0], [0.0, 0.0, float("nan"), 0.0]):
+            with pytest.raises(ValueError, match="mean"):
+                set_initial_action_mean(model, bad)
+    finally:
+        env.close()
