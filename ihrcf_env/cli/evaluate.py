@@ -118,6 +118,23 @@ def load_sb3(path: str, algo: str, env: gym.Env) -> SB3Policy:
     return SB3Policy(model)
 
 
+def _with_deck_motion(
+    env_id: str, kwargs: dict[str, Any], spec: str, algo: str
+) -> tuple[gym.Env, Policy] | None:
+    """(env, policy) with ``deck_motion=True`` if a saved policy fits that observation, else None."""
+    if not spec.endswith(".zip"):
+        return None
+    try:
+        env = gym.make(env_id, **kwargs, deck_motion=True)
+    except (TypeError, ValueError):  # an env without that option
+        return None
+    try:
+        return env, make_policy(spec, env, algo)
+    except PolicyError:
+        env.close()
+        return None
+
+
 def make_policy(spec: str, env: gym.Env, algo: str = "PPO") -> Policy:
     """The policy of a POLICY argument (module docstring) for ``env``; PolicyError naming
     ``--policy`` if it cannot be."""
@@ -267,7 +284,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument(
         "--deck-motion",
         action="store_true",
-        help="v1 observation with the fused filter's deck motion (deck_motion=True; for policies trained so)",
+        help="v1 observation with the fused filter's deck motion (deck_motion=True); a saved policy "
+        "trained so is detected without it",
     )
     ap.add_argument("--quiet", action="store_true", help="only the summary")
     args = ap.parse_args(argv)
@@ -308,7 +326,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             policy = make_policy(spec, env, args.algo)
         except PolicyError as e:
-            ap.error(f"argument {e}")
+            retry = (
+                _with_deck_motion(args.env_id, kwargs, spec, args.algo)
+                if "deck_motion" not in kwargs
+                else None
+            )
+            if retry is None:
+                ap.error(f"argument {e}")
+            env.close()
+            env, policy = retry
+            kwargs["deck_motion"] = True
+            print(f"{spec}: trained with deck_motion=True, evaluated so (as with --deck-motion)", flush=True)
         t0 = time.perf_counter()
         results = evaluate(
             env,
