@@ -3,9 +3,9 @@
 Training uses the fast projected camera (``camera_model="projected"``: no rendering); evaluate the
 result on the rendered camera with the evaluate CLI. Needs the ``[rl]`` extra::
 
-    pip install ".[rl]"
-    python examples/train_ppo.py --total-steps 1000000 --out out/ppo        # 2 env processes
-    python examples/train_ppo.py --total-steps 1000000 --out out/ppo --resume   # continue a stopped run
+    python examples/train_ppo.py --out out/ppo --total-steps 3000000 --max-wall-min 60 --deck-motion \
+        --curriculum-steps 500000 --init-action-mean 0 0 -0.3 0 --log-std-init -1 --gamma 0.998 \
+        --reward-weights time=2          # 2 env processes; --resume continues (earlier wall counted)
     python -m ihrcf_env.evaluate --env-id ihrcf_env/DeckLanding-v1 --policy out/ppo/final.zip \\
         --episodes 50 --seed 0 --camera-model rendered
 
@@ -56,7 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--n-steps", type=int, default=1024, help="rollout length per env")
     ap.add_argument("--batch-size", type=int, default=256)
     ap.add_argument("--n-epochs", type=int, default=10)
-    ap.add_argument("--learning-rate", type=float, default=3e-4)
+    ap.add_argument("--learning-rate", type=float, default=None, help="3e-4; with --resume: replaces it")
     ap.add_argument("--gamma", type=float, default=0.99)
     ap.add_argument("--net-arch", type=int, nargs="+", default=[64, 64], help="hidden layer sizes")
     ap.add_argument("--eval-every", type=int, default=50_000, help="steps between evaluations")
@@ -93,7 +93,8 @@ def main(argv: list[str] | None = None) -> int:
     resume = args.resume and ckpt.model_path.exists()
     if resume:
         venv = sb3.load_vecnormalize(ckpt.vecnormalize_path, venv)
-        model = PPO.load(ckpt.model_path, env=venv, device="cpu")
+        lr = {} if args.learning_rate is None else {"learning_rate": args.learning_rate}
+        model = PPO.load(ckpt.model_path, env=venv, device="cpu", **lr)
         print(f"resuming from {ckpt.model_path} at {model.num_timesteps} steps", flush=True)
     else:
         venv = VecNormalize(venv, norm_obs=False, norm_reward=True, gamma=args.gamma)
@@ -103,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
             n_steps=args.n_steps,
             batch_size=args.batch_size,
             n_epochs=args.n_epochs,
-            learning_rate=args.learning_rate,
+            learning_rate=args.learning_rate or 3e-4,
             gamma=args.gamma,
             ent_coef=args.ent_coef,
             seed=args.seed,
@@ -141,8 +142,7 @@ def main(argv: list[str] | None = None) -> int:
     s = summary(out / "eval.csv")
     wall = time.time() - t0
     print(f"{steps} steps in {wall:.0f} s ({steps / max(wall, 1e-9):.0f} steps/s incl. evaluations)")
-    print(f"held-out success: last {s['last_success_rate']:.0%}, best {s['best_success_rate']:.0%}")
-    print(f"saved {out / 'final.zip'}, {out / 'best.zip'}, {out / 'curves.png'}")
+    print(f"held-out success: last {s['last_success_rate']:.0%}, best {s['best_success_rate']:.0%} ({out})")
     return 0
 
 
