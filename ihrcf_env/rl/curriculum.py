@@ -57,6 +57,10 @@ class StartCurriculum(gym.Wrapper[Any, Any, Any, Any]):
                 f"easy_altitude must satisfy {MIN_START_ALTITUDE} <= low <= high <= {top:g} m, "
                 f"got {easy_altitude!r}"
             )
+        if isinstance(easy_offset, bool) or not isinstance(easy_offset, int | float):
+            raise TypeError(f"easy_offset must be a number (m), got {easy_offset!r}")
+        if isinstance(full_fraction, bool) or not isinstance(full_fraction, int | float):
+            raise TypeError(f"full_fraction must be a number, got {full_fraction!r}")
         if not 0.0 <= easy_offset <= start.offset:
             raise ValueError(f"easy_offset must be in [0, {start.offset:g}] m, got {easy_offset!r}")
         if not 0.0 <= full_fraction <= 1.0:

@@ -69,6 +69,10 @@ def test_bad_input_names_the_parameter() -> None:
             StartCurriculum(e, easy_altitude=(1.0, 0.5))
         with pytest.raises(TypeError, match="easy_altitude"):
             StartCurriculum(e, easy_altitude="low")  # type: ignore[arg-type]
+        with pytest.raises(TypeError, match="easy_offset"):
+            StartCurriculum(e, easy_offset="near")  # type: ignore[arg-type]
+        with pytest.raises(TypeError, match="full_fraction"):
+            StartCurriculum(e, full_fraction=None)  # type: ignore[arg-type]
         with pytest.raises(ValueError, match="easy_offset"):
             StartCurriculum(e, easy_offset=2.0)
         with pytest.raises(ValueError, match="full_fraction"):
