@@ -47,9 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--env-id", default=None, help="default: ihrcf_env/DeckLanding-v1 (v0 if v1 is absent)")
     ap.add_argument("--camera-model", default="projected", choices=("projected", "rendered"))
     ap.add_argument("--max-episode-steps", type=int, default=None, help="default: the env's limit")
-    ap.add_argument(
-        "--deck-motion", action="store_true", help="v1 deck_motion=True (the evaluate CLI detects it)"
-    )
+    ap.add_argument("--deck-motion", action="store_true", help="v1 deck_motion=True (CLI detects it)")
     ap.add_argument("--curriculum-steps", type=int, default=0, help="start curriculum length (0: off)")
     ap.add_argument("--ent-coef", type=float, default=0.0, help="PPO entropy bonus")
     ap.add_argument("--init-action-mean", type=float, nargs="+", default=None, help="e.g. 0 0 -0.3 0")
