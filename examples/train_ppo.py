@@ -1,25 +1,19 @@
-"""Train a PPO landing policy (stable-baselines3) on ``ihrcf_env/DeckLanding-v1``.
+"""Train a PPO landing policy (stable-baselines3, the ``[rl]`` extra) on ``ihrcf_env/DeckLanding-v1``.
 
-Training uses the fast projected camera (``camera_model="projected"``: no rendering); evaluate the
-result on the rendered camera with the evaluate CLI. Needs the ``[rl]`` extra::
+Training uses the fast projected camera (no rendering); evaluate on the rendered one with the
+evaluate CLI. The shipped recipe (README) warm-starts the policy by DAgger from the scripted
+landing (``ihrcf_env.rl.imitation``), then fine-tunes it with PPO::
 
-    python examples/train_ppo.py --out out/ppo --total-steps 3000000 --max-wall-min 60 --deck-motion \
-        --curriculum-steps 500000 --init-action-mean 0 0 -0.3 0 --log-std-init -1 --gamma 0.998 \
-        --reward-weights time=2          # 2 env processes; --resume continues (earlier wall counted)
-    python -m ihrcf_env.evaluate --env-id ihrcf_env/DeckLanding-v1 --policy out/ppo/final.zip \\
-        --episodes 50 --seed 0 --camera-model rendered
+    python examples/train_ppo.py --out out/ppo --total-steps 1500000 --max-wall-min 100 --deck-motion \
+        --dagger-rounds 8 --log-std-init -2.3 --learning-rate 1e-4 --gamma 0.998 --reward-weights time=2
 
 Writes to ``--out``: ``final.zip`` (last update), ``best.zip`` (best periodic evaluation),
-``train.csv`` / ``eval.csv`` (one row per training episode / evaluation), ``curves.png``,
-``checkpoints/`` (every ``--checkpoint-every`` steps; ``--resume`` continues from them). The policy
-normalises its observation itself (``ihrcf_env.rl.sb3.RunningNormExtractor``): the ``.zip`` is all
-an evaluation needs.
+``train.csv`` / ``eval.csv`` / ``dagger.csv``, ``curves.png``, ``checkpoints/`` (for ``--resume``).
+The ``.zip`` is all an evaluation needs (it normalises its observation itself).
 
-Seeds: training env k starts from ``reset(seed=10_000 + 100 * SEED + k)`` and runs on from there;
-the periodic evaluations use seeds 20_000 .. 20_000 + EVAL_EPISODES - 1; seeds below 10_000 (e.g.
-the CLI's ``--seed 0 --episodes 50``) are never seen in training or model selection.
-``--curriculum-steps N``: training starts low near the tag, widening to the task's starts over N steps
-(``ihrcf_env.rl.curriculum``); the evaluations always use the task's starts.
+Seeds: training env k starts from ``reset(seed=10_000 + 100 * SEED + k)``, DAgger round r from
+30_000 + 100 * SEED + 1000 * r (+ k); evaluations use 20_000 .. 20_000 + EVAL_EPISODES - 1; seeds
+below 10_000 (e.g. the CLI's ``--seed 0``) are never seen in training or model selection.
 """
 
 from __future__ import annotations
@@ -33,41 +27,47 @@ from ihrcf_env.rl.curriculum import curriculum_env
 from ihrcf_env.rl.curves import EVAL_FIELDS, TRAIN_FIELDS, CsvLog, plot_curves, summary
 from ihrcf_env.rl.envs import default_env_id, make_env, name_value
 
-TRAIN_SEED_BASE, EVAL_SEED_BASE = 10_000, 20_000
+TRAIN_SEED_BASE, EVAL_SEED_BASE, DAGGER_SEED_BASE = 10_000, 20_000, 30_000
+INT_OPTIONS = (
+    ("--total-steps", 1_000_000, 1, "PPO environment steps in all"),
+    ("--seed", 0, 0, "seed of the network, training and DAgger episodes"),
+    ("--n-envs", 2, 1, "env processes (SubprocVecEnv if > 1)"),
+    ("--curriculum-steps", 0, 0, "steps of a start curriculum from low near the tag (0: off)"),
+    ("--n-steps", 1024, 1, "rollout length per env"),
+    ("--batch-size", 256, 1, "PPO minibatch"),
+    ("--n-epochs", 10, 1, "PPO epochs per rollout"),
+    ("--eval-every", 50_000, 1, "steps between evaluations"),
+    ("--eval-episodes", 20, 1, "episodes per evaluation"),
+    ("--checkpoint-every", 50_000, 1, "steps between checkpoints"),
+    ("--dagger-rounds", 0, 0, "DAgger warm start from the scripted landing (0: off)"),
+    ("--dagger-episodes", 30, 1, "episodes per DAgger round"),
+    ("--critic-warmup-steps", 50_000, 0, "after DAgger: PPO steps that train the critic only"),
+)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Command line entry point; returns the exit code."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--total-steps", type=int, default=1_000_000, help="environment steps in all")
-    ap.add_argument("--seed", type=int, default=0)
+    for flag, default, least, text in INT_OPTIONS:  # (name, default, minimum, help)
+        ap.add_argument(flag, type=int, default=default, help=f"{text} (>= {least})")
     ap.add_argument("--out", type=Path, default=Path("out/ppo"))
-    ap.add_argument("--n-envs", type=int, default=2, help="env processes (SubprocVecEnv if > 1)")
     ap.add_argument("--resume", action="store_true", help="continue from OUT/checkpoints/latest.zip")
     ap.add_argument("--env-id", default=None, help="default: ihrcf_env/DeckLanding-v1 (v0 if v1 is absent)")
     ap.add_argument("--camera-model", default="projected", choices=("projected", "rendered"))
     ap.add_argument("--max-episode-steps", type=int, default=None, help="default: the env's limit")
     ap.add_argument("--deck-motion", action="store_true", help="v1 deck_motion=True (CLI detects it)")
-    ap.add_argument("--curriculum-steps", type=int, default=0, help="start curriculum length (0: off)")
     ap.add_argument("--ent-coef", type=float, default=0.0, help="PPO entropy bonus")
     ap.add_argument("--init-action-mean", type=float, nargs="+", default=None, help="e.g. 0 0 -0.3 0")
     ap.add_argument("--log-std-init", type=float, default=0.0, help="initial log std of the actions")
     ap.add_argument("--reward-weights", nargs="*", type=name_value, default=[], metavar="NAME=W")
-    ap.add_argument("--n-steps", type=int, default=1024, help="rollout length per env")
-    ap.add_argument("--batch-size", type=int, default=256)
-    ap.add_argument("--n-epochs", type=int, default=10)
     ap.add_argument("--learning-rate", type=float, default=None, help="3e-4; with --resume: replaces it")
     ap.add_argument("--gamma", type=float, default=0.99)
     ap.add_argument("--net-arch", type=int, nargs="+", default=[64, 64], help="hidden layer sizes")
-    ap.add_argument("--eval-every", type=int, default=50_000, help="steps between evaluations")
-    ap.add_argument("--eval-episodes", type=int, default=20)
-    ap.add_argument("--checkpoint-every", type=int, default=50_000)
     ap.add_argument("--max-wall-min", type=float, default=None, help="wall budget (min), resumes counted")
     args = ap.parse_args(argv)
-    positive = ("total_steps", "n_envs", "n_steps", "batch_size", "eval_every", "eval_episodes")
-    for name in ("curriculum_steps", *positive):
-        if getattr(args, name) < (name in positive):
-            ap.error(f"--{name.replace('_', '-')} must be >= {int(name in positive)}")
+    for flag, _, least, _ in INT_OPTIONS:
+        if getattr(args, flag[2:].replace("-", "_")) < least:
+            ap.error(f"{flag} must be >= {least}")
     if args.max_wall_min is not None and not args.max_wall_min > 0:
         ap.error("--max-wall-min must be > 0 (minutes)")
 
@@ -77,6 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 
     from ihrcf_env.rl import sb3
+    from ihrcf_env.rl.imitation import warm_start
 
     th.set_num_threads(1)  # the env processes need the cores; a 64x64 MLP gains nothing from threads
     env_id = args.env_id or default_env_id()
@@ -98,33 +99,32 @@ def main(argv: list[str] | None = None) -> int:
         print(f"resuming from {ckpt.model_path} at {model.num_timesteps} steps", flush=True)
     else:
         venv = VecNormalize(venv, norm_obs=False, norm_reward=True, gamma=args.gamma)
-        model = PPO(
-            "MlpPolicy",
-            venv,
-            n_steps=args.n_steps,
-            batch_size=args.batch_size,
-            n_epochs=args.n_epochs,
-            learning_rate=args.learning_rate or 3e-4,
-            gamma=args.gamma,
-            ent_coef=args.ent_coef,
-            seed=args.seed,
-            device="cpu",
-            policy_kwargs={
-                "net_arch": list(args.net_arch),
-                "features_extractor_class": sb3.RunningNormExtractor,
-                "log_std_init": args.log_std_init,
-            },
-        )
+        ppo = ("n_steps", "batch_size", "n_epochs", "gamma", "ent_coef", "seed")
+        net = {"net_arch": list(args.net_arch), "log_std_init": args.log_std_init}
+        net["features_extractor_class"] = sb3.RunningNormExtractor
+        kw = {k: getattr(args, k) for k in ppo} | {"learning_rate": args.learning_rate or 3e-4}
+        model = PPO("MlpPolicy", venv, device="cpu", policy_kwargs=net, **kw)
         if args.init_action_mean is not None:  # an untrained policy that already does this on average
             sb3.set_initial_action_mean(model, args.init_action_mean)
     done = model.num_timesteps
-    venv.seed(TRAIN_SEED_BASE + 100 * args.seed + done)  # first reset of each env process (+ its index)
     keep = done if resume else None
     train_log = CsvLog(out / "train.csv", TRAIN_FIELDS, keep_until=keep)
     eval_log = CsvLog(out / "eval.csv", EVAL_FIELDS, keep_until=keep)
     seeds = range(EVAL_SEED_BASE, EVAL_SEED_BASE + args.eval_episodes)
     evaluator = sb3.HeldOutEvalCallback(thunk, seeds, args.eval_every, eval_log, out / "best.zip")
-    callbacks = [sb3.EpisodeCsvCallback(train_log), ckpt, evaluator, sb3.NormUpdateCallback()]
+    callbacks = [sb3.EpisodeCsvCallback(train_log), ckpt, evaluator]
+    if args.dagger_rounds:  # the normaliser keeps the DAgger data's statistics; the critic learns first
+        callbacks.append(sb3.CriticWarmupCallback(args.critic_warmup_steps))
+        if not resume:  # DAgger, then the warm-started policy's evaluation (at 0 PPO steps)
+            seed0 = DAGGER_SEED_BASE + 100 * args.seed
+            warm_start(
+                model, venv, thunk, args.dagger_rounds, args.dagger_episodes, seed0, out / "dagger.csv"
+            )
+            evaluator.init_callback(model)
+            evaluator.evaluate()
+    else:
+        callbacks.append(sb3.NormUpdateCallback())
+    venv.seed(TRAIN_SEED_BASE + 100 * args.seed + done)  # first reset of each env process (+ its index)
     if args.curriculum_steps:
         callbacks.append(sb3.CurriculumCallback(args.curriculum_steps))
     if args.max_wall_min is not None:  # evaluator.start_time already counts earlier segments

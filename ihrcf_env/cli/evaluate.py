@@ -144,16 +144,12 @@ def make_policy(spec: str, env: gym.Env, algo: str = "PPO") -> Policy:
         raise PolicyError(f"--policy {spec!r}: the baselines need action_mode='velocity'")
     if spec == "scripted":
         try:
-            slices = env.get_wrapper_attr("obs_slices")
-            scales = env.get_wrapper_attr("obs_scales")
+            return ScriptedLanding.from_env(env, estimator="fused")
         except AttributeError:
             raise PolicyError(
                 "--policy scripted needs the v1 observation (obs_slices/obs_scales): use --env-id "
                 + ENV_V1_ID
             ) from None
-        return ScriptedLanding(
-            slices, scales, int(base.config.control_hz), max_velocity, base.rig, estimator="fused"
-        )
     if spec.startswith("blind:"):
         text = spec.removeprefix("blind:")
         try:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -135,6 +135,21 @@ class ScriptedLanding:
             tuple(_max_velocity(max_velocity).tolist()),
             rig,
             config if config is not None else V1_LANDING_CONFIG,
+        )
+
+    @classmethod
+    def from_env(cls, env: Any, estimator: str = "fused") -> ScriptedLanding:
+        """The scripted landing for a v1 env (Gymnasium, duck-typed): its observation layout
+        (``obs_slices`` / ``obs_scales``), control rate, action scale and rig. AttributeError if
+        ``env`` has no v1 observation layout."""
+        base = env.unwrapped
+        return cls(
+            env.get_wrapper_attr("obs_slices"),
+            env.get_wrapper_attr("obs_scales"),
+            int(base.config.control_hz),
+            tuple(float(v) for v in getattr(base, "max_velocity", np.ones(4))),
+            base.rig,
+            estimator=estimator,
         )
 
     def _get(self, obs: NDArray[np.float32], name: str) -> NDArray[np.float64]:

@@ -218,7 +218,8 @@ class HeldOutEvalCallback(BaseCallback):
         n = self.model.num_timesteps
         self._last = n - n % self.every
 
-    def _evaluate(self) -> None:
+    def evaluate(self) -> None:
+        """Evaluate the model now (it must be set: ``init_callback(model)`` or training)."""
         if self._env is None:
             self._env = self.make_eval_env()
         n = self.model.num_timesteps
@@ -249,14 +250,14 @@ class HeldOutEvalCallback(BaseCallback):
         n = self.model.num_timesteps
         if n - self._last >= self.every:
             self._last = n - n % self.every
-            self._evaluate()
+            self.evaluate()
 
     def _on_step(self) -> bool:
         return True
 
     def _on_training_end(self) -> None:  # the last update, unless already evaluated
         if self.model.num_timesteps > self._evaluated_at:
-            self._evaluate()
+            self.evaluate()
         if self._env is not None:
             self._env.close()
             self._env = None
@@ -300,6 +301,34 @@ class CurriculumCallback(BaseCallback):
 
     def _on_rollout_start(self) -> None:
         self._set_level()
+
+    def _on_step(self) -> bool:
+        return True
+
+
+class CriticWarmupCallback(BaseCallback):
+    """Trains only the critic for the first ``steps`` environment steps: the actor (its network,
+    action layer and log std) is frozen, so a warm-started actor (e.g. :mod:`ihrcf_env.rl.imitation`)
+    is not moved by the advantages of a critic that has not learnt the returns yet."""
+
+    def __init__(self, steps: int):
+        super().__init__()
+        if steps < 0:
+            raise ValueError(f"steps must be >= 0, got {steps!r}")
+        self.steps = int(steps)
+
+    def _actor_parameters(self) -> list[th.nn.Parameter]:
+        p = self.model.policy
+        return [*p.mlp_extractor.policy_net.parameters(), *p.action_net.parameters(), p.log_std]
+
+    def _on_rollout_end(self) -> None:  # the update follows: freeze or release the actor for it
+        train_actor = self.model.num_timesteps > self.steps
+        for param in self._actor_parameters():
+            param.requires_grad_(train_actor)
+
+    def _on_training_end(self) -> None:
+        for param in self._actor_parameters():
+            param.requires_grad_(True)
 
     def _on_step(self) -> bool:
         return True
