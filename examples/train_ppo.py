@@ -1,15 +1,13 @@
 """Train a PPO landing policy (stable-baselines3, the ``[rl]`` extra) on ``ihrcf_env/DeckLanding-v1``.
 
-Training uses the fast projected camera (no rendering); evaluate on the rendered one with the
-evaluate CLI. The shipped recipe (README) warm-starts the policy by DAgger from the scripted
-landing (``ihrcf_env.rl.imitation``), then fine-tunes it with PPO::
+Trains on the projected camera (evaluate on the rendered one with the evaluate CLI). The shipped recipe
+(README) warm-starts the policy by DAgger from the scripted landing, then fine-tunes it with PPO::
 
-    python examples/train_ppo.py --out out/ppo --total-steps 1500000 --max-wall-min 100 --deck-motion \
-        --dagger-rounds 8 --log-std-init -2.3 --learning-rate 1e-4 --gamma 0.998 --reward-weights time=2
+    python examples/train_ppo.py --out out/ppo --total-steps 1500000 --max-wall-min 100 \
+        --deck-motion --drop-inputs ihrcf atda --dagger-rounds 8 --log-std-init -2.3 \
+        --learning-rate 1e-4 --gamma 0.998 --reward-weights time=2
 
-Writes to ``--out``: ``final.zip`` (last update), ``best.zip`` (best periodic evaluation),
-``train.csv`` / ``eval.csv`` / ``dagger.csv``, ``curves.png``, ``checkpoints/`` (for ``--resume``).
-The ``.zip`` is all an evaluation needs (it normalises its observation itself).
+Writes to ``--out``: ``final.zip``, ``best.zip`` (best evaluation), CSV logs, ``curves.png``, checkpoints.
 
 Seeds: training env k starts from ``reset(seed=10_000 + 100 * SEED + k)``, DAgger round r from
 30_000 + 100 * SEED + 1000 * r (+ k); evaluations use 20_000 .. 20_000 + EVAL_EPISODES - 1; seeds
@@ -25,7 +23,7 @@ from pathlib import Path
 
 from ihrcf_env.rl.curriculum import curriculum_env
 from ihrcf_env.rl.curves import EVAL_FIELDS, TRAIN_FIELDS, CsvLog, plot_curves, summary
-from ihrcf_env.rl.envs import default_env_id, make_env, name_value
+from ihrcf_env.rl.envs import default_env_id, make_env, name_value, policy_inputs
 
 TRAIN_SEED_BASE, EVAL_SEED_BASE, DAGGER_SEED_BASE = 10_000, 20_000, 30_000
 INT_OPTIONS = (
@@ -62,6 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--reward-weights", nargs="*", type=name_value, default=[], metavar="NAME=W")
     ap.add_argument("--learning-rate", type=float, default=None, help="3e-4; with --resume: replaces it")
     ap.add_argument("--gamma", type=float, default=0.99)
+    ap.add_argument("--drop-inputs", nargs="*", default=[], help="observation fields the policy ignores")
     ap.add_argument("--net-arch", type=int, nargs="+", default=[64, 64], help="hidden layer sizes")
     ap.add_argument("--max-wall-min", type=float, default=None, help="wall budget (min), resumes counted")
     args = ap.parse_args(argv)
@@ -102,6 +101,7 @@ def main(argv: list[str] | None = None) -> int:
         ppo = ("n_steps", "batch_size", "n_epochs", "gamma", "ent_coef", "seed")
         net = {"net_arch": list(args.net_arch), "log_std_init": args.log_std_init}
         net["features_extractor_class"] = sb3.RunningNormExtractor
+        net["features_extractor_kwargs"] = {"inputs": policy_inputs(thunk, args.drop_inputs)}
         kw = {k: getattr(args, k) for k in ppo} | {"learning_rate": args.learning_rate or 3e-4}
         model = PPO("MlpPolicy", venv, device="cpu", policy_kwargs=net, **kw)
         if args.init_action_mean is not None:  # an untrained policy that already does this on average

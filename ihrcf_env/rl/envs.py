@@ -9,6 +9,7 @@ on the paper's hover env as well.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, SupportsFloat
 
 import gymnasium as gym
@@ -64,3 +65,31 @@ def name_value(text: str) -> tuple[str, float]:
     if not sep or not name or not math.isfinite(number):
         raise ValueError(f"expected NAME=NUMBER, got {text!r}")
     return name, number
+
+
+def input_indices(slices: Mapping[str, slice], drop: Sequence[str]) -> list[int]:
+    """Indices of a flat observation with named ``slices`` (a v1 env's ``obs_slices``) that are in
+    none of the slices named in ``drop`` (e.g. ``["ihrcf", "atda"]``: a policy that reads the fused
+    estimate and the raw sensors only); ValueError naming an unknown name or an empty result."""
+    unknown = [name for name in drop if name not in slices or name == "all"]
+    if unknown:
+        known = ", ".join(sorted(n for n in slices if n != "all"))
+        raise ValueError(f"unknown observation field(s) {unknown}; known: {known}")
+    size = slices["all"].stop
+    dropped = {i for name in drop for i in range(size)[slices[name]]}
+    keep = [i for i in range(size) if i not in dropped]
+    if not keep:
+        raise ValueError(f"dropping {list(drop)} leaves no observation")
+    return keep
+
+
+def policy_inputs(make: Callable[[], gym.Env], drop: Sequence[str]) -> list[int] | None:
+    """:func:`input_indices` of the env ``make()`` makes (made, read, closed); None if ``drop`` is
+    empty (the policy reads everything)."""
+    if not drop:
+        return None
+    env = make()
+    try:
+        return input_indices(env.get_wrapper_attr("obs_slices"), drop)
+    finally:
+        env.close()

@@ -29,37 +29,58 @@ from ihrcf_env.rl.curves import EVAL_FIELDS, TRAIN_FIELDS, CsvLog, read_csv
 
 
 class RunningNormExtractor(BaseFeaturesExtractor):
-    """Flattens a Box observation and standardises it with running statistics:
+    """Flattens a Box observation, keeps the entries ``inputs`` (indices into the flat observation;
+    None: all) and standardises them with running statistics:
     ``clip((x - mean) / sqrt(var + eps), -clip, clip)``.
 
-    The statistics (buffers ``mean``, ``var``, ``count``) change only through :meth:`update` (called
-    by :class:`NormUpdateCallback`), never inside ``forward``; they are saved with the policy."""
+    The statistics (buffers ``mean``, ``var``, ``count``, over the whole observation) change only
+    through :meth:`update` (called by :class:`NormUpdateCallback`), never inside ``forward``; they
+    are saved with the policy, and so are ``inputs`` (the policy's own choice of what it reads: the
+    observation space, and so the env, stay the same)."""
 
     mean: th.Tensor
     var: th.Tensor
     count: th.Tensor
+    inputs: th.Tensor
 
-    def __init__(self, observation_space: gym.spaces.Box, clip: float = 10.0, eps: float = 1e-4):
+    def __init__(
+        self,
+        observation_space: gym.spaces.Box,
+        clip: float = 10.0,
+        eps: float = 1e-4,
+        inputs: Sequence[int] | None = None,
+    ):
         n = int(np.prod(observation_space.shape))
-        super().__init__(observation_space, features_dim=n)
+        keep = np.arange(n) if inputs is None else np.asarray(list(inputs), dtype=np.int64)
+        if (
+            keep.ndim != 1
+            or len(keep) == 0
+            or keep.min() < 0
+            or keep.max() >= n
+            or len(set(keep)) != len(keep)
+        ):
+            raise ValueError(f"inputs must be distinct indices in [0, {n}), got {inputs!r}")
+        super().__init__(observation_space, features_dim=len(keep))
         if not clip > 0 or not eps > 0:
             raise ValueError(f"clip and eps must be > 0, got clip={clip!r}, eps={eps!r}")
         self.clip = float(clip)
         self.eps = float(eps)
+        self.size = n
+        self.register_buffer("inputs", th.as_tensor(keep), persistent=False)  # from the constructor
         self.register_buffer("mean", th.zeros(n, dtype=th.float64))
         self.register_buffer("var", th.ones(n, dtype=th.float64))
         self.register_buffer("count", th.zeros((), dtype=th.float64))
 
     def forward(self, observations: th.Tensor) -> th.Tensor:
-        x = th.flatten(observations, start_dim=1).float()
-        mean, std = self.mean.float(), th.sqrt(self.var + self.eps).float()
+        x = th.flatten(observations, start_dim=1).float()[:, self.inputs]
+        mean, std = self.mean[self.inputs].float(), th.sqrt(self.var[self.inputs] + self.eps).float()
         return th.clamp((x - mean) / std, -self.clip, self.clip)
 
     @th.no_grad()
     def update(self, batch: np.ndarray) -> None:
         """Merge a batch of observations (any leading shape, then the observation's) into the
         statistics (Chan et al.'s parallel mean/variance); non-finite rows are ignored."""
-        x = np.asarray(batch, dtype=np.float64).reshape(-1, self.features_dim)
+        x = np.asarray(batch, dtype=np.float64).reshape(-1, self.size)
         x = x[np.isfinite(x).all(axis=1)]
         if len(x) == 0:
             return

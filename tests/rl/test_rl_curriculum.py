@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ihrcf_env.rl.curriculum import StartCurriculum
-from ihrcf_env.rl.envs import make_env, name_value
+from ihrcf_env.rl.envs import input_indices, make_env, name_value, policy_inputs
 
 
 @pytest.fixture(scope="module")
@@ -94,3 +94,20 @@ def test_name_value_parses_command_line_weights() -> None:
     for bad in ("time", "=2", "time=x", "time=nan", "time=inf"):
         with pytest.raises(ValueError, match="NAME=NUMBER"):
             name_value(bad)
+
+
+def test_input_indices_drop_named_fields(env: StartCurriculum) -> None:
+    slices = env.get_wrapper_attr("obs_slices")
+    n = slices["all"].stop
+    keep = input_indices(slices, ["ihrcf", "atda"])
+    assert len(keep) == n - 20 and keep == sorted(keep)
+    dropped = set(range(n)) - set(keep)
+    assert dropped == set(range(n)[slices["ihrcf"]]) | set(range(n)[slices["atda"]])
+    assert input_indices(slices, []) == list(range(n))
+    assert policy_inputs(lambda: make_env("ihrcf_env/DeckLanding-v1", "projected"), ["ihrcf", "atda"]) == keep
+    assert policy_inputs(lambda: make_env("ihrcf_env/DeckLanding-v1", "projected"), []) is None
+    for bad in (["imu"], ["all"], ["fused", "nonsense"]):
+        with pytest.raises(ValueError, match="unknown observation field"):
+            input_indices(slices, bad)
+    with pytest.raises(ValueError, match="leaves no observation"):
+        input_indices({"all": slice(0, 2), "a": slice(0, 2)}, ["a"])

@@ -32,7 +32,9 @@ def _venv(steps: int = 40) -> DummyVecEnv:
 
 def _model(venv: DummyVecEnv) -> PPO:
     kw = {"features_extractor_class": RunningNormExtractor, "net_arch": [32, 32], "log_std_init": -2.0}
-    return PPO("MlpPolicy", venv, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu", policy_kwargs=kw)
+    return PPO(
+        "MlpPolicy", venv, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu", policy_kwargs=kw
+    )
 
 
 def test_collect_labels_every_step_with_the_expert() -> None:
@@ -57,7 +59,7 @@ def test_collect_labels_every_step_with_the_expert() -> None:
         ):
             args = {"venv": venv, "experts": [expert], "episodes": 1, "seed": 0} | kwargs
             with pytest.raises(ValueError, match=match):
-                collect(**args)  # type: ignore[arg-type]
+                collect(**args)
     finally:
         venv.close()
 

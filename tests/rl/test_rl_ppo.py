@@ -71,6 +71,37 @@ def test_running_norm_matches_numpy_and_clips() -> None:
     assert y[2] == 5.0  # 1 / sqrt(1e-6 + 1e-4) = 99.5, clipped
 
 
+def test_running_norm_reads_only_its_inputs_and_saves_them(tmp_path: Path) -> None:
+    pytest.importorskip("stable_baselines3")
+    import gymnasium as gym
+    import torch as th
+    from stable_baselines3 import PPO
+
+    from ihrcf_env.rl.envs import make_env
+    from ihrcf_env.rl.sb3 import RunningNormExtractor, norm_extractors
+
+    space = gym.spaces.Box(-np.inf, np.inf, (4,), np.float32)
+    ext = RunningNormExtractor(space, inputs=[3, 1])
+    assert ext.features_dim == 2
+    ext.update(np.array([[0.0, 1.0, 2.0, 3.0], [2.0, 3.0, 4.0, 7.0]]))  # statistics of all 4 entries
+    y = ext(th.as_tensor([[9.0, 2.0, 9.0, 5.0]])).numpy()[0]
+    np.testing.assert_allclose(y, [0.0, 0.0], atol=1e-6)  # entries 3 and 1, at their means
+    for bad in ([], [4], [-1], [1, 1]):
+        with pytest.raises(ValueError, match="inputs"):
+            RunningNormExtractor(space, inputs=bad)
+    env = make_env("ihrcf_env/DeckLanding-v1", CAMERA)
+    try:
+        kw = {
+            "features_extractor_class": RunningNormExtractor,
+            "features_extractor_kwargs": {"inputs": [0, 5]},
+        }
+        PPO("MlpPolicy", env, seed=0, device="cpu", policy_kwargs=kw).save(tmp_path / "p.zip")
+        (loaded,) = norm_extractors(PPO.load(tmp_path / "p.zip", device="cpu"))
+        assert loaded.inputs.tolist() == [0, 5] and loaded.features_dim == 2
+    finally:
+        env.close()
+
+
 def test_train_ppo_saves_a_policy_that_reloads_and_resumes(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
