@@ -98,6 +98,10 @@ class LandingConfig:
     # clipped to +-``max_deck_velocity`` (m/s) where it is used (inf: as before).
     heave_timeout: float = math.inf
     max_deck_velocity: float = math.inf
+    # A teacher's option (DAgger, ``ihrcf_env.rl.imitation``): once the tag has been seen and the
+    # drone is more than ``commit_below`` m under the hold height, the drop is committed (the
+    # learner's own early descent is labelled as a drop, not as a climb back to the hold; inf: off).
+    commit_below: float = math.inf
 
 
 @dataclass
@@ -359,6 +363,9 @@ class LandingController:
             near = h is not None and abs(h - c.hold_height) < c.height_tolerance
             if self.phase == "approach" and near:
                 self.phase = "hold"
+            if self.seen_tag and h is not None and h < c.hold_height - c.commit_below:
+                self.phase = "drop"  # the teacher's option (LandingConfig.commit_below)
+                self.commit_time = self.t
             if self.phase == "hold":
                 # without the tag for a while, all four beams on one plane say "over the deck" enough
                 blind = self.since_tag > c.tag_timeout and m.tof_full

@@ -138,10 +138,12 @@ class ScriptedLanding:
         )
 
     @classmethod
-    def from_env(cls, env: Any, estimator: str = "fused") -> ScriptedLanding:
+    def from_env(
+        cls, env: Any, estimator: str = "fused", config: LandingConfig | None = None
+    ) -> ScriptedLanding:
         """The scripted landing for a v1 env (Gymnasium, duck-typed): its observation layout
-        (``obs_slices`` / ``obs_scales``), control rate, action scale and rig. AttributeError if
-        ``env`` has no v1 observation layout."""
+        (``obs_slices`` / ``obs_scales``), control rate, action scale and rig; ``config`` as in the
+        constructor. AttributeError if ``env`` has no v1 observation layout."""
         base = env.unwrapped
         return cls(
             env.get_wrapper_attr("obs_slices"),
@@ -149,7 +151,8 @@ class ScriptedLanding:
             int(base.config.control_hz),
             tuple(float(v) for v in getattr(base, "max_velocity", np.ones(4))),
             base.rig,
-            estimator=estimator,
+            config,
+            estimator,
         )
 
     def _get(self, obs: NDArray[np.float32], name: str) -> NDArray[np.float64]:

@@ -16,6 +16,8 @@ Needs the ``[rl]`` extra (torch). Seeds: the episodes of round ``r`` start from 
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -27,7 +29,7 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
 
-from ihrcf_env.control.policies import Policy, ScriptedLanding
+from ihrcf_env.control.policies import V1_LANDING_CONFIG, Policy, ScriptedLanding
 from ihrcf_env.rl.curves import CsvLog
 from ihrcf_env.rl.sb3 import norm_extractors
 
@@ -173,10 +175,13 @@ def warm_start(
     seed: int,
     csv_path: str | Path,
     noise: float = 0.05,
+    commit_below: float = 0.1,
 ) -> list[Round]:
     """:func:`dagger` with the scripted landing as the expert (its layout read from one
-    ``make_env()`` env, closed after), one row per round in ``csv_path`` (:data:`DAGGER_FIELDS`)
-    and a printed line."""
+    ``make_env()`` env, closed after; :data:`~ihrcf_env.control.policies.V1_LANDING_CONFIG` with
+    ``commit_below``: the learner cannot see the expert's wait-or-drop state, so once it has
+    descended ``commit_below`` m under the hold height the expert labels a drop, not a climb back),
+    one row per round in ``csv_path`` (:data:`DAGGER_FIELDS`) and a printed line."""
     probe = make_env()
     log = CsvLog(csv_path, DAGGER_FIELDS)
     t0 = time.time()
@@ -202,8 +207,8 @@ def warm_start(
         )
 
     try:
-        return dagger(
-            model, venv, lambda: ScriptedLanding.from_env(probe), rounds, episodes, seed, noise, log=write
-        )
+        config = dataclasses.replace(V1_LANDING_CONFIG, commit_below=commit_below)
+        expert = functools.partial(ScriptedLanding.from_env, probe, config=config)
+        return dagger(model, venv, expert, rounds, episodes, seed, noise, log=write)
     finally:
         probe.close()
