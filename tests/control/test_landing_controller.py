@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ihrcf_env.control.landing import LandingController
+from ihrcf_env.control.landing import LandingConfig, LandingController
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.frames import matrix_from_euler, quat_from_matrix
 from ihrcf_env.core.rig import SensorRig
@@ -80,3 +80,17 @@ def test_steers_on_the_chosen_estimate_never_ground_truth() -> None:
     assert LandingController().measure(obs).tag_xy is None  # "ihrcf" (default) is invalid here
     with pytest.raises(ValueError, match="estimator"):
         LandingController(estimator="ground_truth")
+
+
+def test_commit_below_turns_a_descent_under_the_hold_into_a_drop() -> None:
+    # default: 0.3 m under the hold height (0.65 m) with the tag in view, no drop without a calm deck
+    default = LandingController()
+    default.act(_obs(0.8, (0.0, 0.0, 0.0)))
+    default.act(_obs(0.35, (0.0, 0.0, 0.0)))
+    assert default.phase == "approach" and default.commit_time is None
+    # the teacher's option: more than 0.1 m under the hold height after seeing the tag is a drop
+    teacher = LandingController(config=LandingConfig(commit_below=0.1))
+    teacher.act(_obs(0.8, (0.0, 0.0, 0.0)))
+    assert teacher.phase == "approach"
+    teacher.act(_obs(0.35, (0.0, 0.0, 0.0)))
+    assert teacher.phase == "drop" and teacher.commit_time is not None
