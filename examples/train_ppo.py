@@ -3,15 +3,14 @@
 Trains on the projected camera (evaluate on the rendered one with the evaluate CLI). The shipped recipe
 (README) warm-starts the policy by DAgger from the scripted landing, then fine-tunes it with PPO::
 
-    python examples/train_ppo.py --out out/ppo --total-steps 1500000 --max-wall-min 100 \
-        --deck-motion --drop-inputs ihrcf atda --dagger-rounds 8 --log-std-init -2.3 \
-        --learning-rate 1e-4 --gamma 0.998 --reward-weights time=2
+    python examples/train_ppo.py --out out/ppo --total-steps 400000 --deck-motion --drop-inputs ihrcf \
+        atda --dagger-rounds 6 --dagger-episodes 24 --log-std-init -2.3 --learning-rate 3e-5 --gamma 0.998
 
-Writes to ``--out``: ``final.zip``, ``best.zip`` (best evaluation), CSV logs, ``curves.png``, checkpoints.
+Writes to ``--out``: ``final.zip``, ``best.zip`` (best evaluation), CSV logs, ``curves.png``,
+``checkpoints/`` (``steps_N.zip`` every ``--checkpoint-every`` steps, ``latest.zip`` for ``--resume``).
 
-Seeds: training env k starts from ``reset(seed=10_000 + 100 * SEED + k)``, DAgger round r from
-30_000 + 100 * SEED + 1000 * r (+ k); evaluations use 20_000 .. 20_000 + EVAL_EPISODES - 1; seeds
-below 10_000 (e.g. the CLI's ``--seed 0``) are never seen in training or model selection.
+Seeds: training env k starts from ``reset(seed=10_000 + 100 SEED + k)``, DAgger round r from
+30_000 + 100 SEED + 1000 r (+ k), evaluations from 20_000; seeds below 10_000 are never trained on.
 """
 
 from __future__ import annotations
@@ -86,6 +85,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.max_episode_steps is not None:
         env_kw["max_episode_steps"] = args.max_episode_steps
     thunk = functools.partial(make_env, env_id, args.camera_model, **env_kw)
+    try:
+        inputs = policy_inputs(thunk, args.drop_inputs)  # None: all
+    except ValueError as e:
+        ap.error(f"--drop-inputs: {e}")
     train_thunk = functools.partial(curriculum_env, thunk) if args.curriculum_steps else thunk
     vec_cls = SubprocVecEnv if args.n_envs > 1 else DummyVecEnv
     venv = VecMonitor(vec_cls([train_thunk] * args.n_envs), info_keywords=("is_success",))
@@ -98,16 +101,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"resuming from {ckpt.model_path} at {model.num_timesteps} steps", flush=True)
     else:
         venv = VecNormalize(venv, norm_obs=False, norm_reward=True, gamma=args.gamma)
-        ppo = ("n_steps", "batch_size", "n_epochs", "gamma", "ent_coef", "seed")
+        kw = {k: getattr(args, k) for k in ("n_steps", "batch_size", "n_epochs", "gamma", "ent_coef", "seed")}
         net = {"net_arch": list(args.net_arch), "log_std_init": args.log_std_init}
         net["features_extractor_class"] = sb3.RunningNormExtractor
-        net["features_extractor_kwargs"] = {"inputs": policy_inputs(thunk, args.drop_inputs)}
-        kw = {k: getattr(args, k) for k in ppo} | {"learning_rate": args.learning_rate or 3e-4}
-        model = PPO("MlpPolicy", venv, device="cpu", policy_kwargs=net, **kw)
+        net["features_extractor_kwargs"] = {"inputs": inputs}
+        model = PPO("MlpPolicy", venv, args.learning_rate or 3e-4, device="cpu", policy_kwargs=net, **kw)
         if args.init_action_mean is not None:  # an untrained policy that already does this on average
             sb3.set_initial_action_mean(model, args.init_action_mean)
-    done = model.num_timesteps
-    keep = done if resume else None
+    done, keep = model.num_timesteps, (model.num_timesteps if resume else None)
     train_log = CsvLog(out / "train.csv", TRAIN_FIELDS, keep_until=keep)
     eval_log = CsvLog(out / "eval.csv", EVAL_FIELDS, keep_until=keep)
     seeds = range(EVAL_SEED_BASE, EVAL_SEED_BASE + args.eval_episodes)
@@ -137,10 +138,9 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         venv.close()
     model.save(out / "final.zip")
-    steps = model.num_timesteps - done
+    steps, wall = model.num_timesteps - done, time.time() - t0
     plot_curves(out / "train.csv", out / "eval.csv", out / "curves.png", title=f"PPO on {env_id}")
     s = summary(out / "eval.csv")
-    wall = time.time() - t0
     print(f"{steps} steps in {wall:.0f} s ({steps / max(wall, 1e-9):.0f} steps/s incl. evaluations)")
     print(f"held-out success: last {s['last_success_rate']:.0%}, best {s['best_success_rate']:.0%} ({out})")
     return 0

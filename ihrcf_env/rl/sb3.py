@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -359,13 +360,14 @@ class ResumableCheckpointCallback(BaseCallback):
     """Between updates, once every ``every`` environment steps, and at the end, saves the model to
     ``<directory>/latest.zip`` (and a :class:`VecNormalize` wrapper's statistics to
     ``<directory>/vecnormalize.pkl``), each through a temporary file, so a run stopped at any moment
-    resumes from the last complete checkpoint."""
+    resumes from the last complete checkpoint. With ``keep`` (default) a copy of each model stays as
+    ``<directory>/steps_<N>.zip``, for choosing a checkpoint afterwards on validation episodes."""
 
-    def __init__(self, directory: str | os.PathLike[str], every: int):
+    def __init__(self, directory: str | os.PathLike[str], every: int, keep: bool = True):
         super().__init__()
         if every < 1:
             raise ValueError(f"every must be >= 1, got {every!r}")
-        self.directory, self.every, self._last = Path(directory), every, 0
+        self.directory, self.every, self._last, self.keep = Path(directory), every, 0, keep
 
     @property
     def model_path(self) -> Path:
@@ -388,6 +390,8 @@ class ResumableCheckpointCallback(BaseCallback):
             tmp_vn = self.directory / "vecnormalize.tmp.pkl"
             vn.save(str(tmp_vn))
             os.replace(tmp_vn, self.vecnormalize_path)
+        if self.keep:
+            shutil.copyfile(tmp, self.directory / f"steps_{self.model.num_timesteps}.zip")
         os.replace(tmp, self.model_path)
 
     def _on_rollout_start(self) -> None:  # between updates: policy, optimizer and step count agree

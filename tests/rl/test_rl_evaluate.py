@@ -1,6 +1,6 @@
 """The evaluate CLI on the shipped PPO policy (``rl`` marker): 2 episodes (at most 300 steps each)
 on the rendered camera, in a fresh interpreter as a user runs it, the policy's ``deck_motion``
-observation detected."""
+observation detected, and it lands."""
 
 from __future__ import annotations
 
@@ -40,6 +40,8 @@ def test_evaluate_cli_runs_the_shipped_policy() -> None:
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     lines = proc.stdout.strip().splitlines()
-    assert re.fullmatch(r"success [0-2]/2", lines[-1]), proc.stdout[-3000:]
+    # the shipped policy landed 50/50 rendered (seeds 0-49, README): allow one unlucky episode on
+    # another CPU, not a policy that no longer lands
+    assert re.fullmatch(r"success [12]/2", lines[-1]), proc.stdout[-3000:]
     # the shipped policy was trained with deck_motion=True: the CLI detects it without --deck-motion
     assert "trained with deck_motion=True, evaluated so" in proc.stdout

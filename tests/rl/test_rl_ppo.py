@@ -129,6 +129,8 @@ def test_train_ppo_saves_a_policy_that_reloads_and_resumes(
     ):
         assert (out / name).stat().st_size > 0, name
     assert (out / "final.zip").stat().st_size < 1_000_000  # a small policy file
+    kept = sorted(p.name for p in (out / "checkpoints").glob("steps_*.zip"))
+    assert kept == ["steps_128.zip", "steps_256.zip"]  # every checkpoint kept, for a later selection
     evals = read_csv(out / "eval.csv")
     assert [int(r["timesteps"]) for r in evals] == [128, 256]
     assert all(0 <= float(r["success_rate"]) <= 1 for r in evals)
