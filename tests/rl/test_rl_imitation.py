@@ -5,32 +5,31 @@ from __future__ import annotations
 
 import importlib.util
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 pytestmark = pytest.mark.rl
-pytest.importorskip("stable_baselines3")
-
-import torch as th  # noqa: E402
-from stable_baselines3 import PPO  # noqa: E402
-from stable_baselines3.common.vec_env import DummyVecEnv  # noqa: E402
-
-from ihrcf_env.control.policies import BlindDescent, ScriptedLanding  # noqa: E402
-from ihrcf_env.rl.curves import read_csv  # noqa: E402
-from ihrcf_env.rl.envs import make_env  # noqa: E402
-from ihrcf_env.rl.imitation import DAGGER_FIELDS, collect, dagger, fit_policy  # noqa: E402
-from ihrcf_env.rl.sb3 import CriticWarmupCallback, RunningNormExtractor, norm_extractors  # noqa: E402
 
 V1 = "ihrcf_env/DeckLanding-v1"
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
-def _venv(steps: int = 40) -> DummyVecEnv:
+def _venv(steps: int = 40) -> Any:
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from ihrcf_env.rl.envs import make_env
+
     return DummyVecEnv([lambda: make_env(V1, "projected", max_episode_steps=steps)])
 
 
-def _model(venv: DummyVecEnv) -> PPO:
+def _model(venv: Any) -> Any:
+    from stable_baselines3 import PPO
+
+    from ihrcf_env.rl.sb3 import RunningNormExtractor
+
     kw = {"features_extractor_class": RunningNormExtractor, "net_arch": [32, 32], "log_std_init": -2.0}
     return PPO(
         "MlpPolicy", venv, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu", policy_kwargs=kw
@@ -38,6 +37,9 @@ def _model(venv: DummyVecEnv) -> PPO:
 
 
 def test_collect_labels_every_step_with_the_expert() -> None:
+    from ihrcf_env.control.policies import BlindDescent
+    from ihrcf_env.rl.imitation import collect
+
     venv = _venv()
     try:
         expert = BlindDescent(0.3)
@@ -65,6 +67,10 @@ def test_collect_labels_every_step_with_the_expert() -> None:
 
 
 def test_fit_policy_regresses_the_mean_and_sets_the_normaliser() -> None:
+    from ihrcf_env.control.policies import BlindDescent
+    from ihrcf_env.rl.imitation import dagger, fit_policy
+    from ihrcf_env.rl.sb3 import norm_extractors
+
     venv = _venv()
     try:
         model = _model(venv)
@@ -88,6 +94,10 @@ def test_fit_policy_regresses_the_mean_and_sets_the_normaliser() -> None:
 
 
 def test_dagger_with_the_scripted_expert_aggregates_rounds() -> None:
+    from ihrcf_env.control.policies import ScriptedLanding
+    from ihrcf_env.rl.envs import make_env
+    from ihrcf_env.rl.imitation import dagger
+
     venv = _venv(steps=30)
     probe = make_env(V1, "projected")
     try:
@@ -101,6 +111,10 @@ def test_dagger_with_the_scripted_expert_aggregates_rounds() -> None:
 
 
 def test_critic_warmup_freezes_the_actor_then_releases_it() -> None:
+    import torch as th
+
+    from ihrcf_env.rl.sb3 import CriticWarmupCallback
+
     venv = _venv()
     try:
         model = _model(venv)
@@ -125,6 +139,13 @@ def test_critic_warmup_freezes_the_actor_then_releases_it() -> None:
 def test_train_ppo_with_dagger_logs_rounds_and_evaluates_the_warm_start(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+
+    from ihrcf_env.rl.curves import read_csv
+    from ihrcf_env.rl.imitation import DAGGER_FIELDS
+    from ihrcf_env.rl.sb3 import norm_extractors
+
     spec = importlib.util.spec_from_file_location("_example_train_ppo_dagger", EXAMPLES / "train_ppo.py")
     assert spec is not None and spec.loader is not None
     train_ppo = importlib.util.module_from_spec(spec)
