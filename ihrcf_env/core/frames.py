@@ -35,8 +35,8 @@ def as_array(x: ArrayLike, shape: tuple[int, ...], name: str) -> NDArray[np.floa
     a = np.asarray(x, dtype=np.float64)
     if a.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got {a.shape}")
-    if not np.isfinite(a).all():
-        raise ValueError(f"{name} contains NaN or inf")
+    if not math.isfinite(np.add.reduce(a, axis=None)) and not np.isfinite(a).all():
+        raise ValueError(f"{name} contains NaN or inf")  # (the sum alone also overflows for huge values)
     return a
 
 
@@ -59,14 +59,19 @@ def euler_from_matrix(R: ArrayLike) -> NDArray[np.float64]:
 
     Pitch is in [-pi/2, pi/2]; roll and yaw in (-pi, pi].
     """
-    R = as_array(R, (3, 3), "R")
-    pitch = math.asin(max(-1.0, min(1.0, -R[2, 0])))
-    if abs(R[2, 0]) < 1.0 - 1e-12:
-        roll = math.atan2(R[2, 1], R[2, 2])
-        yaw = math.atan2(R[1, 0], R[0, 0])
+    return _euler(as_array(R, (3, 3), "R"))
+
+
+def _euler(R: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`euler_from_matrix` of a checked (3, 3) float64 array."""
+    (r00, _, _), (r10, r11, _), (r20, r21, r22) = R.tolist()
+    pitch = math.asin(max(-1.0, min(1.0, -r20)))
+    if abs(r20) < 1.0 - 1e-12:
+        roll = math.atan2(r21, r22)
+        yaw = math.atan2(r10, r00)
     else:  # gimbal lock: put everything in yaw
         roll = 0.0
-        yaw = math.atan2(-R[0, 1], R[1, 1])
+        yaw = math.atan2(-R[0, 1], r11)
     return np.array([roll, pitch, yaw])
 
 
@@ -144,8 +149,9 @@ def body_pose_to_cam(
 
 def rotation_angle(R_a: ArrayLike, R_b: ArrayLike) -> float:
     """Angle (rad) of the rotation taking ``R_a`` to ``R_b``."""
-    R = as_array(R_a, (3, 3), "R_a").T @ as_array(R_b, (3, 3), "R_b")
-    return math.acos(max(-1.0, min(1.0, (np.trace(R) - 1.0) / 2.0)))
+    Ra, Rb = as_array(R_a, (3, 3), "R_a"), as_array(R_b, (3, 3), "R_b")
+    trace = float(np.einsum("ij,ij->", Ra, Rb))  # tr(Ra^T Rb)
+    return math.acos(max(-1.0, min(1.0, (trace - 1.0) / 2.0)))
 
 
 def wrap_angle(a: ArrayLike, period: float = 2 * math.pi) -> NDArray[np.float64]:

@@ -7,7 +7,9 @@ coordinates (pixel centres at integers) for image points.
 
 from __future__ import annotations
 
+import functools
 import itertools
+import math
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -38,19 +40,76 @@ def _normalising_transform(p: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.array([[s, 0.0, -s * c[0]], [0.0, s, -s * c[1]], [0.0, 0.0, 1.0]])
 
 
+Matrix3 = tuple[tuple[float, float, float], tuple[float, float, float], tuple[float, float, float]]
+
+
+def _square_to_quad(q: list[list[float]]) -> Matrix3:
+    """The homography taking the unit square's corners (0, 0), (1, 0), (1, 1), (0, 1) to the four
+    points ``q`` (Heckbert's closed form); ValueError when three of them are collinear."""
+    (x0, y0), (x1, y1), (x2, y2), (x3, y3) = q
+    sx, sy = x0 - x1 + x2 - x3, y0 - y1 + y2 - y3
+    dx1, dx2, dy1, dy2 = x1 - x2, x3 - x2, y1 - y2, y3 - y2
+    den = dx1 * dy2 - dx2 * dy1
+    if den == 0.0 or not math.isfinite(den):
+        raise ValueError("degenerate point configuration: homography is not unique")
+    g = (sx * dy2 - dx2 * sy) / den
+    h = (dx1 * sy - sx * dy1) / den
+    m = (
+        (x1 - x0 + g * x1, x3 - x0 + h * x3, x0),
+        (y1 - y0 + g * y1, y3 - y0 + h * y3, y0),
+        (g, h, 1.0),
+    )
+    (a, b, c), (d, e, f), _ = m
+    terms = (a * (e - f * h), b * (d - f * g), c * (d * h - e * g))  # the determinant's expansion
+    if not abs(terms[0] - terms[1] + terms[2]) > _RANK_TOL * sum(map(abs, terms)):
+        raise ValueError("degenerate point configuration: homography is not unique")  # singular map
+    return m
+
+
+def _adjugate(m: Matrix3) -> Matrix3:
+    """Adjugate of a 3x3 matrix (its inverse times its determinant: the same homography)."""
+    (a, b, c), (d, e, f), (g, h, i) = m
+    return (
+        (e * i - f * h, c * h - b * i, b * f - c * e),
+        (f * g - d * i, a * i - c * g, c * d - a * f),
+        (d * h - e * g, b * g - a * h, a * e - b * d),
+    )
+
+
+def _product(m: Matrix3, n: Matrix3) -> Matrix3:
+    return tuple(  # type: ignore[return-value]
+        tuple(m[r][0] * n[0][k] + m[r][1] * n[1][k] + m[r][2] * n[2][k] for k in range(3)) for r in range(3)
+    )
+
+
 def homography_from_points(src: ArrayLike, dst: ArrayLike) -> NDArray[np.float64]:
-    """Homography ``H`` (3, 3) with ``dst ~ H [src, 1]``, by normalised DLT; ``H[2, 2] = 1``.
+    """Homography ``H`` (3, 3) with ``dst ~ H [src, 1]``; ``H[2, 2] = 1``.
 
     ``src`` and ``dst`` are (N, 2) corresponding points, N >= 4, row i of ``src`` mapping to row i
-    of ``dst`` (eq. 13-16 of the paper). With N == 4 the fit is exact. Raises ValueError for
-    degenerate configurations (rank-deficient DLT system, e.g. three of four points collinear) or
-    when ``H[2, 2]`` is 0 and the matrix cannot be normalised. Note that this rank test only
-    catches exact degeneracy; use :func:`quad_is_degenerate` for a tolerance-based check.
+    of ``dst`` (eq. 13-16 of the paper). With N == 4 the fit is exact and computed in closed form
+    (through the unit square: ``H = Q_dst Q_src^-1``, Heckbert 1989), with N > 4 by normalised DLT.
+    Raises ValueError for degenerate configurations (three of four points collinear, or a
+    rank-deficient DLT system) or when ``H[2, 2]`` is 0 and the matrix cannot be normalised. Note
+    that these tests only catch exact degeneracy; use :func:`quad_is_degenerate` for a
+    tolerance-based check.
     """
     src = _points(src, 2, "src", 4)
     dst = _points(dst, 2, "dst", 4)
     if src.shape != dst.shape:
         raise ValueError(f"src and dst must have the same shape, got {src.shape} and {dst.shape}")
+    if src.shape[0] == 4:
+        H = np.array(_product(_square_to_quad(dst.tolist()), _adjugate(_square_to_quad(src.tolist()))))
+        if not np.isfinite(H).all():
+            raise ValueError("degenerate point configuration: homography is not unique")
+    else:
+        H = _dlt(src, dst)
+    if abs(H[2, 2]) <= _RANK_TOL * np.abs(H).max():
+        raise ValueError("homography has H[2, 2] = 0 and cannot be normalised")
+    return H / H[2, 2]
+
+
+def _dlt(src: NDArray[np.float64], dst: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Normalised DLT homography (3, 3) of N >= 4 point pairs, up to scale."""
     T_s = _normalising_transform(src)
     T_d = _normalising_transform(dst)
     n = src.shape[0]
@@ -66,10 +125,8 @@ def homography_from_points(src: ArrayLike, dst: ArrayLike) -> NDArray[np.float64
     if sv[7] <= _RANK_TOL * sv[0]:
         raise ValueError("degenerate point configuration: homography is not unique")
     Hn = vt[-1].reshape(3, 3)
-    H = np.linalg.inv(T_d) @ Hn @ T_s
-    if abs(H[2, 2]) <= _RANK_TOL * np.abs(H).max():
-        raise ValueError("homography has H[2, 2] = 0 and cannot be normalised")
-    return H / H[2, 2]
+    H: NDArray[np.float64] = np.linalg.inv(T_d) @ Hn @ T_s
+    return H
 
 
 def apply_homography(H: ArrayLike, pts: ArrayLike) -> NDArray[np.float64]:
@@ -94,11 +151,12 @@ def collinear(pts: ArrayLike, tol: float = 1e-3) -> bool:
     pts = _points(pts, 2, "pts", 3)
     if not (np.isfinite(tol) and tol >= 0):
         raise ValueError(f"tol must be a non-negative number, got {tol!r}")
-    for i, j, k in itertools.combinations(range(pts.shape[0]), 3):
-        a, b, c = pts[i], pts[j], pts[k]
-        u, v = b - a, c - a
-        area2 = abs(u[0] * v[1] - u[1] * v[0])
-        longest2 = max(float(u @ u), float(v @ v), float((c - b) @ (c - b)))
+    p = pts.tolist()  # plain floats: a handful of triples, cheaper than numpy calls
+    for i, j, k in itertools.combinations(range(len(p)), 3):
+        (ax, ay), (bx, by), (cx, cy) = p[i], p[j], p[k]
+        ux, uy, vx, vy, wx, wy = bx - ax, by - ay, cx - ax, cy - ay, cx - bx, cy - by
+        area2 = abs(ux * vy - uy * vx)
+        longest2 = max(ux * ux + uy * uy, vx * vx + vy * vy, wx * wx + wy * wy)
         if longest2 == 0.0 or area2 <= tol * longest2:
             return True
     return False
@@ -123,15 +181,15 @@ def fit_plane(points: ArrayLike) -> tuple[NDArray[np.float64], float]:
     Raises ValueError for fewer than 3 points or (nearly) collinear / coincident points.
     """
     points = _points(points, 3, "points", 3)
-    centroid = points.mean(axis=0)
+    centroid = points.sum(axis=0) / points.shape[0]
     centred = points - centroid
-    scale = float(np.max(np.linalg.norm(centred, axis=1)))
+    scale = math.sqrt(float(np.max(np.einsum("ij,ij->i", centred, centred))))
     if scale == 0.0:
         raise ValueError("points are all coincident: plane undefined")
     if points.shape[0] == 3:
         p1, p2, p3 = points
         n = np.cross(p1 - p2, p2 - p3)
-        norm = float(np.linalg.norm(n))
+        norm = math.sqrt(float(n @ n))
         if norm <= 1e-9 * scale * scale:
             raise ValueError("points are collinear: plane undefined")
     else:
@@ -139,7 +197,7 @@ def fit_plane(points: ArrayLike) -> tuple[NDArray[np.float64], float]:
         if sv[1] <= 1e-9 * sv[0]:
             raise ValueError("points are collinear: plane undefined")
         n = vt[2]
-        norm = float(np.linalg.norm(n))
+        norm = math.sqrt(float(n @ n))
     n = n / norm
     if n[2] < 0 or (n[2] == 0 and n[np.flatnonzero(n)[0]] < 0):
         n = -n
@@ -155,9 +213,17 @@ def plane_z(normal: ArrayLike, d: float, xy: ArrayLike) -> NDArray[np.float64]:
     xy = _points(xy, 2, "xy", 1)
     if not np.isfinite(d):
         raise ValueError(f"d must be finite, got {d!r}")
-    if abs(n[2]) < 1e-9 * float(np.linalg.norm(n)) or not np.any(n):
+    if abs(n[2]) < 1e-9 * math.sqrt(float(n @ n)) or not np.any(n):
         raise ValueError("plane is parallel to the z axis: z is undefined")
     return (d - n[0] * xy[:, 0] - n[1] * xy[:, 1]) / n[2]
+
+
+@functools.lru_cache(maxsize=16)
+def _collinear_3d(centred: bytes) -> bool:
+    """True if the centred (N, 3) points (float64 bytes) are collinear or coincident (second singular
+    value <= 1e-9 of the first). Cached: the model points of a rigid fit rarely change."""
+    sp = np.linalg.svd(np.frombuffer(centred, dtype=np.float64).reshape(-1, 3), compute_uv=False)
+    return bool(sp[1] <= 1e-9 * max(sp[0], 1e-300))
 
 
 def rigid_fit(P: ArrayLike, Q: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
@@ -172,16 +238,17 @@ def rigid_fit(P: ArrayLike, Q: ArrayLike) -> tuple[NDArray[np.float64], NDArray[
     Q = _points(Q, 3, "Q", 3)
     if P.shape != Q.shape:
         raise ValueError(f"P and Q must have the same shape, got {P.shape} and {Q.shape}")
-    cp, cq = P.mean(axis=0), Q.mean(axis=0)
+    cp, cq = P.sum(axis=0) / len(P), Q.sum(axis=0) / len(Q)
     Pc, Qc = P - cp, Q - cq
-    sp = np.linalg.svd(Pc, compute_uv=False)
-    if sp[1] <= 1e-9 * max(sp[0], 1e-300):
+    if _collinear_3d(Pc.tobytes()):
         raise ValueError("P is collinear or coincident: rotation undefined")
-    C = Qc.T @ Pc  # cross-covariance, maps P directions to Q directions
-    U, _, Vt = np.linalg.svd(C)
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt)) or 1.0])
-    R = U @ D @ Vt
+    U, _, Vt = np.linalg.svd(Qc.T @ Pc)  # of the cross-covariance, maps P directions to Q directions
+    R = U @ Vt
+    (a, b, c), (d, e, f), (g, h, i) = R.tolist()
+    if a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) < 0:  # a reflection
+        U[:, 2] = -U[:, 2]
+        R = U @ Vt
     t = cq - R @ cp
     res = P @ R.T + t - Q
-    rms = float(np.sqrt(np.mean(np.sum(res * res, axis=1))))
+    rms = math.sqrt(float(np.einsum("ij,ij->", res, res)) / len(P))
     return R, t, rms

@@ -20,6 +20,7 @@ the camera-frame point ``(x_i, y_i, d)``.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -53,11 +54,13 @@ class SensorRig:
             raise ValueError(f"theta must be in (0, pi/2) rad, got {self.theta!r}")
         as_array(self.camera_position, (3,), "camera_position")
 
-    @property
+    @functools.cached_property
     def sensor_xy_cam(self) -> NDArray[np.float64]:
-        """(4, 2) XY of ps1..ps4 in the camera frame (m)."""
+        """(4, 2) XY of ps1..ps4 in the camera frame (m); read-only (computed once per rig)."""
         hx, hy = self.a * math.cos(self.theta), self.a * math.sin(self.theta)
-        return np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+        xy = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+        xy.setflags(write=False)
+        return xy
 
     @property
     def sensor_positions_body(self) -> NDArray[np.float64]:
@@ -70,7 +73,7 @@ class SensorRig:
 
 
 def tag_corners_deck(tag_size: float) -> NDArray[np.float64]:
-    """(4, 3) tag corners in the deck frame, in OpenCV's aruco order.
+    """(4, 3) tag corners in the deck frame, in OpenCV's aruco order (a new array each call).
 
     OpenCV returns corners clockwise from the tag's top-left as drawn by
     ``cv2.aruco.generateImageMarker``. The texture is laid on the deck with its top edge towards

@@ -378,14 +378,14 @@ class DeckLandingEnv(gym.Env):
             obs["image"] = r["image"]
         if "tag_corners" in r:
             self._tag_reason = str(r["tag_reason"])
-            obs["tag_corners"] = np.clip(r["tag_corners"], -1.0, self._corner_bound).astype(np.float32)
+            obs["tag_corners"] = _clip32(r["tag_corners"], -1.0, self._corner_bound)
             obs["tag_detected"] = int(bool(r["tag_detected"]))
         obs["ranges"] = r["ranges"]
         obs["ranges_valid"] = r["ranges_valid"]
         obs["imu"] = {
-            "quaternion": np.clip(r["quaternion"], -1, 1).astype(np.float32),
-            "angular_velocity": np.clip(r["angular_velocity"], -50, 50).astype(np.float32),
-            "linear_acceleration": np.clip(r["linear_acceleration"], -200, 200).astype(np.float32),
+            "quaternion": _clip32(r["quaternion"], -1.0, 1.0),
+            "angular_velocity": _clip32(r["angular_velocity"], -50.0, 50.0),
+            "linear_acceleration": _clip32(r["linear_acceleration"], -200.0, 200.0),
         }
         return obs
 
@@ -437,13 +437,14 @@ class DeckLandingEnv(gym.Env):
             info["camera_age"] = w.time - w.camera_time
             if self.config.camera_output == "corners":
                 info["tag_reason"] = self._tag_reason
+        # copies: the snapshot's arrays are read-only and shared (World.snapshot is memoised)
         return info | {
-            "deck_position_body": s.deck_position_body,
+            "deck_position_body": s.deck_position_body.copy(),
             "deck_euler_body": euler_from_matrix(s.deck_rotation_body),
-            "deck_rotation_body": s.deck_rotation_body,
-            "drone_position_world": s.drone_position,
-            "drone_quaternion_world": s.drone_quaternion,
-            "deck_position_world": s.deck_position,
+            "deck_rotation_body": s.deck_rotation_body.copy(),
+            "drone_position_world": s.drone_position.copy(),
+            "drone_quaternion_world": s.drone_quaternion.copy(),
+            "deck_position_world": s.deck_position.copy(),
             "deck_quaternion_world": quat_from_matrix(s.deck_rotation),
             "leg_lengths": w.deck.geometry.leg_lengths(s.deck_position, s.deck_rotation),
             "contact_deck": w.deck.body in contacts,
@@ -494,7 +495,13 @@ class DeckLandingEnv(gym.Env):
         """Ground-truth deck (position m, euler rad) in the body frame."""
         self._check_open()
         s = self.world.snapshot()
-        return s.deck_position_body, euler_from_matrix(s.deck_rotation_body)
+        return s.deck_position_body.copy(), euler_from_matrix(s.deck_rotation_body)
+
+
+def _clip32(x: NDArray[np.float64], low: float, high: float) -> NDArray[np.float32]:
+    """``np.clip(x, low, high).astype(np.float32)`` (same values), without np.clip's overhead on
+    tiny arrays."""
+    return np.minimum(np.maximum(x, low), high).astype(np.float32)
 
 
 def _observation_space(world: WorldConfig) -> spaces.Dict:

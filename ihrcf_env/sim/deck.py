@@ -127,20 +127,15 @@ class DeckTrajectory:
         return len(self.times)
 
 
-def _quat_mul(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float, float]:
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return (
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-        aw * bw - ax * bx - ay * by - az * bz,
-    )
-
-
 def angular_velocity_between(q_from: Sequence[float], q_to: Sequence[float], dt: float) -> tuple[float, ...]:
     """World-frame angular velocity (rad/s) that rotates ``q_from`` into ``q_to`` in ``dt`` seconds."""
-    x, y, z, w = _quat_mul(q_to, (-q_from[0], -q_from[1], -q_from[2], q_from[3]))
+    # q_to * conj(q_from), written out (physics rate: no call or tuple overhead)
+    ax, ay, az, aw = q_to
+    bx, by, bz, bw = -q_from[0], -q_from[1], -q_from[2], q_from[3]
+    x = aw * bx + ax * bw + ay * bz - az * by
+    y = aw * by - ax * bz + ay * bw + az * bx
+    z = aw * bz + ax * by - ay * bx + az * bw
+    w = aw * bw - ax * bx - ay * by - az * bz
     if w < 0:
         x, y, z, w = -x, -y, -z, -w
     s = math.sqrt(x * x + y * y + z * z)
@@ -148,6 +143,20 @@ def angular_velocity_between(q_from: Sequence[float], q_to: Sequence[float], dt:
         return (2 * x / dt, 2 * y / dt, 2 * z / dt)
     k = 2.0 * math.atan2(s, w) / (s * dt)
     return (x * k, y * k, z * k)
+
+
+def rigid_point_velocity(
+    origin: Sequence[float],
+    v: Sequence[float],
+    w: Sequence[float],
+    point: Sequence[float] | NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Velocity ``v + w x (point - origin)`` of a rigid body's material point (scalar maths, the
+    same operations and rounding as ``v + np.cross(w, point - origin)``)."""
+    px, py, pz = map(float, point)
+    rx, ry, rz = px - origin[0], py - origin[1], pz - origin[2]
+    w0, w1, w2 = w
+    return np.array([v[0] + (w1 * rz - w2 * ry), v[1] + (w2 * rx - w0 * rz), v[2] + (w0 * ry - w1 * rx)])
 
 
 class Deck:
@@ -273,8 +282,10 @@ class Deck:
         traj = self.trajectory
         assert traj is not None
         dt = traj.dt
-        traj.ensure(tick + 1)
-        k = min(tick + 1, len(traj) - 1)
+        k = tick + 1
+        if k >= len(traj.quaternion_list):  # beyond the poses made so far
+            traj.ensure(k)
+            k = min(k, len(traj) - 1)
         pos_now, q_now = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
         q_t = traj.quaternion_list[k]
         target = traj.body_position_list[k]
@@ -290,8 +301,14 @@ class Deck:
     def pose(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """World pose of the deck frame: (position (3,), rotation (3, 3))."""
         pos, quat = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
-        R = matrix_from_quat(quat)
-        return np.array(pos) + R[:, 2] * self._half, R
+        return self.pose_from_body(pos, quat)
+
+    def pose_from_body(
+        self, body_pos: Sequence[float], body_quat: Sequence[float]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """:meth:`pose` from the plate body's PyBullet position and quaternion (already read)."""
+        R = matrix_from_quat(body_quat)
+        return np.array(body_pos) + R[:, 2] * self._half, R
 
     def velocity(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """World linear velocity of the plate's centre of mass and angular velocity (m/s, rad/s)."""
@@ -301,8 +318,8 @@ class Deck:
     def point_velocity(self, point_world: NDArray[np.float64]) -> NDArray[np.float64]:
         """World velocity (m/s) of the deck's material point at ``point_world``."""
         pos, _ = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
-        v, w = self.velocity()
-        return v + np.cross(w, np.asarray(point_world) - np.asarray(pos))
+        v, w = p.getBaseVelocity(self.body, physicsClientId=self.client)
+        return rigid_point_velocity(pos, v, w, point_world)
 
     def leg_lengths(self) -> NDArray[np.float64]:
         """Current leg lengths (m) from the inverse kinematics of the plate's actual pose."""

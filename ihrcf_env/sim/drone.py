@@ -90,6 +90,8 @@ class Quadrotor:
         self._km = params.km
         self._xy_list = params.motor_xy.tolist()
         self._spin_list = params.spin.tolist()
+        self._lag_dt = math.nan  # apply(): the rotor lag factor of the last dt
+        self._lag = 1.0
 
     def reset(self, position: NDArray[np.float64], yaw: float, hover: bool = True) -> None:
         """Place the drone level at ``position`` (world, m) with heading ``yaw`` (rad), at rest;
@@ -158,17 +160,22 @@ class Quadrotor:
     ) -> None:
         """Advance the rotor lag by ``dt`` and apply this physics step's rotor forces and drag
         (scalar maths: this runs at the physics rate)."""
-        a = min(1.0, dt / self.params.motor_tau) if self.params.motor_tau > 0 else 1.0
-        w = [wi + a * (ci - wi) for wi, ci in zip(self.rotor_speed, speed_cmd, strict=True)]
-        self.rotor_speed = w
+        if dt != self._lag_dt:
+            tau = self.params.motor_tau
+            self._lag_dt, self._lag = dt, (min(1.0, dt / tau) if tau > 0 else 1.0)
+        a = self._lag
+        w0, w1, w2, w3 = self.rotor_speed
+        c0, c1, c2, c3 = speed_cmd
+        w0, w1, w2, w3 = w0 + a * (c0 - w0), w1 + a * (c1 - w1), w2 + a * (c2 - w2), w3 + a * (c3 - w3)
+        self.rotor_speed = [w0, w1, w2, w3]
         kf, km = self._kf, self._km
-        f = [kf * wi * wi for wi in w]
+        f0, f1, f2, f3 = kf * w0 * w0, kf * w1 * w1, kf * w2 * w2, kf * w3 * w3
         (x0, y0), (x1, y1), (x2, y2), (x3, y3) = self._xy_list
         s0, s1, s2, s3 = self._spin_list
-        thrust = f[0] + f[1] + f[2] + f[3]
-        tx = f[0] * y0 + f[1] * y1 + f[2] * y2 + f[3] * y3
-        ty = -(f[0] * x0 + f[1] * x1 + f[2] * x2 + f[3] * x3)
-        tz = -(km / kf) * (s0 * f[0] + s1 * f[1] + s2 * f[2] + s3 * f[3])
+        thrust = f0 + f1 + f2 + f3
+        tx = f0 * y0 + f1 * y1 + f2 * y2 + f3 * y3
+        ty = -(f0 * x0 + f1 * x1 + f2 * x2 + f3 * x3)
+        tz = -(km / kf) * (s0 * f0 + s1 * f1 + s2 * f2 + s3 * f3)
         R = p.getMatrixFromQuaternion(quat)
         drag = self.params.drag
         # body z axis and torque in world coordinates
@@ -244,64 +251,62 @@ class VelocityController:
         yaw = math.atan2(r10, r00)
         cy, sy = math.cos(yaw), math.sin(yaw)
         sp_x, sp_y, sp_z, sp_r = setpoint
-        vc = (cy * sp_x - sy * sp_y, sy * sp_x + cy * sp_y, sp_z)
+        vc0, vc1, vc2 = cy * sp_x - sy * sp_y, sy * sp_x + cy * sp_y, sp_z
         pr = self.p_ref
-        e = [0.0, 0.0, 0.0]
-        for k in range(3):
-            pr[k] += vc[k] * dt
-            e[k] = pr[k] - pos[k]
-        n = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
-        if n > g.leash:
-            for k in range(3):
-                e[k] *= g.leash / n
-                pr[k] = pos[k] + e[k]
-        acc = [0.0, 0.0, 0.0]
-        kp = (g.kp_pos, g.kp_pos, g.kp_z)
-        kd = (g.kd_vel, g.kd_vel, g.kd_z)
-        ki = (g.ki_pos, g.ki_pos, g.ki_z)
+        pr[0] += vc0 * dt
+        pr[1] += vc1 * dt
+        pr[2] += vc2 * dt
+        e0, e1, e2 = pr[0] - pos[0], pr[1] - pos[1], pr[2] - pos[2]
+        n = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+        leash = g.leash
+        if n > leash:
+            k = leash / n
+            e0, e1, e2 = e0 * k, e1 * k, e2 * k
+            pr[0], pr[1], pr[2] = pos[0] + e0, pos[1] + e1, pos[2] + e2
         integ = self.integral
-        for k in range(3):
-            integ[k] = min(g.i_limit, max(-g.i_limit, integ[k] + e[k] * dt))
-            acc[k] = kp[k] * e[k] + kd[k] * (vc[k] - vel[k]) + ki[k] * integ[k]
+        lim_i = g.i_limit
+        i0 = integ[0] = min(lim_i, max(-lim_i, integ[0] + e0 * dt))
+        i1 = integ[1] = min(lim_i, max(-lim_i, integ[1] + e1 * dt))
+        i2 = integ[2] = min(lim_i, max(-lim_i, integ[2] + e2 * dt))
+        kp, kd, ki = g.kp_pos, g.kd_vel, g.ki_pos
+        fx = kp * e0 + kd * (vc0 - vel[0]) + ki * i0
+        fy = kp * e1 + kd * (vc1 - vel[1]) + ki * i1
+        acc_z = g.kp_z * e2 + g.kd_z * (vc2 - vel[2]) + g.ki_z * i2
         # thrust vector with tilt limit
-        fz = max(acc[2] + GRAVITY, 0.2 * GRAVITY)
+        fz = max(acc_z + GRAVITY, 0.2 * GRAVITY)
         lim = fz * math.tan(g.max_tilt)
-        nxy = math.hypot(acc[0], acc[1])
-        fx, fy = acc[0], acc[1]
+        nxy = math.hypot(fx, fy)
         if nxy > lim:
             fx, fy = fx * lim / nxy, fy * lim / nxy
-        F = (m * fx, m * fy, m * fz)
+        F0, F1, F2 = m * fx, m * fy, m * fz
         self.yaw_ref = math.remainder(self.yaw_ref + sp_r * dt, 2 * math.pi)
-        nF = math.sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2])
-        zd = (F[0] / nF, F[1] / nF, F[2] / nF)
-        xc = (math.cos(self.yaw_ref), math.sin(self.yaw_ref))
-        yd = (-zd[2] * xc[1], zd[2] * xc[0], zd[0] * xc[1] - zd[1] * xc[0])
-        ny = math.sqrt(yd[0] * yd[0] + yd[1] * yd[1] + yd[2] * yd[2])
-        yd = (yd[0] / ny, yd[1] / ny, yd[2] / ny)
-        xd = (yd[1] * zd[2] - yd[2] * zd[1], yd[2] * zd[0] - yd[0] * zd[2], yd[0] * zd[1] - yd[1] * zd[0])
-        thrust = F[0] * r02 + F[1] * r12 + F[2] * r22
+        nF = math.sqrt(F0 * F0 + F1 * F1 + F2 * F2)
+        z0, z1, z2 = F0 / nF, F1 / nF, F2 / nF  # desired body z
+        xc0, xc1 = math.cos(self.yaw_ref), math.sin(self.yaw_ref)
+        y0, y1, y2 = -z2 * xc1, z2 * xc0, z0 * xc1 - z1 * xc0
+        ny = math.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
+        y0, y1, y2 = y0 / ny, y1 / ny, y2 / ny  # desired body y
+        x0, x1, x2 = y1 * z2 - y2 * z1, y2 * z0 - y0 * z2, y0 * z1 - y1 * z0  # desired body x
+        thrust = F0 * r02 + F1 * r12 + F2 * r22
 
         # Geometric SO(3) attitude control: e_R = vee(Rd^T R - R^T Rd) / 2, with M = Rd^T R,
         # M[i][j] = (row i of Rd^T) . (column j of R); only the off-diagonal terms are needed.
-        c0, c1, c2 = (r00, r10, r20), (r01, r11, r21), (r02, r12, r22)  # body axes in world
-
-        def dot(a: tuple[float, ...], b: tuple[float, ...]) -> float:
-            return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-        e_R = (
-            0.5 * (dot(zd, c1) - dot(yd, c2)),
-            0.5 * (dot(xd, c2) - dot(zd, c0)),
-            0.5 * (dot(yd, c0) - dot(xd, c1)),
-        )
-        wb = (dot(c0, omega), dot(c1, omega), dot(c2, omega))
-        ff = (sp_r * r20, sp_r * r21, sp_r * r22)  # world yaw rate in body axes
-        J = self.quad.params.inertia
-        Jw = (J[0] * wb[0], J[1] * wb[1], J[2] * wb[2])
-        gyro = (wb[1] * Jw[2] - wb[2] * Jw[1], wb[2] * Jw[0] - wb[0] * Jw[2], wb[0] * Jw[1] - wb[1] * Jw[0])
-        ka, kr = g.k_att, g.k_rate
+        # Columns of R (body axes in world): c0 = (r00, r10, r20), c1 = (r01, r11, r21), c2 = (r02, r12, r22).
+        e_R0 = 0.5 * ((z0 * r01 + z1 * r11 + z2 * r21) - (y0 * r02 + y1 * r12 + y2 * r22))
+        e_R1 = 0.5 * ((x0 * r02 + x1 * r12 + x2 * r22) - (z0 * r00 + z1 * r10 + z2 * r20))
+        e_R2 = 0.5 * ((y0 * r00 + y1 * r10 + y2 * r20) - (x0 * r01 + x1 * r11 + x2 * r21))
+        w0, w1, w2 = omega
+        wb0 = r00 * w0 + r10 * w1 + r20 * w2  # body rates
+        wb1 = r01 * w0 + r11 * w1 + r21 * w2
+        wb2 = r02 * w0 + r12 * w1 + r22 * w2
+        J0, J1, J2 = self.quad.params.inertia
+        Jw0, Jw1, Jw2 = J0 * wb0, J1 * wb1, J2 * wb2
+        ka0, ka1, ka2 = g.k_att
+        kr0, kr1, kr2 = g.k_rate
+        # the feed-forward sp_r * (r20, r21, r22) is the world yaw rate in body axes
         torque = (
-            -ka[0] * e_R[0] - kr[0] * (wb[0] - ff[0]) + gyro[0],
-            -ka[1] * e_R[1] - kr[1] * (wb[1] - ff[1]) + gyro[1],
-            -ka[2] * e_R[2] - kr[2] * (wb[2] - ff[2]) + gyro[2],
+            -ka0 * e_R0 - kr0 * (wb0 - sp_r * r20) + (wb1 * Jw2 - wb2 * Jw1),
+            -ka1 * e_R1 - kr1 * (wb1 - sp_r * r21) + (wb2 * Jw0 - wb0 * Jw2),
+            -ka2 * e_R2 - kr2 * (wb2 - sp_r * r22) + (wb0 * Jw1 - wb1 * Jw0),
         )
         return self.quad.wrench_to_speeds(thrust, torque)

@@ -8,6 +8,7 @@ independent.
 from __future__ import annotations
 
 import math
+import struct
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,7 +23,7 @@ from ihrcf_env.core.frames import matrix_from_quat, relative_pose
 from ihrcf_env.core.profiles import MotionProfile
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.core.stewart import StewartGeometry
-from ihrcf_env.sim.deck import Deck, DeckConfig, DeckTrajectory
+from ihrcf_env.sim.deck import Deck, DeckConfig, DeckTrajectory, rigid_point_velocity
 from ihrcf_env.sim.disturbances import Disturbance
 from ihrcf_env.sim.drone import QuadParams, Quadrotor, VelocityController, VelocityGains
 from ihrcf_env.sim.navigation import Navigation, NavigationConfig, make_navigation
@@ -115,7 +116,10 @@ class Touchdown:
 
 @dataclass(frozen=True)
 class Snapshot:
-    """Ground truth at one instant. World frame unless the name says body (drone FLU frame)."""
+    """Ground truth at one instant. World frame unless the name says body (drone FLU frame).
+
+    :meth:`World.snapshot` shares one Snapshot between its callers until the state changes: its
+    arrays are read-only."""
 
     drone_position: NDArray[np.float64]
     drone_rotation: NDArray[np.float64]
@@ -206,6 +210,10 @@ class World:
         self._acc_world = np.zeros(3)
         self._setpoint = (0.0, 0.0, 0.0, 0.0)
         self._mode_velocity = cfg.action_mode == "velocity"
+        self._snapshot: Snapshot | None = None  # memo of snapshot(), valid for _snapshot_key
+        self._snapshot_key = b""
+        self._rotation = np.eye(3)  # memo of _drone_rotation(), valid for _rotation_key
+        self._rotation_key = b""
 
     def _camera_sensor(self, camera: CameraConfig) -> dict[str, Sensor]:
         """The camera as configured: the image (``"camera"``), or the tag corners (:data:`TAG_CAMERA`)
@@ -343,9 +351,12 @@ class World:
         nav = self.navigation
         truth = nav.ideal
         prev_vel: tuple[float, ...] = (0.0, 0.0, 0.0)
+        body = quad.body
+        get_pose, get_velocity = p.getBasePositionAndOrientation, p.getBaseVelocity
         for _ in range(self.config.substeps):
             deck.drive(self.tick)
-            pos, quat, vel, omega = quad.state()
+            pos, quat = get_pose(body, physicsClientId=cid)  # quad.state(), inlined
+            vel, omega = get_velocity(body, physicsClientId=cid)
             if not vel_mode:
                 cmd = self._motor_cmd
             elif truth:
@@ -424,7 +435,7 @@ class World:
         return BodyState(
             time=self.time,
             position=np.asarray(pos),
-            rotation=matrix_from_quat(quat),
+            rotation=self._drone_rotation(quat).copy(),
             quaternion=np.asarray(quat),
             velocity=np.asarray(vel),
             angular_velocity=np.asarray(omega),
@@ -490,24 +501,57 @@ class World:
     def deck_in_body(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Ground-truth deck pose in the drone body frame: (position (3,) m, rotation R_body_deck)."""
         s = self.snapshot()
-        return s.deck_position_body, s.deck_rotation_body
+        return s.deck_position_body.copy(), s.deck_rotation_body.copy()
+
+    def _drone_rotation(self, quat: tuple[float, ...]) -> NDArray[np.float64]:
+        """``matrix_from_quat(quat)`` (read-only), memoised on the last quaternion (bit-exact): the
+        snapshot and the sensors' body state of one instant share it."""
+        key = _QUAT_KEY.pack(*quat)
+        if key != self._rotation_key:
+            self._rotation, self._rotation_key = _frozen(matrix_from_quat(quat)), key
+        return self._rotation
 
     def snapshot(self) -> Snapshot:
-        """Ground-truth state of drone and deck now (one read of the simulator)."""
+        """Ground-truth state of drone and deck now (one read of the simulator).
+
+        Memoised on the raw simulator state it is computed from (drone and deck poses and
+        velocities, bit for bit): until that state changes -- a physics step, a reset, a teleport --
+        every call returns the same Snapshot, whose arrays are read-only (copy to modify)."""
         self._check_open()
-        pos, quat, vel, _ = self.quad.state()
-        R = matrix_from_quat(quat)
+        cid, drone, plate = self.client, self.quad.body, self.deck.body
+        pos, quat = p.getBasePositionAndOrientation(drone, physicsClientId=cid)
+        vel = p.getBaseVelocity(drone, physicsClientId=cid)[0]
+        deck_body_pos, deck_quat = p.getBasePositionAndOrientation(plate, physicsClientId=cid)
+        deck_v, deck_w = p.getBaseVelocity(plate, physicsClientId=cid)
+        key = _SNAPSHOT_KEY.pack(*pos, *quat, *vel, *deck_body_pos, *deck_quat, *deck_v, *deck_w)
+        if key == self._snapshot_key and self._snapshot is not None:
+            return self._snapshot
+        R = self._drone_rotation(quat)
         pos_a = np.array(pos)
-        deck_pos, R_wd = self.deck.pose()
+        deck_pos, R_wd = self.deck.pose_from_body(deck_body_pos, deck_quat)
         R_bd, p_bd = relative_pose(R, pos_a, R_wd, deck_pos)
-        return Snapshot(
-            drone_position=pos_a,
+        snap = Snapshot(
+            drone_position=_frozen(pos_a),
             drone_rotation=R,
-            drone_quaternion=np.array(quat),
-            drone_velocity=np.array(vel),
-            deck_position=deck_pos,
-            deck_rotation=R_wd,
-            deck_point_velocity=self.deck.point_velocity(pos_a),
-            deck_position_body=p_bd,
-            deck_rotation_body=R_bd,
+            drone_quaternion=_frozen(np.array(quat)),
+            drone_velocity=_frozen(np.array(vel)),
+            deck_position=_frozen(deck_pos),
+            deck_rotation=_frozen(R_wd),
+            deck_point_velocity=_frozen(rigid_point_velocity(deck_body_pos, deck_v, deck_w, pos)),
+            deck_position_body=_frozen(p_bd),
+            deck_rotation_body=_frozen(R_bd),
         )
+        self._snapshot, self._snapshot_key = snap, key
+        return snap
+
+
+#: Packs the raw simulator state a :class:`Snapshot` is computed from into a bytes key (bit-exact:
+#: tells -0.0 from 0.0 and NaN payloads apart, as float comparison would not).
+_SNAPSHOT_KEY = struct.Struct("<23d")
+_QUAT_KEY = struct.Struct("<4d")
+
+
+def _frozen(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``a`` made read-only (the memoised snapshot's arrays are shared by its callers)."""
+    a.flags.writeable = False
+    return a

@@ -200,10 +200,16 @@ def _pose_space() -> spaces.Dict:
     )
 
 
+def _clip(x: Any, bound: float) -> NDArray[np.float64]:
+    """``np.clip(x, -bound, bound)`` (same values), without its overhead on tiny arrays."""
+    clipped: NDArray[np.float64] = np.minimum(np.maximum(x, -bound), bound)
+    return clipped
+
+
 def _pose_obs(position: NDArray[np.float64], euler: NDArray[np.float64], valid: bool) -> dict[str, Any]:
     return {
-        "position": np.clip(position, -POSITION_BOUND, POSITION_BOUND).astype(np.float32),
-        "euler": np.clip(euler, -math.pi, math.pi).astype(np.float32),
+        "position": _clip(position, POSITION_BOUND).astype(np.float32),
+        "euler": _clip(euler, math.pi).astype(np.float32),
         "valid": int(bool(valid)),
     }
 
@@ -316,6 +322,18 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         for key in self.pose_keys:
             d[key] = _pose_space()
         self._dict_space = spaces.Dict(d)
+        # the flat layout, resolved once: (path in the raw observation, slice), and per pose block
+        # (key, position slice, euler slice, valid index)
+        self._flat_sensors = tuple((path, self.flat_slices[name]) for name, path, _ in SENSOR_FIELDS)
+        self._flat_poses = tuple(
+            (
+                key,
+                self.flat_slices[f"{key}.position"],
+                self.flat_slices[f"{key}.euler"],
+                self.flat_slices[f"{key}.valid"].start,
+            )
+            for key in self.pose_keys
+        )
         if self.flatten:
             size = self.flat_slices["all"].stop
             low, high = np.empty(size), np.empty(size)
@@ -420,18 +438,25 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
             for name, t in self._frame_times.items()
         }
         gt_pos, gt_euler = cast("DeckLandingEnv", self.env.unwrapped).deck_pose_body()
-        poses = {name: _pose_obs(e.position, e.euler, e.valid) for name, e in estimates.items()}
-        poses[GROUND_TRUTH] = _pose_obs(gt_pos, gt_euler, True)
         if not self.flatten:
+            poses = {name: _pose_obs(e.position, e.euler, e.valid) for name, e in estimates.items()}
+            poses[GROUND_TRUTH] = _pose_obs(gt_pos, gt_euler, True)
             out = {k: v for k, v in observation.items() if k != "image" or self.keep_image}
             out.update(poses)
             return out
         flat = np.empty(self.flat_slices["all"].stop, np.float32)
-        for name, path, _ in SENSOR_FIELDS:
-            flat[self.flat_slices[name]] = _get(observation, path)
-        for key, pose in poses.items():
-            for field, _ in POSE_FIELDS:
-                flat[self.flat_slices[f"{key}.{field}"]] = pose[field]
+        for path, sl in self._flat_sensors:
+            flat[sl] = _get(observation, path)
+        for key, position_sl, euler_sl, valid_i in self._flat_poses:
+            if key == GROUND_TRUTH:
+                position, euler, valid = gt_pos, gt_euler, True
+            else:
+                e = estimates[key]
+                position, euler, valid = e.position, e.euler, e.valid
+            # as _pose_obs: float64 values rounded to float32 by the assignment, as by astype
+            flat[position_sl] = _clip(position, POSITION_BOUND)
+            flat[euler_sl] = _clip(euler, math.pi)
+            flat[valid_i] = int(bool(valid))
         return flat
 
 

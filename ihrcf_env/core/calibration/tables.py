@@ -8,6 +8,8 @@ has its centre at ``(u, v) = (c, r)``.
 
 from __future__ import annotations
 
+import bisect
+import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -53,6 +55,12 @@ class SensorTable:
         self._ranges.setflags(write=False)
         self._pixels.setflags(write=False)
         self._interp = PchipInterpolator(uniq, merged, axis=0, extrapolate=False)
+        # the same cubic pieces as plain floats, for :meth:`pixel` (one reading, no numpy call)
+        self._breaks: list[float] = uniq.tolist()
+        coef = np.asarray(self._interp.c)  # (4, M - 1, 2): powers 3..0 of (d - break)
+        self._pieces: list[tuple[tuple[float, ...], tuple[float, ...]]] = [
+            (tuple(coef[:, i, 0].tolist()), tuple(coef[:, i, 1].tolist())) for i in range(uniq.size - 1)
+        ]
 
     @property
     def ranges(self) -> NDArray[np.float64]:
@@ -82,6 +90,18 @@ class SensorTable:
         in_range = np.isfinite(d) & (d >= lo) & (d <= hi)
         dc = np.clip(np.where(np.isnan(d), hi, d), lo, hi)
         return np.asarray(self._interp(dc), dtype=np.float64), in_range
+
+    def pixel(self, d: float) -> tuple[float, float, bool]:
+        """``(u, v, in_range)`` of one reading ``d`` (m): :meth:`__call__` for a single value, in
+        plain floats (the per-frame path of :class:`RangePixelTable`)."""
+        breaks = self._breaks
+        lo, hi = breaks[0], breaks[-1]
+        in_range = lo <= d <= hi  # False for NaN
+        d = hi if math.isnan(d) else min(max(d, lo), hi)
+        i = min(max(bisect.bisect_right(breaks, d) - 1, 0), len(self._pieces) - 1)
+        x = d - breaks[i]
+        (a, b, c, e), (f, g, h, k) = self._pieces[i]
+        return ((a * x + b) * x + c) * x + e, ((f * x + g) * x + h) * x + k, in_range
 
     def to_dict(self) -> dict[str, Any]:
         return {"name": self.name, "ranges": self._ranges.tolist(), "pixels": self._pixels.tolist()}
@@ -141,12 +161,8 @@ class RangePixelTable:
         d = np.asarray(ranges, dtype=np.float64)
         if d.shape != (4,):
             raise ValueError(f"ranges must have shape (4,) (ps1..ps4), got {d.shape}")
-        uv = np.empty((4, 2))
-        ok = np.empty(4, dtype=bool)
-        for i, t in enumerate(self.tables):
-            p, f = t(d[i : i + 1])
-            uv[i], ok[i] = p[0], f[0]
-        return uv, ok
+        out = [t.pixel(x) for t, x in zip(self.tables, d.tolist(), strict=True)]
+        return np.array([o[:2] for o in out]), np.array([o[2] for o in out])
 
     def to_dict(self) -> dict[str, Any]:
         return {name: t.to_dict() for name, t in zip(SENSOR_NAMES, self.tables, strict=True)}

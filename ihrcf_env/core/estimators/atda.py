@@ -32,6 +32,8 @@ top edge towards deck +x and its left edge towards deck +y matches :func:`tag_co
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -49,6 +51,9 @@ AMBIGUITY_RATIO: float = 2.0
 #: Rotation taking marker-frame vectors (OpenCV IPPE_SQUARE: x right, y up in the tag image, z out of
 #: the tag) to deck-frame vectors (x = tag up, y = tag left, z out): deck = (m_y, -m_x, m_z).
 R_DECK_MARKER: NDArray[np.float64] = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+_R_MARKER_DECK = np.ascontiguousarray(R_DECK_MARKER.T)
+_NO_DISTORTION = np.zeros(5)
+_NO_DISTORTION.setflags(write=False)
 
 
 def _marker_object_points(tag_size: float) -> NDArray[np.float64]:
@@ -73,7 +78,7 @@ def atda_candidates(
     error first (the part that does not depend on the prior), or the reason (str) there are none."""
     corners = _shape_checked(corners_px, (4, 2), "corners_px")
     Km = as_array(K, (3, 3), "K")
-    d = np.zeros(5) if dist is None else np.asarray(dist, dtype=np.float64).ravel()
+    d = _NO_DISTORTION if dist is None else np.asarray(dist, dtype=np.float64).ravel()
     if not np.isfinite(corners).all():
         return "non-finite tag corners"
     if quad_is_degenerate(corners, DEGENERATE_REL_TOL):
@@ -89,7 +94,8 @@ def atda_candidates(
 
     def reproj_rms(rvec: NDArray, tvec: NDArray) -> float:
         proj, _ = cv2.projectPoints(obj, rvec, tvec, Km, d)
-        return float(np.sqrt(np.mean(np.sum((proj.reshape(4, 2) - corners) ** 2, axis=1))))
+        e = proj.reshape(4, 2) - corners
+        return math.sqrt(float(np.einsum("ij,ij->", e, e)) / 4.0)
 
     cands: list[Candidate] = []
     for rvec0, tvec0 in zip(rvecs, tvecs, strict=True):
@@ -103,7 +109,7 @@ def atda_candidates(
         if not (np.isfinite(t).all() and t[2] > 0):
             continue
         R_cm, _ = cv2.Rodrigues(rvec)
-        R_bd, p_bd = cam_pose_to_body(R_cm @ R_DECK_MARKER.T, t, rig.camera_position)
+        R_bd, p_bd = cam_pose_to_body(R_cm @ _R_MARKER_DECK, t, rig.camera_position)
         cands.append((reproj_rms(rvec, tvec), R_bd, p_bd))
     if not cands:
         return "tag behind the camera"

@@ -23,7 +23,7 @@ from typing import Any, Protocol, TypeVar, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ihrcf_env.core.frames import as_array, euler_from_matrix
+from ihrcf_env.core.frames import _euler, as_array
 
 _T = TypeVar("_T")
 
@@ -32,9 +32,11 @@ DEGENERATE_REL_TOL: float = 1e-2
 
 
 def _frozen(a: ArrayLike, shape: tuple[int, ...], name: str) -> NDArray[np.float64]:
-    a = np.array(as_array(a, shape, name), dtype=np.float64, copy=True)
-    a.setflags(write=False)
-    return a
+    """A read-only float64 copy of ``a``, checked like :func:`~ihrcf_env.core.frames.as_array`."""
+    out = np.array(a, dtype=np.float64)
+    as_array(out, shape, name)
+    out.setflags(write=False)
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,9 +76,17 @@ class PoseEstimate:
     @classmethod
     def from_body_pose(cls, R_body_deck: ArrayLike, p_body_deck: ArrayLike, residual: float) -> PoseEstimate:
         """A valid estimate from a body-frame rotation (3, 3) and position (3,) (m)."""
-        R = as_array(R_body_deck, (3, 3), "R_body_deck")
-        p = np.asarray(p_body_deck, dtype=np.float64)
-        return cls(p, euler_from_matrix(R), R, True, residual, "")
+        R = np.array(as_array(R_body_deck, (3, 3), "R_body_deck"))
+        p = np.array(as_array(p_body_deck, (3,), "position"))
+        euler = _euler(R)  # finite for a finite R
+        for a in (R, p, euler):
+            a.setflags(write=False)
+        est = object.__new__(cls)  # checked above: no second pass through __post_init__
+        for name, value in (("position", p), ("euler", euler), ("rotation", R), ("valid", True)):
+            object.__setattr__(est, name, value)
+        object.__setattr__(est, "residual", float(residual))
+        object.__setattr__(est, "reason", "")
+        return est
 
 
 def _shape_checked(x: ArrayLike, shape: tuple[int, ...], name: str, dtype: type = np.float64) -> NDArray:

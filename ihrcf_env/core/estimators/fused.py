@@ -167,6 +167,8 @@ _DEG = math.pi / 180.0
 #: E[ln X] for X ~ chi-square(1): the bias of the log-domain average of one-dof variance samples.
 _LOG_CHI2_1_MEAN = -1.2703628454614782
 _G_WORLD = np.array([0.0, 0.0, -GRAVITY])
+_R_CAM_BODY = np.ascontiguousarray(R_BODY_CAM.T)
+_DIAG3 = np.diag_indices(3)
 
 
 @dataclass(frozen=True)
@@ -337,6 +339,22 @@ def _per_axis(block: NDArray[np.float64], weights: NDArray[np.float64]) -> NDArr
     return (block[:, None, :, None] * np.diag(weights)[None, :, None, :]).reshape(9, 9)
 
 
+def _largest_eigenvalue(C: NDArray[np.float64]) -> float:
+    """Largest eigenvalue of a symmetric (3, 3) matrix (closed form: the trigonometric solution of
+    the characteristic cubic, Smith 1961)."""
+    (a, b, c), (_, d, e), (_, _, f) = C.tolist()
+    q = (a + d + f) / 3.0
+    p1 = b * b + c * c + e * e
+    a, d, f = a - q, d - q, f - q
+    p2 = (a * a + d * d + f * f + 2.0 * p1) / 6.0
+    if p2 <= 0.0:  # a multiple of the identity
+        return q
+    p = math.sqrt(p2)
+    det = a * (d * f - e * e) - b * (b * f - e * c) + c * (b * e - d * c)
+    r = max(-1.0, min(1.0, det / (2.0 * p * p2)))
+    return q + 2.0 * p * math.cos(math.acos(r) / 3.0)
+
+
 class _Imm:
     """Kalman filters of three axes of ``[value, rate, rate of rate]`` (state (9,) ordered
     ``[values (3), rates (3), accelerations (3)]``), as interacting multiple models (Blom and
@@ -345,7 +363,10 @@ class _Imm:
     mean sojourn ``switch_time`` s and weighted by their measurement likelihoods. A slow deck selects
     the quiet model (long averaging), a sea-state deck the agile one, without retuning. One model is
     a plain Kalman filter. Gating uses the combined estimate; the counters serve the validity and
-    re-initialisation rules. All models are propagated and corrected at once (stacked arrays)."""
+    re-initialisation rules. All models are propagated and corrected at once (stacked arrays), and
+    every step is written for tiny matrices: a measurement's rows are a contiguous block, so its
+    ``H`` is a slice, and the combined estimate is moment-matched only where it is read (the
+    measured block for the gate; the state and the values' covariance for the output)."""
 
     def __init__(
         self,
@@ -365,14 +386,14 @@ class _Imm:
         self.frames = 0  # frames with at least one accepted measurement
         self.rejected_run = 0  # consecutive frames whose every measurement was rejected
         self.last_accepted = time  # time of the last accepted measurement, s
-        self._combined: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+        self._x: NDArray[np.float64] | None = None  # combined state, cached until the next change
+        self._value_cov: NDArray[np.float64] | None = None  # combined values' covariance, cached
         #: per (dt, q_white): Markov switch T (n, n), transition F (9, 9), process noise (n, 9, 9)
         #: without the q_value term (the filter runs at a fixed frame rate: computed once)
         self._model_cache: dict[tuple[float, bytes], tuple[NDArray[np.float64], ...]] = {}
-        self._H_cache: dict[tuple[int, ...], NDArray[np.float64]] = {}
 
     def _model(self, dt: float, q_white: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
-        """(T, F, Q) of one prediction over ``dt`` s (see :meth:`predict`), cached."""
+        """(T, F^T, Q) of one prediction over ``dt`` s (see :meth:`predict`), cached."""
         key = (dt, q_white.tobytes())
         hit = self._model_cache.get(key)
         if hit is not None:
@@ -384,46 +405,54 @@ class _Imm:
             T = np.full((n, n), (1.0 - stay) / (n - 1))
             np.fill_diagonal(T, stay)
         F1, Qw, Qd = _kinematics(float(dt))
-        F = _per_axis(F1, np.ones(3))
+        Ft = np.ascontiguousarray(_per_axis(F1, np.ones(3)).T)
         Q = _per_axis(Qw, np.square(q_white))[None] + np.stack(
             [_per_axis(Qd, np.square(d)) for d in self.drifts]
         )
-        for m in (T, F, Q):
+        for m in (T, Ft, Q):
             m.setflags(write=False)
         if len(self._model_cache) >= 8:
             self._model_cache.clear()
-        self._model_cache[key] = (T, F, Q)
-        return T, F, Q
+        self._model_cache[key] = (T, Ft, Q)
+        return T, Ft, Q
 
-    def _mix(self, W: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Moment-matched states (m, 9) and covariances (m, 9, 9) of the mixtures with weights
-        ``W`` (m, n) over the models."""
-        ref = self.X[int(np.argmax(self.mu))]
-        D = self.X - ref  # (n, 9)
-        if self.angles:
-            D[:, 0:3] = _wrap(D[:, 0:3])
-        mean = W @ D  # (m, 9)
-        x = ref + mean
-        if self.angles:
-            x[:, 0:3] = _wrap(x[:, 0:3])
-        E = D[None, :, :] - mean[:, None, :]  # (m, n, 9)
-        P = np.einsum("mn,nij->mij", W, self.Ps) + np.einsum("mn,mni,mnj->mij", W, E, E)
-        return x, P
+    def _deviations(self, lo: int, hi: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The most probable model's state rows ``lo:hi`` (reference) and every model's deviation
+        from it (n, hi - lo), angles wrapped: the mixture is taken around one model, so angles near
+        +-pi mix correctly."""
+        Xr = self.X[:, lo:hi]
+        ref = Xr[int(self.mu.argmax())]
+        D = Xr - ref
+        if self.angles and lo < 3:
+            D[:, : 3 - lo] = _wrap(D[:, : 3 - lo])
+        return ref, D
 
-    def combined(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The moment-matched estimate: state (9,) and covariance (9, 9)."""
-        if self._combined is None:
-            x, P = self._mix(self.mu[None, :])
-            self._combined = (x[0], P[0])
-        return self._combined
+    def _changed(self) -> None:
+        self._x = None
+        self._value_cov = None
 
     @property
     def x(self) -> NDArray[np.float64]:
-        return self.combined()[0]
+        """The combined (moment-matched) state (9,), values wrapped for angles."""
+        if self._x is None:
+            ref, D = self._deviations(0, 9)
+            x = ref + self.mu @ D
+            if self.angles:
+                x[0:3] = _wrap(x[0:3])
+            self._x = x
+        return self._x
+
+    def _block_cov(self, lo: int, hi: int, D: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Combined covariance of the state rows ``lo:hi`` from the deviations ``D`` of those rows."""
+        E = D - self.mu @ D
+        return np.einsum("n,nij->ij", self.mu, self.Ps[:, lo:hi, lo:hi]) + (E.T * self.mu) @ E
 
     @property
-    def P(self) -> NDArray[np.float64]:
-        return self.combined()[1]
+    def value_cov(self) -> NDArray[np.float64]:
+        """The combined covariance (3, 3) of the values."""
+        if self._value_cov is None:
+            self._value_cov = self._block_cov(0, 3, self._deviations(0, 3)[1])
+        return self._value_cov
 
     def predict(
         self,
@@ -439,70 +468,72 @@ class _Imm:
         if dt <= 0:
             return
         n = len(self.mu)
-        T, F, Q0 = self._model(float(dt), np.asarray(q_white, dtype=np.float64))
-        if n > 1:
+        T, Ft, Q0 = self._model(float(dt), np.asarray(q_white, dtype=np.float64))
+        X, Ps = self.X, self.Ps
+        if n > 1:  # mixing: model j starts from the mixture of the models weighted by P(i | j)
             c = self.mu @ T  # predicted model probabilities
-            W = (T * self.mu[:, None]).T / np.maximum(c, 1e-300)[:, None]  # W[j, i] = P(i | j)
-            self.X, self.Ps = self._mix(W / W.sum(axis=1, keepdims=True))
+            W = T.T * self.mu
+            W /= W.sum(axis=1, keepdims=True)  # W[j, i] = P(i | j)
+            ref, D = self._deviations(0, 9)
+            mean = W @ D  # (n, 9)
+            X = ref + mean
+            # sum_i W[j, i] (P_i + (D_i - m_j)(D_i - m_j)^T) = sum_i W[j, i] (P_i + D_i D_i^T) - m_j m_j^T
+            G = Ps + D[:, :, None] * D[:, None, :]
+            Ps = (W @ G.reshape(n, 81)).reshape(n, 9, 9) - mean[:, :, None] * mean[:, None, :]
             self.mu = c / c.sum()
-        Q = Q0.copy()
-        Q[:, 0:3, 0:3] += q_value * dt
-        self.X = self.X @ F.T
+        X = X @ Ft
         if u is not None:
-            self.X[:, 0:3] += 0.5 * dt * dt * u
-            self.X[:, 3:6] += dt * u
-        self.Ps = F @ self.Ps @ F.T + Q
-        self.Ps = 0.5 * (self.Ps + self.Ps.transpose(0, 2, 1))
+            X[:, 0:3] += 0.5 * dt * dt * u
+            X[:, 3:6] += dt * u
         if self.angles:
-            self.X[:, 0:3] = _wrap(self.X[:, 0:3])
-        self._combined = None
+            X[:, 0:3] = _wrap(X[:, 0:3])
+        Ps = Ft.T @ Ps @ Ft + Q0
+        Ps[:, 0:3, 0:3] += q_value * dt
+        self.X = X
+        self.Ps = 0.5 * (Ps + Ps.transpose(0, 2, 1))
+        self._changed()
 
     def update(
-        self, z: NDArray[np.float64], rows: list[int], R: NDArray[np.float64], gate: float | None
+        self, z: NDArray[np.float64], rows: tuple[int, int], R: NDArray[np.float64], gate: float | None
     ) -> tuple[bool, float]:
-        """Measure the values ``rows`` (subset of 0, 1, 2) as ``z`` with covariance ``R``; gated on
-        the combined estimate (squared Mahalanobis distance beyond ``gate``: rejected, nothing
-        changes). Returns (accepted, squared distance)."""
-        k = len(rows)
-        x, P = self.combined()
-        nu = z - x[rows]
+        """Measure the values ``rows = (lo, hi)`` (state rows ``lo:hi``, within 0..3) as ``z`` with
+        covariance ``R``; gated on the combined estimate (squared Mahalanobis distance beyond
+        ``gate``: rejected, nothing changes). Returns (accepted, squared distance)."""
+        lo, hi = rows
+        mu, Ps = self.mu, self.Ps
+        NU = z - self.X[:, lo:hi]  # (n, k) innovation of each model
         if self.angles:
-            nu = _wrap(nu)
-        S = P[np.ix_(rows, rows)] + R
+            NU = _wrap(NU)
+        Ss = Ps[:, lo:hi, lo:hi] + R  # (n, k, k) innovation covariance of each model (symmetric:
+        # the covariances are symmetrised after every change and R is symmetric, see _Measurement)
+        # the combined estimate's innovation and covariance (moment matching; sum(mu) = 1)
+        nu = mu @ NU
+        dN = NU - nu
+        S = np.einsum("n,nij->ij", mu, Ss) + (dN.T * mu) @ dN
         try:
-            d2 = float(nu @ np.linalg.solve(0.5 * (S + S.T), nu))
+            d2 = float(nu @ np.linalg.solve(S, nu))
         except np.linalg.LinAlgError:
             return False, math.inf
         if not math.isfinite(d2) or (gate is not None and d2 > gate):
             return False, d2
-        # every model: Kalman update (Joseph form) and the likelihood of its innovation
-        H = self._H_cache.get(tuple(rows))
-        if H is None:
-            H = np.zeros((k, 9))
-            H[np.arange(k), rows] = 1.0
-            self._H_cache[tuple(rows)] = H
-        NU = z[None, :] - self.X[:, rows]  # (n, k)
-        if self.angles:
-            NU = _wrap(NU)
-        PHt = self.Ps[:, :, rows]  # (n, 9, k)
-        Ss = PHt[:, rows, :] + R  # (n, k, k)
-        Ss = 0.5 * (Ss + Ss.transpose(0, 2, 1))
+        # every model: Kalman update (H selects rows lo:hi; P - K S K^T, symmetrised) and the
+        # likelihood of its innovation
         Sinv = np.linalg.inv(Ss)
+        PHt = Ps[:, :, lo:hi]  # (n, 9, k) = P H^T
         K = PHt @ Sinv  # (n, 9, k)
-        self.X = self.X + np.einsum("nik,nk->ni", K, NU)
-        IKH = np.eye(9)[None] - K @ H
-        self.Ps = IKH @ self.Ps @ IKH.transpose(0, 2, 1) + K @ R @ K.transpose(0, 2, 1)
-        self.Ps = 0.5 * (self.Ps + self.Ps.transpose(0, 2, 1))
+        X = self.X + (K @ NU[:, :, None])[:, :, 0]
+        Ps = Ps - K @ PHt.transpose(0, 2, 1)
+        self.Ps = 0.5 * (Ps + Ps.transpose(0, 2, 1))
         if self.angles:
-            self.X[:, 0:3] = _wrap(self.X[:, 0:3])
-        if len(self.mu) > 1:
-            _, logdet = np.linalg.slogdet(Ss)
-            loglik = -0.5 * (np.einsum("nk,nkl,nl->n", NU, Sinv, NU) + logdet)
-            w = np.log(np.maximum(self.mu, 1e-300)) + loglik
-            w = np.exp(w - w.max())
-            self.mu = np.maximum(w / w.sum(), 1e-12)
-            self.mu /= self.mu.sum()
-        self._combined = None
+            X[:, 0:3] = _wrap(X[:, 0:3])
+        self.X = X
+        if len(mu) > 1:
+            # Bayes on the model probabilities (mu >= 1e-12 > 0), likelihoods scaled by the largest
+            loglik = np.einsum("nk,nkl,nl->n", NU, Sinv, NU) + np.linalg.slogdet(Ss)[1]  # -2 log L
+            w = mu * np.exp(0.5 * (loglik.min() - loglik))
+            mu = np.maximum(w / w.sum(), 1e-12)
+            self.mu = mu / mu.sum()
+        self._changed()
         return True, d2
 
     def finite(self) -> bool:
@@ -510,7 +541,7 @@ class _Imm:
 
     def value_sigma(self) -> float:
         """Largest 1-sigma of the (combined) values."""
-        return math.sqrt(max(float(np.linalg.eigvalsh(self.P[0:3, 0:3])[-1]), 0.0))
+        return math.sqrt(max(_largest_eigenvalue(self.value_cov), 0.0))
 
 
 # -- measurements -------------------------------------------------------------------------------
@@ -518,28 +549,55 @@ class _Imm:
 
 @dataclass(frozen=True)
 class _Measurement:
-    """One measurement block in the filter frame: ``z`` over state rows ``rows``, covariance ``R``."""
+    """One measurement block in the filter frame: ``z`` over state rows ``rows``, covariance ``R``
+    (exactly symmetric)."""
 
     name: str
     z: NDArray[np.float64]
-    rows: list[int]
+    rows: tuple[int, int]  # state rows lo:hi
     R: NDArray[np.float64]
 
 
-def _plane_covariance(xy: NDArray[np.float64], sigma_r: float) -> NDArray[np.float64]:
-    """Covariance (3, 3) of ``(c0, c1, c2)`` of the least-squares plane ``z = c0 + c1 x + c2 y``
-    through points at ``xy`` (m, camera frame) whose z has noise ``sigma_r`` (m)."""
+@functools.lru_cache(maxsize=32)
+def _plane_shape(xy_key: bytes) -> tuple[NDArray[np.float64], float]:
+    """``(A^T A)^-1`` (3, 3) of the least-squares plane ``z = c0 + c1 x + c2 y`` through points at
+    ``xy`` (m, camera frame; ``xy_key`` its float64 bytes, A rows ``[1, x_i, y_i]``) and the
+    largest eigenvalue of its slope block: the plane's covariance and tilt variance per unit
+    range variance (the rig is fixed: cached per set of used sensors)."""
+    xy = np.frombuffer(xy_key, dtype=np.float64).reshape(-1, 2)
     A = np.column_stack([np.ones(len(xy)), xy])
-    return sigma_r**2 * np.linalg.inv(A.T @ A)
+    C = np.asarray(np.linalg.inv(A.T @ A), dtype=np.float64)
+    C.setflags(write=False)
+    a, b, c = float(C[1, 1]), 0.5 * float(C[1, 2] + C[2, 1]), float(C[2, 2])
+    return C, 0.5 * (a + c) + math.hypot(0.5 * (a - c), b)
+
+
+def _plane_covariance(xy: NDArray[np.float64], sigma_r: float) -> tuple[NDArray[np.float64], float]:
+    """Covariance (3, 3) of ``(c0, c1, c2)`` of the least-squares plane ``z = c0 + c1 x + c2 y``
+    through points at ``xy`` (m, camera frame) whose z has noise ``sigma_r`` (m), and its largest
+    slope variance (the tilt variance, rad^2)."""
+    C, tilt = _plane_shape(np.ascontiguousarray(xy, dtype=np.float64).tobytes())
+    var = sigma_r * sigma_r
+    return var * C, var * tilt
 
 
 def _ray_covariance(
-    point: NDArray[np.float64], depth_var: float, lateral_var: float, depth_floor_var: float
+    point: NDArray[np.float64],
+    R_wc: NDArray[np.float64],
+    depth_var: float,
+    lateral_var: float,
+    depth_floor_var: float,
 ) -> NDArray[np.float64]:
-    """Camera-frame covariance of a point whose depth error moves it along its ray, plus lateral
-    and depth floors."""
-    u = point / point[2]
-    return depth_var * np.outer(u, u) + np.diag([lateral_var, lateral_var, depth_floor_var])
+    """Covariance, in the filter's world axes, of a camera-frame point whose depth error moves it
+    along its ray (``depth_var``), plus lateral and depth floors: ``R_wc (dv u u^T + diag(lat, lat,
+    floor)) R_wc^T`` with ``u`` the ray through ``point`` scaled to unit depth, written as
+    ``dv w w^T + lat I + (floor - lat) c c^T`` (``w = R_wc u``, ``c`` the optical axis): exactly
+    symmetric, as the filter needs."""
+    w = R_wc @ (point / point[2])
+    c = R_wc[:, 2]
+    C = depth_var * np.outer(w, w) + (depth_floor_var - lateral_var) * np.outer(c, c)
+    C[_DIAG3] += lateral_var
+    return C
 
 
 class FusedEstimator:
@@ -578,9 +636,17 @@ class FusedEstimator:
         self.K = None if K is None else as_array(K, (3, 3), "K").copy()
         self.dist = None if dist is None else np.asarray(dist, dtype=np.float64).ravel().copy()
         self.max_residual = float(max_residual)
+        self._camera_position = np.array(rig.camera_position, dtype=np.float64)
         self.params = params if params is not None else FusedParams()
         p = self.params
         self._gate = {k: float(chi2.ppf(p.gate_probability, k)) for k in (1, 2, 3)}
+        walk2 = p.imu_attitude_walk**2
+        self._q_value_att = np.diag([walk2, walk2, 0.0])  # the IMU tilt wander on the filtered roll, pitch
+        self._q_white_pos = np.full(3, p.accel_noise)
+        self._q_white_att = np.full(3, p.angle_accel_noise)
+        A = np.column_stack([np.ones(4), rig.sensor_xy_cam])
+        #: unit vector orthogonal to the columns of A: the residual direction of a plane fit to four ranges
+        self._residual_direction = np.linalg.svd(A)[0][:, 3].copy()
         self.reset()
 
     # -- protocol -------------------------------------------------------------------------------
@@ -675,9 +741,9 @@ class FusedEstimator:
         if self._pos is not None:
             r = self._pos.x[0:3]
             q_value = walk2 * (float(r @ r) * np.eye(3) - np.outer(r, r))  # e x r, e the tilt wander
-            self._pos.predict(dt, q_value, np.full(3, p.accel_noise), None if u is None else -u)
+            self._pos.predict(dt, q_value, self._q_white_pos, None if u is None else -u)
         if self._att is not None:
-            self._att.predict(dt, np.diag([walk2, walk2, 0.0]), np.full(3, p.angle_accel_noise), None)
+            self._att.predict(dt, self._q_value_att, self._q_white_att, None)
 
         reason = self._measure(frame, R_wb, t)
         for kf in (self._pos, self._att):
@@ -692,9 +758,11 @@ class FusedEstimator:
         if imu is None:  # no IMU: the last attitude (identity before any), no acceleration input
             return (self._R_wb if self._R_wb is not None else np.eye(3)), None
         q, f = imu.quaternion, imu.specific_force
-        if not (np.isfinite(q).all() and np.isfinite(f).all() and np.isfinite(imu.angular_velocity).all()):
-            return "non-finite IMU sample: frame ignored"
-        if float(np.linalg.norm(q)) < 1e-6:
+        if not math.isfinite(
+            float(q @ q) + float(f @ f) + float(imu.angular_velocity @ imu.angular_velocity)
+        ):
+            return "non-finite IMU sample: frame ignored"  # (or absurdly large: > 1e154)
+        if float(q @ q) < 1e-12:
             return "zero IMU quaternion: frame ignored"
         R_wb = matrix_from_quat(q)
         self._R_wb = R_wb
@@ -712,13 +780,11 @@ class FusedEstimator:
     def _update_range_noise(self, frame: SensorFrame) -> None:
         """One sample of the range variance from the plane-fit residual of four valid ranges."""
         r = frame.ranges
-        with np.errstate(invalid="ignore"):
-            ok = frame.ranges_valid & np.isfinite(r) & (r > 0)
-        if not np.all(ok):
+        if not bool(frame.ranges_valid.all()) or not (np.isfinite(r).all() and r.min() > 0):
             return
-        A = np.column_stack([np.ones(4), self.rig.sensor_xy_cam])
-        coef, *_ = np.linalg.lstsq(A, r, rcond=None)
-        ssr = float(np.sum((A @ coef - r) ** 2))  # one degree of freedom
+        # four points, three plane parameters: the residual is the ranges' component along the
+        # one direction orthogonal to the columns [1, x_i, y_i] (one degree of freedom)
+        ssr = float(self._residual_direction @ r) ** 2
         sample = math.log(max(ssr, self.params.tof_sigma_min**2)) - _LOG_CHI2_1_MEAN
         self._var_weight = min(self._var_weight + 1.0, float(self.params.tof_sigma_window))
         self._log_var += (sample - self._log_var) / self._var_weight
@@ -823,7 +889,7 @@ class FusedEstimator:
             """Sequential updates (the first block of a new filter is not gated); accepted count."""
             n = 0
             for i, m in enumerate(blocks):
-                gate = None if (new and i == 0) else self._gate[len(m.rows)]
+                gate = None if (new and i == 0) else self._gate[m.rows[1] - m.rows[0]]
                 ok, d2 = kf.update(m.z, m.rows, m.R, gate)
                 self.diagnostics["accepted" if ok else "rejected"].append((m.name, round(d2, 3)))
                 n += ok
@@ -867,11 +933,7 @@ class FusedEstimator:
 
     def _cam_point(self, est: PoseEstimate) -> NDArray[np.float64]:
         """The deck origin of a body-frame estimate in the camera frame (m)."""
-        return R_BODY_CAM.T @ (est.position - np.asarray(self.rig.camera_position))
-
-    def _to_world(self, C_cam: NDArray[np.float64], R_wb: NDArray[np.float64]) -> NDArray[np.float64]:
-        R = R_wb @ R_BODY_CAM
-        return R @ C_cam @ R.T
+        return _R_CAM_BODY @ (est.position - self._camera_position)
 
     def _atda_attitude(self, atda: PoseEstimate, R_wb: NDArray[np.float64]) -> _Measurement:
         p = self.params
@@ -880,7 +942,7 @@ class FusedEstimator:
         return _Measurement(
             "atda.attitude",
             euler_from_matrix(R_wb @ atda.rotation),
-            [0, 1, 2],
+            (0, 3),
             np.diag([tilt**2, tilt**2, yaw**2]),
         )
 
@@ -894,13 +956,13 @@ class FusedEstimator:
         self, ihrcf: PoseEstimate, corners: IHRCFCorners, R_wb: NDArray[np.float64], sigma_r: float, yaw: bool
     ) -> _Measurement:
         p = self.params
-        C = _plane_covariance(self.rig.sensor_xy_cam[corners.ranges_used], sigma_r)
-        tilt_var = float(np.linalg.eigvalsh(C[1:, 1:])[-1]) + p.ihrcf_tilt_floor**2
+        _, tilt_var = _plane_covariance(self.rig.sensor_xy_cam[corners.ranges_used], sigma_r)
+        tilt_var += p.ihrcf_tilt_floor**2
         euler = euler_from_matrix(R_wb @ ihrcf.rotation)
         if yaw:
             yaw_var = self._ihrcf_yaw_var(self._cam_point(ihrcf)[2], sigma_r)
-            return _Measurement("ihrcf.attitude", euler, [0, 1, 2], np.diag([tilt_var, tilt_var, yaw_var]))
-        return _Measurement("ihrcf.tilt", euler[:2], [0, 1], np.diag([tilt_var, tilt_var]))
+            return _Measurement("ihrcf.attitude", euler, (0, 3), np.diag([tilt_var, tilt_var, yaw_var]))
+        return _Measurement("ihrcf.tilt", euler[:2], (0, 2), np.diag([tilt_var, tilt_var]))
 
     def _ihrcf_position(
         self, ihrcf: PoseEstimate, corners: IHRCFCorners, R_wb: NDArray[np.float64], sigma_r: float
@@ -908,14 +970,13 @@ class FusedEstimator:
         p = self.params
         X = self._cam_point(ihrcf)
         xy = self.rig.sensor_xy_cam[corners.ranges_used]
-        C = _plane_covariance(xy, sigma_r)
+        C, tilt_var = _plane_covariance(xy, sigma_r)
         g = np.array([1.0, X[0], X[1]])
         depth_var = float(g @ C @ g)
         lever = (self.tag_size / 2) ** 2 / max(X[2], 1e-3)
-        tilt_var = float(np.linalg.eigvalsh(C[1:, 1:])[-1])
         lat = (p.ihrcf_lateral_floor * self._depth_scale(X[2])) ** 2 + lever**2 * tilt_var
-        C_cam = _ray_covariance(X, depth_var, lat, p.ihrcf_depth_floor**2)
-        return _Measurement("ihrcf.position", R_wb @ ihrcf.position, [0, 1, 2], self._to_world(C_cam, R_wb))
+        C = _ray_covariance(X, R_wb @ R_BODY_CAM, depth_var, lat, p.ihrcf_depth_floor**2)
+        return _Measurement("ihrcf.position", R_wb @ ihrcf.position, (0, 3), C)
 
     def _refit(
         self, corners: IHRCFCorners, ranges: NDArray[np.float64], R_wb: NDArray[np.float64]
@@ -924,12 +985,11 @@ class FusedEstimator:
         R_bd = self._filtered_R_bd(R_wb)
         if R_bd is None:
             return None
-        n = -(R_BODY_CAM.T @ R_bd[:, 2])  # deck normal in the camera frame, into the deck (n_z > 0)
+        n = -(_R_CAM_BODY @ R_bd[:, 2])  # deck normal in the camera frame, into the deck (n_z > 0)
         used = corners.ranges_used
-        touch = np.column_stack([self.rig.sensor_xy_cam[used], ranges[used]])
-        c = float(np.mean(touch @ n))
+        c = float(np.mean(self.rig.sensor_xy_cam[used] @ n[:2] + ranges[used] * n[2]))
         along = corners.corners_cam @ n
-        if not (np.all(along > 1e-6) and c > 0):
+        if not (along.min() > 1e-6 and c > 0):
             return None
         est = ihrcf_fit(
             corners.corners_cam * (c / along)[:, None], self.rig, self.tag_size, self.max_residual
@@ -938,7 +998,9 @@ class FusedEstimator:
 
     def _refit_yaw(self, refit: PoseEstimate, sigma_r: float, R_wb: NDArray[np.float64]) -> _Measurement:
         var = self._ihrcf_yaw_var(self._cam_point(refit)[2], sigma_r)
-        return _Measurement("ihrcf.yaw", euler_from_matrix(R_wb @ refit.rotation)[2:], [2], np.array([[var]]))
+        return _Measurement(
+            "ihrcf.yaw", euler_from_matrix(R_wb @ refit.rotation)[2:], (2, 3), np.array([[var]])
+        )
 
     def _refit_position(
         self, refit: PoseEstimate, corners: IHRCFCorners, R_wb: NDArray[np.float64], sigma_r: float
@@ -947,19 +1009,22 @@ class FusedEstimator:
         assert self._att is not None
         X = self._cam_point(refit)
         xy = self.rig.sensor_xy_cam[corners.ranges_used]
-        rho2 = float(np.sum((X[:2] - xy.mean(axis=0)) ** 2))
-        tilt_var = float(max(self._att.P[0, 0], self._att.P[1, 1]))
+        dxy = X[:2] - xy.sum(axis=0) / len(xy)
+        rho2 = float(dxy @ dxy)
+        tilt_var = float(max(self._att.value_cov[0, 0], self._att.value_cov[1, 1]))
         depth_var = sigma_r**2 / len(xy) + rho2 * tilt_var
         lat = (p.ihrcf_lateral_floor * self._depth_scale(X[2])) ** 2
-        C_cam = _ray_covariance(X, depth_var, lat, p.ihrcf_depth_floor**2)
-        return _Measurement("ihrcf.position", R_wb @ refit.position, [0, 1, 2], self._to_world(C_cam, R_wb))
+        C = _ray_covariance(X, R_wb @ R_BODY_CAM, depth_var, lat, p.ihrcf_depth_floor**2)
+        return _Measurement("ihrcf.position", R_wb @ refit.position, (0, 3), C)
 
     def _atda_position(self, atda: PoseEstimate, R_wb: NDArray[np.float64]) -> _Measurement:
         p = self.params
         X = self._cam_point(atda)
         d = self._depth_scale(X[2])
-        C_cam = _ray_covariance(X, (p.atda_depth_sigma * d * d) ** 2, (p.atda_lateral_sigma * d) ** 2, 0.0)
-        return _Measurement("atda.position", R_wb @ atda.position, [0, 1, 2], self._to_world(C_cam, R_wb))
+        dv, lat = (p.atda_depth_sigma * d * d) ** 2, (p.atda_lateral_sigma * d) ** 2
+        return _Measurement(
+            "atda.position", R_wb @ atda.position, (0, 3), _ray_covariance(X, R_wb @ R_BODY_CAM, dv, lat, 0.0)
+        )
 
     def _output(self, R_wb: NDArray[np.float64], reason: str) -> PoseEstimate:
         p = self.params
@@ -983,4 +1048,4 @@ class FusedEstimator:
             self._converged = True
         R_bd = R_wb.T @ matrix_from_euler(*self._att.x[0:3])
         p_bd = R_wb.T @ self._pos.x[0:3]
-        return PoseEstimate.from_body_pose(R_bd, p_bd, math.sqrt(float(np.trace(self._pos.P[0:3, 0:3]))))
+        return PoseEstimate.from_body_pose(R_bd, p_bd, math.sqrt(float(np.trace(self._pos.value_cov))))

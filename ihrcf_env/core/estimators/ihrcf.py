@@ -7,6 +7,7 @@ Both estimators report the pose of the **deck** frame in the drone **body** fram
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -50,6 +51,12 @@ class IHRCFCorners:
     ranges_used: NDArray[np.bool_]
 
 
+@functools.lru_cache(maxsize=8)
+def _degenerate_layout(sensor_xy: bytes) -> bool:
+    """:func:`quad_is_degenerate` of a rig's (4, 2) sensor XY (float64 bytes), once per rig."""
+    return quad_is_degenerate(np.frombuffer(sensor_xy, dtype=np.float64).reshape(4, 2), DEGENERATE_REL_TOL)
+
+
 def ihrcf_corners(
     corners_px: ArrayLike,
     ranges: ArrayLike,
@@ -67,8 +74,7 @@ def ihrcf_corners(
     sensor_xy = rig.sensor_xy_cam  # (4, 2) ps1..ps4, camera frame, m
 
     # Section 2.6: the deck plane (camera frame) through the valid touch points (x_i, y_i, d_i).
-    with np.errstate(invalid="ignore"):
-        valid = rv & np.isfinite(r) & (r > 0)
+    valid = rv & np.isfinite(r) & (r > 0)  # (comparisons with NaN do not warn)
     if int(valid.sum()) < 3:
         return "fewer than 3 valid ranges"
     touch = np.column_stack([sensor_xy[valid], r[valid]])
@@ -89,17 +95,17 @@ def ihrcf_corners(
         return "range outside calibration table"
     if not np.isfinite(tp).all():
         return "non-finite touch pixels"
-    if quad_is_degenerate(sensor_xy, DEGENERATE_REL_TOL):
+    if _degenerate_layout(sensor_xy.tobytes()):
         return "degenerate sensor layout"
     if quad_is_degenerate(tp, DEGENERATE_REL_TOL):
         return "degenerate touch pixels"
 
-    # Section 2.4: homography sensor XY (camera frame, m) -> touch pixel. Row i of both arrays is
+    # Section 2.4: homography sensor XY (camera frame, m) <-> touch pixel. Row i of both arrays is
     # sensor ps_i (eq. 17-18 reorder both sides to ps1, ps2, ps4, ps3; only the row correspondence
-    # matters, which is kept explicit here).
+    # matters, which is kept explicit here). Four exact correspondences: the inverse homography
+    # (touch pixel -> sensor XY) is fitted directly, the same map as inverting eq. 13-16's.
     try:
-        H = homography_from_points(sensor_xy, tp)
-        H_inv = np.linalg.inv(H)
+        H_inv = homography_from_points(tp, sensor_xy)
     except (ValueError, np.linalg.LinAlgError) as e:
         return f"homography failed: {e}"
     # Section 2.5: inverse homography of the tag corners -> camera-frame XY on the deck plane.
