@@ -87,7 +87,8 @@ def homography_from_points(src: ArrayLike, dst: ArrayLike) -> NDArray[np.float64
 
     ``src`` and ``dst`` are (N, 2) corresponding points, N >= 4, row i of ``src`` mapping to row i
     of ``dst`` (eq. 13-16 of the paper). With N == 4 the fit is exact and computed in closed form
-    (through the unit square: ``H = Q_dst Q_src^-1``, Heckbert 1989), with N > 4 by normalised DLT.
+    (about the centroids, through the unit square: ``H = Q_dst Q_src^-1``, Heckbert 1989), with
+    N > 4 by normalised DLT.
     Raises ValueError for degenerate configurations (three of four points collinear, or a
     rank-deficient DLT system) or when ``H[2, 2]`` is 0 and the matrix cannot be normalised. Note
     that these tests only catch exact degeneracy; use :func:`quad_is_degenerate` for a
@@ -98,7 +99,12 @@ def homography_from_points(src: ArrayLike, dst: ArrayLike) -> NDArray[np.float64
     if src.shape != dst.shape:
         raise ValueError(f"src and dst must have the same shape, got {src.shape} and {dst.shape}")
     if src.shape[0] == 4:
-        H = np.array(_product(_square_to_quad(dst.tolist()), _adjugate(_square_to_quad(src.tolist()))))
+        # about the centroids (the closed form loses precision far from the origin), then shifted back
+        cs, cd = src.sum(axis=0) / 4.0, dst.sum(axis=0) / 4.0
+        Hc = _product(_square_to_quad((dst - cd).tolist()), _adjugate(_square_to_quad((src - cs).tolist())))
+        shift_d = ((1.0, 0.0, float(cd[0])), (0.0, 1.0, float(cd[1])), (0.0, 0.0, 1.0))
+        shift_s = ((1.0, 0.0, -float(cs[0])), (0.0, 1.0, -float(cs[1])), (0.0, 0.0, 1.0))
+        H = np.array(_product(_product(shift_d, Hc), shift_s))
         if not np.isfinite(H).all():
             raise ValueError("degenerate point configuration: homography is not unique")
     else:

@@ -321,6 +321,26 @@ def test_range_pixel_table_lookup_and_roundtrip():
         tab(np.ones(3))
 
 
+def test_scalar_pixel_lookup_is_the_pchip_interpolant():
+    # RangePixelTable evaluates each sensor's cubic pieces in plain floats (SensorTable.pixel): the
+    # same values as scipy's PCHIP (SensorTable.__call__), the same clamping and flags.
+    rng = np.random.default_rng(3)
+    r = np.sort(rng.uniform(0.2, 3.0, 40))
+    t = SensorTable(r, np.c_[200 + 100 * np.cos(r), 100 + 50 * np.sin(3 * r)])
+    d = np.r_[rng.uniform(0.1, 3.2, 500), r, np.nan, np.inf, -np.inf, 0.0]
+    uv, ok = t(d)
+    scalar = np.array([t.pixel(float(x)) for x in d])
+    np.testing.assert_allclose(scalar[:, :2], uv, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(scalar[:, 2].astype(bool), ok)
+    tab = _rig_table()
+    q = np.array([0.31, 1.7, np.nan, 5.0])
+    uv4, ok4 = tab(q)
+    for i, table in enumerate(tab.tables):
+        ref_uv, ref_ok = table(q[i : i + 1])
+        np.testing.assert_allclose(uv4[i], ref_uv[0], rtol=0, atol=1e-9)
+        assert ok4[i] == ref_ok[0]
+
+
 # ------------------------------------------------------------------------------------ chessboard
 
 

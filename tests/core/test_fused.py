@@ -668,3 +668,62 @@ def test_motion_gives_the_deck_velocity_and_normal_rate() -> None:
     true_rate = (ramp_deck(8.0 + h)[0][:, 2] - ramp_deck(8.0 - h)[0][:, 2]) / (2 * h)
     np.testing.assert_allclose(normal_rate, true_rate, atol=0.01)
     assert np.linalg.norm(true_rate) > 0.05  # the test can fail: the deck tilts at ~0.06 rad/s
+
+
+def _textbook_imm_update(kf, z, lo, hi, R):
+    """Reference: gate on the fully moment-matched combined estimate, then each model's Joseph-form
+    Kalman update and Bayes on the model probabilities (the formulas, no shortcuts)."""
+    from ihrcf_env.core.estimators.fused import _wrap
+
+    n = len(kf.mu)
+    ref = kf.X[int(np.argmax(kf.mu))]
+    D = kf.X - ref
+    D[:, :3] = _wrap(D[:, :3]) if kf.angles else D[:, :3]
+    x = ref + kf.mu @ D
+    E = D - kf.mu @ D
+    P = sum(kf.mu[i] * (kf.Ps[i] + np.outer(E[i], E[i])) for i in range(n))
+    H = np.zeros((hi - lo, 9))
+    H[np.arange(hi - lo), np.arange(lo, hi)] = 1.0
+    nu = z - H @ x
+    nu = _wrap(nu) if kf.angles else nu
+    d2 = float(nu @ np.linalg.solve(H @ P @ H.T + R, nu))
+    X, Ps, lik = [], [], []
+    for i in range(n):
+        S = H @ kf.Ps[i] @ H.T + R
+        K = kf.Ps[i] @ H.T @ np.linalg.inv(S)
+        v = z - H @ kf.X[i]
+        v = _wrap(v) if kf.angles else v
+        IKH = np.eye(9) - K @ H
+        X.append(kf.X[i] + K @ v)
+        Ps.append(IKH @ kf.Ps[i] @ IKH.T + K @ R @ K.T)
+        lik.append(math.exp(-0.5 * float(v @ np.linalg.solve(S, v))) / math.sqrt(np.linalg.det(S)))
+    mu = kf.mu * np.array(lik)
+    return d2, np.array(X), np.array(Ps), mu / mu.sum()
+
+
+@pytest.mark.parametrize("angles", [False, True])
+@pytest.mark.parametrize("rows", [(0, 3), (0, 2), (2, 3)])
+def test_imm_update_is_the_textbook_update(angles: bool, rows: tuple[int, int]) -> None:
+    # The filter's update is written for tiny matrices (gate on the measured block only, P - K S K^T);
+    # it must equal the full formulas to rounding.
+    from ihrcf_env.core.estimators.fused import _Imm, _largest_eigenvalue
+
+    rng = np.random.default_rng(11)
+    kf = _Imm((0.5, 0.2, 0.1), [np.full(3, d) for d in (0.001, 0.01, 0.1)], 30.0, 0.0, angles=angles)
+    for _ in range(5):  # distinct model states, covariances and probabilities
+        kf.predict(0.05, np.diag([1e-4, 2e-4, 0.0]), np.full(3, 0.01), None)
+        z = rng.normal(0, 0.05, 3) + (3.1 if angles else 0.0)
+        kf.update(z, (0, 3), np.diag([1e-3, 2e-3, 3e-3]), None)
+    lo, hi = rows
+    A = rng.normal(size=(hi - lo, hi - lo))
+    R = A @ A.T * 1e-4 + np.eye(hi - lo) * 1e-5
+    z = kf.x[lo:hi] + rng.normal(0, 0.01, hi - lo)
+    d2_ref, X_ref, Ps_ref, mu_ref = _textbook_imm_update(kf, z, lo, hi, R)
+    ok, d2 = kf.update(z, rows, R, 1e9)
+    assert ok
+    assert d2 == pytest.approx(d2_ref, rel=1e-9)
+    np.testing.assert_allclose(kf.X, X_ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(kf.Ps, Ps_ref, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(kf.mu, mu_ref, rtol=1e-9)
+    C = kf.value_cov
+    assert _largest_eigenvalue(C) == pytest.approx(float(np.linalg.eigvalsh(C)[-1]), rel=1e-12)

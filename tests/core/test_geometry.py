@@ -66,6 +66,23 @@ def test_homography_rejects_exactly_degenerate_and_bad_shapes() -> None:
         apply_homography(np.eye(3), np.zeros(2))
 
 
+def test_four_point_homography_matches_dlt_and_ignores_translation() -> None:
+    # N = 4 is solved in closed form through the unit square, N > 4 by normalised DLT: the same map.
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        H = _random_h(rng)
+        src = rng.uniform(-100, 100, (5, 2))
+        dst = apply_homography(H, src)
+        np.testing.assert_allclose(
+            homography_from_points(src[:4], dst[:4]), homography_from_points(src, dst), rtol=1e-8, atol=1e-8
+        )
+    # a well-shaped small quad far from the origin is not mistaken for a degenerate one
+    quad = np.array([[0.0, 0.0], [1.0, 0.1], [1.1, 1.0], [-0.1, 0.9]])
+    for offset in (0.0, 1e3, 1e5):
+        H = homography_from_points(quad + offset, quad * 300.0)
+        np.testing.assert_allclose(apply_homography(H, quad + offset), quad * 300.0, atol=1e-6)
+
+
 def test_collinear_detection_is_scale_invariant() -> None:
     square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     nearly = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 1e-4], [0.0, 1.0]])
