@@ -162,6 +162,13 @@ class CameraValidation:
                 f"corner RMS vs projection rendered {v.corner_rms['rendered']:.3f} px / projected "
                 f"{v.corner_rms['projected']:.3f} px",
                 "",
+                "Valid frames, rendered / projected: "
+                + ", ".join(
+                    f"{est} {100 * v.valid['rendered'][est] / v.frames:.1f} / "
+                    f"{100 * v.valid['projected'][est] / v.frames:.1f} %"
+                    for est in v.valid["rendered"]
+                ),
+                "",
                 "| estimator | axis | rendered MAE | projected MAE | ratio | 90 % interval |",
                 "|---|---|---|---|---|---|",
             ]
