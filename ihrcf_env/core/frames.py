@@ -124,16 +124,20 @@ def relative_pose(
 
 
 def cam_pose_to_body(
-    R_cam_obj: ArrayLike, t_cam_obj: ArrayLike, cam_position_body: ArrayLike
+    R_cam_obj: ArrayLike, t_cam_obj: ArrayLike, cam_position_body: ArrayLike, check: bool = True
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Convert an object pose measured in the camera frame to the body frame.
 
     ``cam_position_body`` is the camera's optical centre in the body frame (m); the camera's
-    orientation is the fixed :data:`R_BODY_CAM`.
+    orientation is the fixed :data:`R_BODY_CAM`. ``check=False`` skips the shape and finiteness
+    checks (for float64 arrays a caller has already checked).
     """
-    R_co = as_array(R_cam_obj, (3, 3), "R_cam_obj")
-    t_co = as_array(t_cam_obj, (3,), "t_cam_obj")
-    c = as_array(cam_position_body, (3,), "cam_position_body")
+    if check:
+        R_co = as_array(R_cam_obj, (3, 3), "R_cam_obj")
+        t_co = as_array(t_cam_obj, (3,), "t_cam_obj")
+        c = as_array(cam_position_body, (3,), "cam_position_body")
+    else:
+        R_co, t_co, c = R_cam_obj, t_cam_obj, cam_position_body  # type: ignore[assignment]
     return R_BODY_CAM @ R_co, R_BODY_CAM @ t_co + c
 
 
@@ -147,9 +151,13 @@ def body_pose_to_cam(
     return R_BODY_CAM.T @ R_bo, R_BODY_CAM.T @ (t_bo - c)
 
 
-def rotation_angle(R_a: ArrayLike, R_b: ArrayLike) -> float:
-    """Angle (rad) of the rotation taking ``R_a`` to ``R_b``."""
-    Ra, Rb = as_array(R_a, (3, 3), "R_a"), as_array(R_b, (3, 3), "R_b")
+def rotation_angle(R_a: ArrayLike, R_b: ArrayLike, check: bool = True) -> float:
+    """Angle (rad) of the rotation taking ``R_a`` to ``R_b`` (``check=False``: two (3, 3) float64
+    arrays a caller has already checked)."""
+    if check:
+        Ra, Rb = as_array(R_a, (3, 3), "R_a"), as_array(R_b, (3, 3), "R_b")
+    else:
+        Ra, Rb = R_a, R_b  # type: ignore[assignment]
     trace = float(np.einsum("ij,ij->", Ra, Rb))  # tr(Ra^T Rb)
     return math.acos(max(-1.0, min(1.0, (trace - 1.0) / 2.0)))
 

@@ -62,6 +62,13 @@ class SensorRig:
         xy.setflags(write=False)
         return xy
 
+    @functools.cached_property
+    def camera_position_array(self) -> NDArray[np.float64]:
+        """:attr:`camera_position` as a read-only (3,) array (m, body frame)."""
+        c = np.array(self.camera_position, dtype=np.float64)
+        c.setflags(write=False)
+        return c
+
     @property
     def sensor_positions_body(self) -> NDArray[np.float64]:
         """(4, 3) positions of ps1..ps4 in the body frame (m)."""

@@ -106,10 +106,10 @@ def atda_candidates(
             rvec = np.asarray(r_lm, dtype=np.float64).reshape(3, 1)
             tvec = np.asarray(t_lm, dtype=np.float64).reshape(3, 1)
         t = tvec.ravel()
-        if not (np.isfinite(t).all() and t[2] > 0):
-            continue
+        if not (math.isfinite(float(t @ t) + float(rvec.ravel() @ rvec.ravel())) and t[2] > 0):
+            continue  # a non-finite solution, or the tag behind the camera
         R_cm, _ = cv2.Rodrigues(rvec)
-        R_bd, p_bd = cam_pose_to_body(R_cm @ _R_MARKER_DECK, t, rig.camera_position)
+        R_bd, p_bd = cam_pose_to_body(R_cm @ _R_MARKER_DECK, t, rig.camera_position_array, check=False)
         cands.append((reproj_rms(rvec, tvec), R_bd, p_bd))
     if not cands:
         return "tag behind the camera"
@@ -125,7 +125,7 @@ def atda_choose(cands: list[Candidate] | str, prior_rotation: ArrayLike | None =
         return PoseEstimate.invalid(cands)
     best = cands[0]
     if prior is not None and len(cands) > 1 and cands[1][0] <= AMBIGUITY_RATIO * max(cands[0][0], 1e-9):
-        best = min(cands[:2], key=lambda c: rotation_angle(prior, c[1]))
+        best = min(cands[:2], key=lambda c: rotation_angle(prior, c[1], check=False))
     err, R_bd, p_bd = best
     return PoseEstimate.from_body_pose(R_bd, p_bd, err)
 

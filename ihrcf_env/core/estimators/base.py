@@ -99,7 +99,9 @@ def _shape_checked(x: ArrayLike, shape: tuple[int, ...], name: str, dtype: type 
 
 def _readonly(x: ArrayLike, shape: tuple[int, ...], name: str, dtype: type = np.float64) -> NDArray:
     """A read-only copy of ``x`` with exactly ``shape`` (NaN allowed: a bad measurement)."""
-    a: NDArray = np.array(_shape_checked(x, shape, name, dtype), copy=True)
+    a: NDArray = np.array(x, dtype=dtype)  # always a copy
+    if a.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {a.shape}")
     a.setflags(write=False)
     return a
 

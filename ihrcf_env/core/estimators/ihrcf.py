@@ -182,7 +182,7 @@ def ihrcf_fit(
     if not rms <= max_residual:
         return PoseEstimate.invalid(f"fit residual {rms:.4g} m > {max_residual:.4g} m")
     # Section 2.8 (eq. 26-27) is replaced by the explicit camera -> body conversion.
-    R_bd, p_bd = cam_pose_to_body(R_cd, t_cd, rig.camera_position)
+    R_bd, p_bd = cam_pose_to_body(R_cd, t_cd, rig.camera_position_array, check=False)  # checked below
     return PoseEstimate.from_body_pose(R_bd, p_bd, rms)
 
 
