@@ -8,7 +8,9 @@ Speed: env steps per second and real-time factor (simulated seconds per wall-clo
 raw env with zero velocity actions over the "paper" deck profile, without a camera and with the
 camera at each size (rendered once per control step); then the wrapped env (IHRCF + ATDA + fused)
 at the 1 m hover per camera model (image kept, tag window, projected: ratios from one run), the cost
-of each component per control step (:func:`ihrcf_env.experiments.speed.component_costs`) and, with
+of each component per control step (:func:`ihrcf_env.experiments.speed.component_costs`, timed
+between full renders), the parts of the projected wrapped step timed inside it
+(:func:`~ihrcf_env.experiments.speed.projected_step_costs`) and, with
 ``--vector``, ``AsyncVectorEnv`` scaling with 2 workers. Estimation: tag detection + IHRCF + ATDA +
 fused per 512x512 frame with the shipped calibration.
 
@@ -39,7 +41,13 @@ import numpy as np
 import ihrcf_env  # noqa: F401  (registers the envs)
 from ihrcf_env.core.metrics import table2_markdown
 from ihrcf_env.experiments.accuracy import accuracy
-from ihrcf_env.experiments.speed import component_costs, mode_speeds, steps_per_second, vector_scaling
+from ihrcf_env.experiments.speed import (
+    component_costs,
+    mode_speeds,
+    projected_step_costs,
+    steps_per_second,
+    vector_scaling,
+)
 from ihrcf_env.sim.sensors.camera import realism_cost_ms
 
 
@@ -111,6 +119,12 @@ def _camera_mode_report(steps: int, frames: int, vector: bool) -> list[str]:
     for name, ms in costs.items():
         print(f"  {name:<10} {ms:8.3f}")
         out.append(f"| {name} | {ms:.3f} |")
+    split = projected_step_costs(steps)
+    line = "inside the projected wrapped step (ms, warm): " + ", ".join(
+        f"{k} {v:.3f}" for k, v in split.items()
+    )
+    print(line)
+    out += ["", line + "."]
     if vector:
         v = vector_scaling()
         line = (
