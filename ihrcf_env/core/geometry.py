@@ -59,11 +59,16 @@ def _square_to_quad(q: list[list[float]]) -> Matrix3:
         (y1 - y0 + g * y1, y3 - y0 + h * y3, y0),
         (g, h, 1.0),
     )
-    (a, b, c), (d, e, f), _ = m
-    terms = (a * (e - f * h), b * (d - f * g), c * (d * h - e * g))  # the determinant's expansion
+    terms = _det_terms(m)
     if not abs(terms[0] - terms[1] + terms[2]) > _RANK_TOL * sum(map(abs, terms)):
         raise ValueError("degenerate point configuration: homography is not unique")  # singular map
     return m
+
+
+def _det_terms(m: Matrix3 | list[list[float]]) -> tuple[float, float, float]:
+    """The three terms of a 3x3 determinant's expansion along its first row (det = t0 - t1 + t2)."""
+    (a, b, c), (d, e, f), (g, h, i) = m
+    return a * (e * i - f * h), b * (d * i - f * g), c * (d * h - e * g)
 
 
 def _adjugate(m: Matrix3) -> Matrix3:
@@ -250,8 +255,8 @@ def rigid_fit(P: ArrayLike, Q: ArrayLike) -> tuple[NDArray[np.float64], NDArray[
         raise ValueError("P is collinear or coincident: rotation undefined")
     U, _, Vt = np.linalg.svd(Qc.T @ Pc)  # of the cross-covariance, maps P directions to Q directions
     R = U @ Vt
-    (a, b, c), (d, e, f), (g, h, i) = R.tolist()
-    if a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) < 0:  # a reflection
+    t0, t1, t2 = _det_terms(R.tolist())
+    if t0 - t1 + t2 < 0:  # a reflection
         U[:, 2] = -U[:, 2]
         R = U @ Vt
     t = cq - R @ cp
