@@ -59,6 +59,7 @@ import pybullet as p
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from ihrcf_env.core.arrays import clip
 from ihrcf_env.core.frames import euler_from_matrix, quat_from_matrix
 from ihrcf_env.core.profiles import PAPER_DURATION, MotionProfile, ShiftedProfile
 from ihrcf_env.core.rig import SensorRig
@@ -378,14 +379,14 @@ class DeckLandingEnv(gym.Env):
             obs["image"] = r["image"]
         if "tag_corners" in r:
             self._tag_reason = str(r["tag_reason"])
-            obs["tag_corners"] = _clip32(r["tag_corners"], -1.0, self._corner_bound)
+            obs["tag_corners"] = clip(r["tag_corners"], -1.0, self._corner_bound).astype(np.float32)
             obs["tag_detected"] = int(bool(r["tag_detected"]))
         obs["ranges"] = r["ranges"]
         obs["ranges_valid"] = r["ranges_valid"]
         obs["imu"] = {
-            "quaternion": _clip32(r["quaternion"], -1.0, 1.0),
-            "angular_velocity": _clip32(r["angular_velocity"], -50.0, 50.0),
-            "linear_acceleration": _clip32(r["linear_acceleration"], -200.0, 200.0),
+            "quaternion": clip(r["quaternion"], -1.0, 1.0).astype(np.float32),
+            "angular_velocity": clip(r["angular_velocity"], -50.0, 50.0).astype(np.float32),
+            "linear_acceleration": clip(r["linear_acceleration"], -200.0, 200.0).astype(np.float32),
         }
         return obs
 
@@ -496,12 +497,6 @@ class DeckLandingEnv(gym.Env):
         self._check_open()
         s = self.world.snapshot()
         return s.deck_position_body.copy(), euler_from_matrix(s.deck_rotation_body)
-
-
-def _clip32(x: NDArray[np.float64], low: float, high: float) -> NDArray[np.float32]:
-    """``np.clip(x, low, high).astype(np.float32)`` (same values), without np.clip's overhead on
-    tiny arrays."""
-    return np.minimum(np.maximum(x, low), high).astype(np.float32)
 
 
 def _observation_space(world: WorldConfig) -> spaces.Dict:

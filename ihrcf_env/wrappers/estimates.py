@@ -50,6 +50,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from ihrcf_env.core.arrays import clip
 from ihrcf_env.core.calibration import Calibration, default_calibration_path
 from ihrcf_env.core.estimators import (
     DEFAULT_ESTIMATORS,
@@ -200,16 +201,10 @@ def _pose_space() -> spaces.Dict:
     )
 
 
-def _clip(x: Any, bound: float) -> NDArray[np.float64]:
-    """``np.clip(x, -bound, bound)`` (same values), without its overhead on tiny arrays."""
-    clipped: NDArray[np.float64] = np.minimum(np.maximum(x, -bound), bound)
-    return clipped
-
-
 def _pose_obs(position: NDArray[np.float64], euler: NDArray[np.float64], valid: bool) -> dict[str, Any]:
     return {
-        "position": _clip(position, POSITION_BOUND).astype(np.float32),
-        "euler": _clip(euler, math.pi).astype(np.float32),
+        "position": clip(position, -POSITION_BOUND, POSITION_BOUND).astype(np.float32),
+        "euler": clip(euler, -math.pi, math.pi).astype(np.float32),
         "valid": int(bool(valid)),
     }
 
@@ -454,8 +449,8 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
                 e = estimates[key]
                 position, euler, valid = e.position, e.euler, e.valid
             # as _pose_obs: float64 values rounded to float32 by the assignment, as by astype
-            flat[position_sl] = _clip(position, POSITION_BOUND)
-            flat[euler_sl] = _clip(euler, math.pi)
+            flat[position_sl] = clip(position, -POSITION_BOUND, POSITION_BOUND)
+            flat[euler_sl] = clip(euler, -math.pi, math.pi)
             flat[valid_i] = int(bool(valid))
         return flat
 

@@ -442,16 +442,17 @@ class _Imm:
             self._x = x
         return self._x
 
-    def _block_cov(self, lo: int, hi: int, D: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Combined covariance of the state rows ``lo:hi`` from the deviations ``D`` of those rows."""
-        E = D - self.mu @ D
-        return np.einsum("n,nij->ij", self.mu, self.Ps[:, lo:hi, lo:hi]) + (E.T * self.mu) @ E
+    def _mixture_cov(self, covs: NDArray[np.float64], dev: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Moment-matched covariance of the models' ``covs`` (n, k, k) about points whose deviations
+        from the combined mean are ``dev`` (n, k): ``sum_i mu_i (C_i + d_i d_i^T)``."""
+        return np.einsum("n,nij->ij", self.mu, covs) + (dev.T * self.mu) @ dev
 
     @property
     def value_cov(self) -> NDArray[np.float64]:
         """The combined covariance (3, 3) of the values."""
         if self._value_cov is None:
-            self._value_cov = self._block_cov(0, 3, self._deviations(0, 3)[1])
+            D = self._deviations(0, 3)[1]
+            self._value_cov = self._mixture_cov(self.Ps[:, 0:3, 0:3], D - self.mu @ D)
         return self._value_cov
 
     def predict(
@@ -508,8 +509,7 @@ class _Imm:
         # the covariances are symmetrised after every change and R is symmetric, see _Measurement)
         # the combined estimate's innovation and covariance (moment matching; sum(mu) = 1)
         nu = mu @ NU
-        dN = NU - nu
-        S = np.einsum("n,nij->ij", mu, Ss) + (dN.T * mu) @ dN
+        S = self._mixture_cov(Ss, NU - nu)  # (sum(mu) = 1: the mixture of P + R is P's mixture + R)
         try:
             d2 = float(nu @ np.linalg.solve(S, nu))
         except np.linalg.LinAlgError:
