@@ -1,4 +1,7 @@
-"""Plane, homography and rigid-fit geometry for the IHRCF estimator (pure numpy, no simulator).
+"""Plane, homography and rigid-fit geometry for the IHRCF estimator (numpy and OpenCV, no simulator).
+
+The public functions check their inputs; the ``_``-prefixed kernels under them do not, for callers
+that already did (the per-frame estimators).
 
 Frames are whatever the caller passes in; :mod:`ihrcf_env.core.estimators` uses the camera frame
 (OpenCV: x right, y down, z along the optical axis, metres) for 3-D points and OpenCV pixel
@@ -15,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ihrcf_env.core.frames import as_array
+from ihrcf_env.core.linalg import svd
 
 #: Relative singular-value threshold below which a linear system is treated as rank deficient.
 _RANK_TOL = 1e-10
@@ -103,6 +107,11 @@ def homography_from_points(src: ArrayLike, dst: ArrayLike) -> NDArray[np.float64
     dst = _points(dst, 2, "dst", 4)
     if src.shape != dst.shape:
         raise ValueError(f"src and dst must have the same shape, got {src.shape} and {dst.shape}")
+    return _homography(src, dst)
+
+
+def _homography(src: NDArray[np.float64], dst: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`homography_from_points` of checked, finite, same-shape (N >= 4, 2) float64 points."""
     if src.shape[0] == 4:
         # about the centroids (the closed form loses precision far from the origin), then shifted back
         cs, cd = src.sum(axis=0) / 4.0, dst.sum(axis=0) / 4.0
@@ -145,9 +154,12 @@ def apply_homography(H: ArrayLike, pts: ArrayLike) -> NDArray[np.float64]:
 
     Points mapped to infinity (zero homogeneous coordinate) come out as inf/NaN.
     """
-    H = as_array(H, (3, 3), "H")
-    pts = _points(pts, 2, "pts", 1)
-    h = np.column_stack([pts, np.ones(pts.shape[0])]) @ H.T
+    return _apply_homography(as_array(H, (3, 3), "H"), _points(pts, 2, "pts", 1))
+
+
+def _apply_homography(H: NDArray[np.float64], pts: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`apply_homography` of a checked (3, 3) ``H`` and checked (N, 2) float64 points."""
+    h = pts @ H[:, :2].T + H[:, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
         return h[:, :2] / h[:, 2:3]
 
@@ -162,7 +174,12 @@ def collinear(pts: ArrayLike, tol: float = 1e-3) -> bool:
     pts = _points(pts, 2, "pts", 3)
     if not (np.isfinite(tol) and tol >= 0):
         raise ValueError(f"tol must be a non-negative number, got {tol!r}")
-    p = pts.tolist()  # plain floats: a handful of triples, cheaper than numpy calls
+    return _collinear(pts.tolist(), tol)
+
+
+def _collinear(p: list[list[float]], tol: float) -> bool:
+    """:func:`collinear` of finite points given as plain floats (cheaper than numpy calls for a
+    handful of triples) and a checked ``tol``."""
     for i, j, k in itertools.combinations(range(len(p)), 3):
         (ax, ay), (bx, by), (cx, cy) = p[i], p[j], p[k]
         ux, uy, vx, vy, wx, wy = bx - ax, by - ay, cx - ax, cy - ay, cx - bx, cy - by
@@ -191,7 +208,11 @@ def fit_plane(points: ArrayLike) -> tuple[NDArray[np.float64], float]:
 
     Raises ValueError for fewer than 3 points or (nearly) collinear / coincident points.
     """
-    points = _points(points, 3, "points", 3)
+    return _fit_plane(_points(points, 3, "points", 3))
+
+
+def _fit_plane(points: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
+    """:func:`fit_plane` of checked, finite (N >= 3, 3) float64 points."""
     centroid = points.sum(axis=0) / points.shape[0]
     centred = points - centroid
     scale = math.sqrt(float(np.max(np.einsum("ij,ij->i", centred, centred))))
@@ -204,7 +225,7 @@ def fit_plane(points: ArrayLike) -> tuple[NDArray[np.float64], float]:
         if norm <= 1e-9 * scale * scale:
             raise ValueError("points are collinear: plane undefined")
     else:
-        _, sv, vt = np.linalg.svd(centred / scale)
+        _, sv, vt = svd(centred / scale)
         if sv[1] <= 1e-9 * sv[0]:
             raise ValueError("points are collinear: plane undefined")
         n = vt[2]
@@ -224,6 +245,11 @@ def plane_z(normal: ArrayLike, d: float, xy: ArrayLike) -> NDArray[np.float64]:
     xy = _points(xy, 2, "xy", 1)
     if not np.isfinite(d):
         raise ValueError(f"d must be finite, got {d!r}")
+    return _plane_z(n, float(d), xy)
+
+
+def _plane_z(n: NDArray[np.float64], d: float, xy: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`plane_z` of a checked normal (3,), finite ``d`` and checked (N, 2) float64 points."""
     if abs(n[2]) < 1e-9 * math.sqrt(float(n @ n)) or not np.any(n):
         raise ValueError("plane is parallel to the z axis: z is undefined")
     return (d - n[0] * xy[:, 0] - n[1] * xy[:, 1]) / n[2]
@@ -249,11 +275,18 @@ def rigid_fit(P: ArrayLike, Q: ArrayLike) -> tuple[NDArray[np.float64], NDArray[
     Q = _points(Q, 3, "Q", 3)
     if P.shape != Q.shape:
         raise ValueError(f"P and Q must have the same shape, got {P.shape} and {Q.shape}")
+    return _rigid_fit(P, Q)
+
+
+def _rigid_fit(
+    P: NDArray[np.float64], Q: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """:func:`rigid_fit` of checked, finite, same-shape (N >= 3, 3) float64 point sets."""
     cp, cq = P.sum(axis=0) / len(P), Q.sum(axis=0) / len(Q)
     Pc, Qc = P - cp, Q - cq
     if _collinear_3d(Pc.tobytes()):
         raise ValueError("P is collinear or coincident: rotation undefined")
-    U, _, Vt = np.linalg.svd(Qc.T @ Pc)  # of the cross-covariance, maps P directions to Q directions
+    U, _, Vt = svd(Qc.T @ Pc)  # of the cross-covariance, maps P directions to Q directions
     R = U @ Vt
     t0, t1, t2 = _det_terms(R.tolist())
     if t0 - t1 + t2 < 0:  # a reflection

@@ -161,6 +161,7 @@ from ihrcf_env.core.frames import (
     matrix_from_euler,
     matrix_from_quat,
 )
+from ihrcf_env.core.linalg import mahalanobis2, spd_inverse
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 
 _DEG = math.pi / 180.0
@@ -510,15 +511,15 @@ class _Imm:
         # the combined estimate's innovation and covariance (moment matching; sum(mu) = 1)
         nu = mu @ NU
         S = self._mixture_cov(Ss, NU - nu)  # (sum(mu) = 1: the mixture of P + R is P's mixture + R)
-        try:
-            d2 = float(nu @ np.linalg.solve(S, nu))
-        except np.linalg.LinAlgError:
-            return False, math.inf
+        d2 = mahalanobis2(S, nu)
         if not math.isfinite(d2) or (gate is not None and d2 > gate):
             return False, d2
+        inverses = spd_inverse(Ss)
+        if inverses is None:
+            return False, math.inf
+        Sinv, logdet = inverses
         # every model: Kalman update (H selects rows lo:hi; P - K S K^T, symmetrised) and the
         # likelihood of its innovation
-        Sinv = np.linalg.inv(Ss)
         PHt = Ps[:, :, lo:hi]  # (n, 9, k) = P H^T
         K = PHt @ Sinv  # (n, 9, k)
         X = self.X + (K @ NU[:, :, None])[:, :, 0]
@@ -529,7 +530,7 @@ class _Imm:
         self.X = X
         if len(mu) > 1:
             # Bayes on the model probabilities (mu >= 1e-12 > 0), likelihoods scaled by the largest
-            loglik = np.einsum("nk,nkl,nl->n", NU, Sinv, NU) + np.linalg.slogdet(Ss)[1]  # -2 log L
+            loglik = np.einsum("nk,nkl,nl->n", NU, Sinv, NU) + logdet  # -2 log L
             w = mu * np.exp(0.5 * (loglik.min() - loglik))
             mu = np.maximum(w / w.sum(), 1e-12)
             self.mu = mu / mu.sum()

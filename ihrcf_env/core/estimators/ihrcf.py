@@ -18,12 +18,13 @@ from numpy.typing import ArrayLike, NDArray
 from ihrcf_env.core.estimators.base import DEGENERATE_REL_TOL, PoseEstimate, SensorFrame, _shape_checked
 from ihrcf_env.core.frames import cam_pose_to_body
 from ihrcf_env.core.geometry import (
-    apply_homography,
-    fit_plane,
-    homography_from_points,
-    plane_z,
+    _apply_homography,
+    _collinear,
+    _fit_plane,
+    _homography,
+    _plane_z,
+    _rigid_fit,
     quad_is_degenerate,
-    rigid_fit,
 )
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 
@@ -57,6 +58,14 @@ def _degenerate_layout(sensor_xy: bytes) -> bool:
     return quad_is_degenerate(np.frombuffer(sensor_xy, dtype=np.float64).reshape(4, 2), DEGENERATE_REL_TOL)
 
 
+@functools.lru_cache(maxsize=8)
+def _tag_model(tag_size: float) -> NDArray[np.float64]:
+    """:func:`tag_corners_deck` (validated), cached read-only."""
+    model = tag_corners_deck(tag_size)
+    model.setflags(write=False)
+    return model
+
+
 def ihrcf_corners(
     corners_px: ArrayLike,
     ranges: ArrayLike,
@@ -65,7 +74,8 @@ def ihrcf_corners(
     rig: SensorRig,
 ) -> IHRCFCorners | str:
     """IHRCF up to the 3-D tag corners (paper sections 2.4-2.6): an :class:`IHRCFCorners`, or the
-    reason (str) why there are none. Arguments as :func:`ihrcf_estimate`."""
+    reason (str) why there are none. Arguments as :func:`ihrcf_estimate`. (Every array is checked
+    finite before it reaches a geometry kernel, so the kernels skip their own checks.)"""
     corners = _shape_checked(corners_px, (4, 2), "corners_px")
     r = _shape_checked(ranges, (4,), "ranges")
     rv = _shape_checked(ranges_valid, (4,), "ranges_valid", dtype=bool)
@@ -79,8 +89,8 @@ def ihrcf_corners(
         return "fewer than 3 valid ranges"
     touch = np.column_stack([sensor_xy[valid], r[valid]])
     try:
-        normal, offset = fit_plane(touch)  # least squares on 4 points, eq. (20) on 3
-        predicted = plane_z(normal, offset, sensor_xy)
+        normal, offset = _fit_plane(touch)  # least squares on 4 points, eq. (20) on 3
+        predicted = _plane_z(normal, offset, sensor_xy)
     except ValueError as e:
         return f"deck plane undefined: {e}"
     full_ranges = np.where(valid, r, predicted)  # missing ranges predicted from the plane
@@ -97,7 +107,7 @@ def ihrcf_corners(
         return "non-finite touch pixels"
     if _degenerate_layout(sensor_xy.tobytes()):
         return "degenerate sensor layout"
-    if quad_is_degenerate(tp, DEGENERATE_REL_TOL):
+    if _collinear(tp.tolist(), DEGENERATE_REL_TOL):  # quad_is_degenerate
         return "degenerate touch pixels"
 
     # Section 2.4: homography sensor XY (camera frame, m) <-> touch pixel. Row i of both arrays is
@@ -105,15 +115,15 @@ def ihrcf_corners(
     # matters, which is kept explicit here). Four exact correspondences: the inverse homography
     # (touch pixel -> sensor XY) is fitted directly, the same map as inverting eq. 13-16's.
     try:
-        H_inv = homography_from_points(tp, sensor_xy)
+        H_inv = _homography(tp, sensor_xy)
     except (ValueError, np.linalg.LinAlgError) as e:
         return f"homography failed: {e}"
     # Section 2.5: inverse homography of the tag corners -> camera-frame XY on the deck plane.
-    xy = apply_homography(H_inv, corners)
+    xy = _apply_homography(H_inv, corners)
     if not np.isfinite(xy).all():
         return "tag corner maps to infinity"
     # Section 2.6, eq. (22): Z from the plane.
-    z = plane_z(normal, offset, xy)
+    z = _plane_z(normal, offset, xy)
     if not np.all(z > 0):
         return "tag corner behind the camera"
     corners_cam = np.column_stack([xy, z])
@@ -174,9 +184,11 @@ def ihrcf_fit(
     camera frame (m), converted to the body frame; invalid when the RMS residual exceeds
     ``max_residual`` (m) or the fit fails."""
     measured = _shape_checked(corners_cam, (4, 3), "corners_cam")
+    if not np.isfinite(measured).all():
+        return PoseEstimate.invalid("rigid fit failed: non-finite corners")
     # Section 2.7: rigid transform deck model -> measured corners (camera frame).
     try:
-        R_cd, t_cd, rms = rigid_fit(tag_corners_deck(tag_size), measured)
+        R_cd, t_cd, rms = _rigid_fit(_tag_model(tag_size), measured)
     except ValueError as e:
         return PoseEstimate.invalid(f"rigid fit failed: {e}")
     if not rms <= max_residual:
