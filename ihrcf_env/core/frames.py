@@ -77,11 +77,11 @@ def _euler(R: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def matrix_from_quat(q: ArrayLike) -> NDArray[np.float64]:
     """Rotation matrix of a quaternion (x, y, z, w); the quaternion is normalised first."""
-    q = as_array(q, (4,), "quaternion")
-    n = float(np.linalg.norm(q))
+    x, y, z, w = as_array(q, (4,), "quaternion").tolist()  # plain floats: cheaper than numpy scalars
+    n = math.sqrt(x * x + y * y + z * z + w * w)
     if n < 1e-12:
         raise ValueError("quaternion has zero norm")
-    x, y, z, w = q / n
+    x, y, z, w = x / n, y / n, z / n, w / n
     return np.array(
         [
             [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],

@@ -46,11 +46,38 @@ def spd_inverse(S: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np
 
 def mahalanobis2(S: NDArray[np.float64], v: NDArray[np.float64]) -> float:
     """Squared Mahalanobis length ``v^T S^-1 v`` of ``v`` (k,) under a symmetric positive-definite
-    ``S`` (k, k); ``inf`` if its determinant is not positive and finite or the result is not finite."""
-    S = np.ascontiguousarray(S, dtype=np.float64)
-    det = cv2.determinant(S)
-    if not det > 0.0 or not math.isfinite(det):
-        return math.inf
-    ok, x = cv2.solve(S, np.ascontiguousarray(v, dtype=np.float64).reshape(-1, 1), flags=cv2.DECOMP_CHOLESKY)
-    d2 = float(v @ x[:, 0])
-    return d2 if ok and math.isfinite(d2) else math.inf
+    ``S`` (k, k; for k <= 3 only its upper triangle is read, in plain floats by the adjugate);
+    ``inf`` if ``S`` is not positive definite (Sylvester's criterion for k <= 3, the determinant
+    otherwise) or the result is not finite."""
+    k = len(v)
+    q = math.inf
+    if k == 1:
+        a = float(S[0, 0])
+        x = float(v[0])
+        if a > 0.0:
+            q = x * x / a
+    elif k == 2:
+        (a, b), (_, d) = S.tolist()
+        x, y = v.tolist()
+        det = a * d - b * b
+        if a > 0.0 and det > 0.0:
+            q = (d * x * x - 2.0 * b * x * y + a * y * y) / det
+    elif k == 3:
+        (a, b, c), (_, d, e), (_, _, f) = S.tolist()
+        x, y, z = v.tolist()
+        c00, c01, c02 = d * f - e * e, c * e - b * f, b * e - c * d  # cofactors (symmetric)
+        c11, c12, c22 = a * f - c * c, b * c - a * e, a * d - b * b
+        det = a * c00 + b * c01 + c * c02
+        if a > 0.0 and c22 > 0.0 and det > 0.0:
+            q = (
+                c00 * x * x + c11 * y * y + c22 * z * z + 2.0 * (c01 * x * y + c02 * x * z + c12 * y * z)
+            ) / det
+    else:
+        S = np.ascontiguousarray(S, dtype=np.float64)
+        det = cv2.determinant(S)
+        if det > 0.0 and math.isfinite(det):
+            ok, sol = cv2.solve(
+                S, np.ascontiguousarray(v, dtype=np.float64).reshape(-1, 1), flags=cv2.DECOMP_CHOLESKY
+            )
+            q = float(v @ sol[:, 0]) if ok else math.inf
+    return q if math.isfinite(q) else math.inf

@@ -709,9 +709,16 @@ def test_imm_update_is_the_textbook_update(angles: bool, rows: tuple[int, int]) 
     from ihrcf_env.core.estimators.fused import _Imm, _largest_eigenvalue
 
     rng = np.random.default_rng(11)
-    kf = _Imm((0.5, 0.2, 0.1), [np.full(3, d) for d in (0.001, 0.01, 0.1)], 30.0, 0.0, angles=angles)
+    kf = _Imm(
+        (0.5, 0.2, 0.1),
+        [np.full(3, d) for d in (0.001, 0.01, 0.1)],
+        np.full(3, 0.01),
+        30.0,
+        0.0,
+        angles=angles,
+    )
     for _ in range(5):  # distinct model states, covariances and probabilities
-        kf.predict(0.05, np.diag([1e-4, 2e-4, 0.0]), np.full(3, 0.01), None)
+        kf.predict(0.05, None, np.diag([1e-4, 2e-4, 0.0]))
         z = rng.normal(0, 0.05, 3) + (3.1 if angles else 0.0)
         kf.update(z, (0, 3), np.diag([1e-3, 2e-3, 3e-3]), None)
     lo, hi = rows
@@ -727,3 +734,25 @@ def test_imm_update_is_the_textbook_update(angles: bool, rows: tuple[int, int]) 
     np.testing.assert_allclose(kf.mu, mu_ref, rtol=1e-9)
     C = kf.value_cov
     assert _largest_eigenvalue(C) == pytest.approx(float(np.linalg.eigvalsh(C)[-1]), rel=1e-12)
+
+
+def test_imm_constant_value_noise_equals_per_step_noise() -> None:
+    # A constant q_value given to the constructor is folded into the cached process noise; it must
+    # equal giving it to every predict (to rounding).
+    from ihrcf_env.core.estimators.fused import _Imm
+
+    q = np.diag([1e-4, 2e-4, 0.0])
+    drifts = [np.full(3, d) for d in (0.001, 0.01, 0.1)]
+    a = _Imm((0.5, 0.2, 0.1), drifts, np.full(3, 0.01), 30.0, 0.0, q_value=q)
+    b = _Imm((0.5, 0.2, 0.1), drifts, np.full(3, 0.01), 30.0, 0.0)
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        u = rng.normal(size=3)
+        a.predict(0.05, u)
+        b.predict(0.05, u, q)
+        z = rng.normal(0, 0.05, 3)
+        assert a.update(z, (0, 3), np.diag([1e-3, 2e-3, 3e-3]), None)[0]
+        assert b.update(z, (0, 3), np.diag([1e-3, 2e-3, 3e-3]), None)[0]
+    np.testing.assert_allclose(a.X, b.X, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(a.Ps, b.Ps, rtol=1e-10, atol=1e-18)
+    np.testing.assert_allclose(a.mu, b.mu, rtol=1e-10)

@@ -48,7 +48,7 @@ def test_spd_inverse_matches_numpy(k: int) -> None:
         np.testing.assert_allclose(logdet, np.linalg.slogdet(S)[1], rtol=1e-12, atol=1e-12)
 
 
-@pytest.mark.parametrize("k", [1, 2, 3])
+@pytest.mark.parametrize("k", [1, 2, 3, 4])
 def test_mahalanobis2_matches_numpy(k: int) -> None:
     rng = np.random.default_rng(10 + k)
     for _ in range(200):
@@ -58,9 +58,19 @@ def test_mahalanobis2_matches_numpy(k: int) -> None:
 
 
 def test_not_positive_definite_or_not_finite() -> None:
-    bad = [np.diag([1.0, -1.0, 1.0]), np.zeros((3, 3))]
-    bad += [np.diag([1.0, np.nan, 1.0]), np.diag([1.0, np.inf, 1.0])]
-    for S in bad:
+    not_pd = [
+        np.diag([1.0, -1.0, 1.0]),
+        np.diag([-1.0, -1.0, 1.0]),
+        np.diag([1.0, -1.0, -1.0]),
+        np.zeros((3, 3)),
+    ]
+    not_finite = [np.diag([1.0, np.nan, 1.0]), np.diag([1.0, np.inf, 1.0])]
+    for S in not_pd + not_finite:
         assert mahalanobis2(S, np.ones(3)) == math.inf
+    # spd_inverse checks the determinant only (documented): its callers add a positive-definite noise
+    for S in [np.diag([1.0, -1.0, 1.0]), np.zeros((3, 3)), *not_finite]:
         assert spd_inverse(np.stack([np.eye(3), S])) is None
     assert mahalanobis2(np.eye(3), np.array([1.0, np.nan, 0.0])) == math.inf
+    for k in (1, 2, 4):
+        assert mahalanobis2(-np.eye(k), np.ones(k)) == math.inf
+        assert mahalanobis2(np.eye(k), np.full(k, np.inf)) == math.inf

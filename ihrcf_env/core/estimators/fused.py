@@ -373,15 +373,23 @@ class _Imm:
         self,
         sigmas: tuple[float, float, float],
         drifts: list[NDArray[np.float64]],
+        q_white: NDArray[np.float64],
         switch_time: float,
         time: float,
         angles: bool = False,
+        q_value: NDArray[np.float64] | None = None,
     ) -> None:
+        """Initial 1-sigmas ``sigmas`` of (value, rate, acceleration), the same on every axis; the
+        models' ``drifts``; white-noise spectral densities ``q_white`` (3,) on the rates' derivative
+        (1 sigma per sqrt(Hz)) and ``q_value`` (3, 3) on the values' derivative (value^2/s; constant
+        here, a varying one is given to :meth:`predict`); initial ``time`` s."""
         n = len(drifts)
         self.X = np.zeros((n, 9))  # model states
         self.Ps = np.repeat(np.diag(np.repeat(np.square(sigmas), 3))[None], n, axis=0)  # (n, 9, 9)
         self.drifts = np.asarray(drifts, dtype=np.float64)  # (n, 3)
         self.mu = np.full(n, 1.0 / n)
+        self.q_white = np.array(q_white, dtype=np.float64)
+        self.q_value = np.zeros((3, 3)) if q_value is None else np.array(q_value, dtype=np.float64)
         self.switch_time = switch_time
         self.angles = angles  # values are angles: wrapped innovations and states
         self.frames = 0  # frames with at least one accepted measurement
@@ -389,14 +397,13 @@ class _Imm:
         self.last_accepted = time  # time of the last accepted measurement, s
         self._x: NDArray[np.float64] | None = None  # combined state, cached until the next change
         self._value_cov: NDArray[np.float64] | None = None  # combined values' covariance, cached
-        #: per (dt, q_white): Markov switch T (n, n), transition F (9, 9), process noise (n, 9, 9)
-        #: without the q_value term (the filter runs at a fixed frame rate: computed once)
-        self._model_cache: dict[tuple[float, bytes], tuple[NDArray[np.float64], ...]] = {}
+        #: per dt: Markov switch T (n, n), transition F^T (9, 9), process noise (n, 9, 9) (the
+        #: filter runs at a fixed frame rate: computed once)
+        self._model_cache: dict[float, tuple[NDArray[np.float64], ...]] = {}
 
-    def _model(self, dt: float, q_white: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
+    def _model(self, dt: float) -> tuple[NDArray[np.float64], ...]:
         """(T, F^T, Q) of one prediction over ``dt`` s (see :meth:`predict`), cached."""
-        key = (dt, q_white.tobytes())
-        hit = self._model_cache.get(key)
+        hit = self._model_cache.get(dt)
         if hit is not None:
             return hit
         n = len(self.mu)
@@ -407,14 +414,15 @@ class _Imm:
             np.fill_diagonal(T, stay)
         F1, Qw, Qd = _kinematics(float(dt))
         Ft = np.ascontiguousarray(_per_axis(F1, np.ones(3)).T)
-        Q = _per_axis(Qw, np.square(q_white))[None] + np.stack(
+        Q = _per_axis(Qw, np.square(self.q_white))[None] + np.stack(
             [_per_axis(Qd, np.square(d)) for d in self.drifts]
         )
+        Q[:, 0:3, 0:3] += self.q_value * dt
         for m in (T, Ft, Q):
             m.setflags(write=False)
         if len(self._model_cache) >= 8:
             self._model_cache.clear()
-        self._model_cache[key] = (T, Ft, Q)
+        self._model_cache[dt] = (T, Ft, Q)
         return T, Ft, Q
 
     def _deviations(self, lo: int, hi: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -457,25 +465,21 @@ class _Imm:
         return self._value_cov
 
     def predict(
-        self,
-        dt: float,
-        q_value: NDArray[np.float64],
-        q_white: NDArray[np.float64],
-        u: NDArray[np.float64] | None,
+        self, dt: float, u: NDArray[np.float64] | None = None, q_value: NDArray[np.float64] | None = None
     ) -> None:
-        """Mix the models, then propagate each ``dt`` s. White-noise spectral densities: ``q_value``
-        (3, 3) on the values' derivative (value^2/s), ``q_white`` (3,) on the rates' derivative (1
-        sigma per sqrt(Hz)), the model's drift on the accelerations' derivative; ``u`` (3,) a known
-        acceleration of the values."""
+        """Mix the models, then propagate each ``dt`` s: ``u`` (3,) a known acceleration of the
+        values, ``q_value`` (3, 3) a white-noise spectral density on the values' derivative
+        (value^2/s) added to the constant one for this step; the process noise is the filter's
+        (see the constructor) plus each model's drift on the accelerations' derivative."""
         if dt <= 0:
             return
         n = len(self.mu)
-        T, Ft, Q0 = self._model(float(dt), np.asarray(q_white, dtype=np.float64))
+        T, Ft, Q0 = self._model(float(dt))
         X, Ps = self.X, self.Ps
         if n > 1:  # mixing: model j starts from the mixture of the models weighted by P(i | j)
             c = self.mu @ T  # predicted model probabilities
             W = T.T * self.mu
-            W /= W.sum(axis=1, keepdims=True)  # W[j, i] = P(i | j)
+            W /= c[:, None]  # W[j, i] = P(i | j) = T[i, j] mu_i / c_j
             ref, D = self._deviations(0, 9)
             mean = W @ D  # (n, 9)
             X = ref + mean
@@ -490,7 +494,8 @@ class _Imm:
         if self.angles:
             X[:, 0:3] = _wrap(X[:, 0:3])
         Ps = Ft.T @ Ps @ Ft + Q0
-        Ps[:, 0:3, 0:3] += q_value * dt
+        if q_value is not None:
+            Ps[:, 0:3, 0:3] += q_value * dt
         self.X = X
         self.Ps = 0.5 * (Ps + Ps.transpose(0, 2, 1))
         self._changed()
@@ -518,22 +523,26 @@ class _Imm:
         if inverses is None:
             return False, math.inf
         Sinv, logdet = inverses
-        # every model: Kalman update (H selects rows lo:hi; P - K S K^T, symmetrised) and the
-        # likelihood of its innovation
+        # every model: Kalman update (H selects rows lo:hi; gain K = P H^T S^-1; x + K nu and
+        # P - K S K^T = P - K (P H^T)^T, symmetrised) and the likelihood of its innovation
         PHt = Ps[:, :, lo:hi]  # (n, 9, k) = P H^T
-        K = PHt @ Sinv  # (n, 9, k)
-        X = self.X + (K @ NU[:, :, None])[:, :, 0]
-        Ps = Ps - K @ PHt.transpose(0, 2, 1)
+        y = Sinv @ NU[:, :, None]  # (n, k, 1) = S^-1 nu
+        X = self.X + (PHt @ y)[:, :, 0]
+        Ps = Ps - (PHt @ Sinv) @ PHt.transpose(0, 2, 1)
         self.Ps = 0.5 * (Ps + Ps.transpose(0, 2, 1))
         if self.angles:
             X[:, 0:3] = _wrap(X[:, 0:3])
         self.X = X
         if len(mu) > 1:
             # Bayes on the model probabilities (mu >= 1e-12 > 0), likelihoods scaled by the largest
-            loglik = np.einsum("nk,nkl,nl->n", NU, Sinv, NU) + logdet  # -2 log L
-            w = mu * np.exp(0.5 * (loglik.min() - loglik))
-            mu = np.maximum(w / w.sum(), 1e-12)
-            self.mu = mu / mu.sum()
+            # (plain floats: n numbers)
+            loglik = (np.einsum("nk,nk->n", NU, y[:, :, 0]) + logdet).tolist()  # -2 log L
+            best = min(loglik)
+            w = [m * math.exp(0.5 * (best - ll)) for m, ll in zip(mu.tolist(), loglik, strict=True)]
+            total = sum(w)
+            w = [max(x / total, 1e-12) for x in w]
+            total = sum(w)
+            self.mu = np.array([x / total for x in w])
         self._changed()
         return True, d2
 
@@ -742,9 +751,9 @@ class FusedEstimator:
         if self._pos is not None:
             r = self._pos.x[0:3]
             q_value = walk2 * (float(r @ r) * np.eye(3) - np.outer(r, r))  # e x r, e the tilt wander
-            self._pos.predict(dt, q_value, self._q_white_pos, None if u is None else -u)
+            self._pos.predict(dt, None if u is None else -u, q_value)
         if self._att is not None:
-            self._att.predict(dt, self._q_value_att, self._q_white_att, None)
+            self._att.predict(dt)
 
         reason = self._measure(frame, R_wb, t)
         for kf in (self._pos, self._att):
@@ -871,9 +880,11 @@ class FusedEstimator:
             self._att = _Imm(
                 (math.pi, p.init_rate_sigma, p.init_angle_accel_sigma),
                 [np.full(3, d) for d in p.angle_drift],
+                self._q_white_att,
                 p.model_switch_time,
                 t,
                 angles=True,
+                q_value=self._q_value_att,
             )
         new_pos = self._pos is None and (ihrcf is not None or (atda is not None and p.use_atda_position))
         if new_pos:
@@ -881,6 +892,7 @@ class FusedEstimator:
             self._pos = _Imm(
                 (10.0, p.init_velocity_sigma, p.init_accel_sigma),
                 [np.array([math.hypot(d, leak), math.hypot(d, leak), d]) for d in p.accel_drift],
+                self._q_white_pos,
                 p.model_switch_time,
                 t,
             )
@@ -988,7 +1000,7 @@ class FusedEstimator:
             return None
         n = -(_R_CAM_BODY @ R_bd[:, 2])  # deck normal in the camera frame, into the deck (n_z > 0)
         used = corners.ranges_used
-        c = float(np.mean(self.rig.sensor_xy_cam[used] @ n[:2] + ranges[used] * n[2]))
+        c = float((self.rig.sensor_xy_cam[used] @ n[:2] + ranges[used] * n[2]).sum()) / int(used.sum())
         along = corners.corners_cam @ n
         if not (along.min() > 1e-6 and c > 0):
             return None
