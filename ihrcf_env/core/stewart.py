@@ -13,6 +13,7 @@ The platform pose is that of the **deck frame** (origin at the tag centre on the
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -46,25 +47,30 @@ class StewartGeometry:
         if self.home_height - self.joint_depth <= self.base_height:
             raise ValueError("StewartGeometry.home_height puts the top joints below the base joints")
 
-    @property
+    @functools.cached_property
     def base_joints(self) -> NDArray[np.float64]:
-        """(6, 3) base joint positions in the world frame (m)."""
+        """(6, 3) base joint positions in the world frame (m; computed once, read-only)."""
         ang = []
         for c in (0.0, 120.0, 240.0):
             ang += [math.radians(c) - self.base_pair_angle / 2, math.radians(c) + self.base_pair_angle / 2]
         a = np.array(ang)
-        return np.column_stack(
+        out = np.column_stack(
             [self.base_radius * np.cos(a), self.base_radius * np.sin(a), np.full(6, self.base_height)]
         )
+        out.setflags(write=False)
+        return out
 
-    @property
+    @functools.cached_property
     def top_joints(self) -> NDArray[np.float64]:
-        """(6, 3) top joint positions in the deck frame (m), ordered so leg i joins base joint i."""
+        """(6, 3) top joint positions in the deck frame (m), ordered so leg i joins base joint i
+        (computed once, read-only)."""
         h = self.top_pair_angle / 2
         ang = np.radians([-60.0, 60.0, 60.0, 180.0, 180.0, 300.0]) + np.array([h, -h, h, -h, h, -h])
-        return np.column_stack(
+        out = np.column_stack(
             [self.top_radius * np.cos(ang), self.top_radius * np.sin(ang), np.full(6, -self.joint_depth)]
         )
+        out.setflags(write=False)
+        return out
 
     @property
     def home_position(self) -> NDArray[np.float64]:

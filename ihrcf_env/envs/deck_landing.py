@@ -257,7 +257,7 @@ class DeckLandingEnv(gym.Env):
             raise ValueError(f"action must have shape (4,), got {a.shape}")
         if not np.isfinite(a).all():
             raise ValueError(f"action contains NaN or inf: {a.tolist()}")
-        a = np.clip(a, -1.0, 1.0)
+        a = clip(a, -1.0, 1.0)
         if self.config.action_mode == "velocity":
             self.world.set_velocity_setpoint(a * self.max_velocity)
         else:
