@@ -135,8 +135,9 @@ ATDA depth halves. With the range-offset state (the wrapper's default for the VL
 ``range_offset_sigma`` 1.25 mm, ``atda_depth_bias_sigma`` 0.75 mm), 600 frames, seeds 0-4: fused Z
 2.96 / 0.76 / 1.39 / 1.23 / 0.99 mm without it, 1.88 / 0.93 / 1.53 / 1.23 / 1.36 mm with it (X, Y
 and the angles unchanged): the simulated ATDA depth is itself biased (~+1.5 mm), so the episodes
-with small offsets lose up to 0.4 mm for the worst one's gain. ~1.3 ms per frame on one core, its
-own IHRCF and ATDA included (0.8 ms of filter work when they are shared with the other estimators).
+with small offsets lose up to 0.4 mm for the worst one's gain. ~1.2 ms per frame in the env on one
+core, its own IHRCF and ATDA included (0.67 ms of filter work when they are shared with the other
+estimators).
 """
 
 from __future__ import annotations
