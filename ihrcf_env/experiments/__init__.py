@@ -7,4 +7,8 @@ wrappers/, sim/, core/ and control/, never cli/).
 * :mod:`ihrcf_env.experiments.hover_and_track`: the IHRCF tracking hover, :func:`run`, CSV output.
 * :mod:`ihrcf_env.experiments.figures`: Figs. 14-20 of a recording (matplotlib, imported lazily).
 * :mod:`ihrcf_env.experiments.landing`: the landing evaluation, :func:`evaluate`.
+* :mod:`ihrcf_env.experiments.camera_validation`: the projected camera model against rendered
+  frames, paired, :func:`validate_camera_model`.
+* :mod:`ihrcf_env.experiments.closed_loop`: the two camera models in closed loop (scripted
+  landings), :func:`fly` and :func:`compare`.
 """
