@@ -81,11 +81,13 @@ def test_fused_filter_runs_on_projected_corners(filtered: CameraValidation, pres
 def test_report(single_frame: CameraValidation) -> None:
     text = single_frame.markdown()
     assert "sensor_preset='ideal'" in text and "sensor_preset='realistic'" in text
-    assert "90 % interval" in text and "| fused" not in text
+    assert "90 % interval" in text and "p95 ratio" in text and "| fused" not in text
     for v in single_frame.presets.values():
         for est in ("ihrcf", "atda"):
             ci = v.ratio_ci[est]
             assert ci.shape == (2, 6) and np.all(ci[0] <= ci[1])
+            for m in ("rendered", "projected"):  # the 95th percentile lies above the mean
+                assert v.p95[m][est].shape == (6,) and np.all(v.p95[m][est] >= v.mae[m][est])
 
 
 def test_bad_arguments() -> None:
