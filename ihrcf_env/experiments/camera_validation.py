@@ -29,7 +29,7 @@ trajectories. Acceptance (issue 10): ratio within 1 +- 0.25 on every axis of eve
 detection rates within 3 percentage points.
 
 Measured (``--trajectories 200 --frames 40 --replicas 3 --seed 1``, shipped model and calibration;
-2 x 8000 frames, ~18 min per preset on one core): detection 54.5 / 54.6 % (ideal), 56.5 / 56.5 %
+2 x 8000 frames, 5-6.5 min per preset on one core): detection 54.5 / 54.6 % (ideal), 56.5 / 56.5 %
 (realistic); corner RMS against the projection 0.32 / 0.33 px; every MAE ratio within 0.96-1.14
 (IHRCF 0.97-1.01, ATDA 0.99-1.08, fused 0.96-1.14; largest: fused roll, realistic, 1.14); the
 ratios of the 95th percentiles within 0.91-1.16 (session 8). A first
