@@ -1,6 +1,6 @@
 """A learning-loop skeleton: vectorised envs with the flat estimator observation.
 
-Two processes run ``ihrcf_env/DeckLanding-v0`` with ``flatten=True`` (one float32 vector of 39
+Two processes run ``ihrcf_env/DeckHover-v0`` with ``flatten=True`` (one float32 vector of 39
 values: ranges, validity flags, IMU, then IHRCF, ATDA and ground-truth deck poses) under
 ``gymnasium.vector.AsyncVectorEnv``. The policy here is a simple proportional tracker on the IHRCF
 block (or uniform random actions with ``--policy random``); swap in your learner.
@@ -26,7 +26,7 @@ IHRCF = flat_slices()["ihrcf"]  # position (3), euler (3), valid (1) inside the 
 def make_env(max_episode_steps: int) -> Callable[[], gym.Env]:
     def thunk() -> gym.Env:
         return gym.make(
-            "ihrcf_env/DeckLanding-v0",
+            "ihrcf_env/DeckHover-v0",
             flatten=True,
             deck_profile="sea_state",
             max_episode_steps=max_episode_steps,

@@ -12,7 +12,7 @@ import cv2
 import gymnasium as gym
 import numpy as np
 
-import ihrcf_env  # noqa: F401  (registers ihrcf_env/DeckLanding-v0)
+import ihrcf_env  # noqa: F401  (registers ihrcf_env/DeckHover-v0)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -24,9 +24,9 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
 
-    env = gym.make("ihrcf_env/DeckLanding-v0", render_mode="rgb_array", raw=True, chase_size=(640, 480))
+    env = gym.make("ihrcf_env/DeckHover-v0", render_mode="rgb_array", raw=True, chase_size=(640, 480))
     obs, info = env.reset(seed=args.seed)
-    hz = env.unwrapped.config.control_hz
+    hz = env.unwrapped.config.world.control_hz
     n = int(round(args.seconds * hz))
     cols = ("t (s)", "deck x", "deck y", "deck z", "roll", "pitch", "yaw")
     print(" ".join(f"{c:>8}" for c in cols), " ranges (m)")

@@ -1,32 +1,74 @@
 """ihrcf_env: UAV landing on a moving Stewart-platform deck, with the IHRCF pose estimator as a sensor.
 
-Layers: pure geometry/estimation modules (``frames``, ``rig``, ``geometry``, ``calibration``,
-``estimators``; numpy/scipy/cv2 only), the PyBullet simulation layer (``ihrcf_env.sim``), the
-Gymnasium env (``ihrcf_env.envs``) and wrappers on top. Importing this package registers
-``ihrcf_env/DeckLanding-v0`` (wrapped) and ``ihrcf_env/DeckLandingRaw-v0`` without importing PyBullet.
+Layers: the pure core (``ihrcf_env.core``: frames, geometry, Stewart kinematics, estimators;
+numpy/scipy/cv2 only), the PyBullet simulation (``ihrcf_env.sim``), the Gymnasium envs
+(``ihrcf_env.envs``) and the wrappers on top. Importing this package registers the env ids below
+without importing PyBullet:
+
+* ``ihrcf_env/DeckHover-v0``: the paper's hover-and-track experiment (estimates beside ground truth);
+* ``ihrcf_env/DeckHoverRaw-v0``: its raw env (camera, ToF, IMU; no estimators);
+* ``ihrcf_env/DeckLanding-v1``: the landing task (flat RL observation; ``raw=True`` for the raw env).
+
+The ids ``ihrcf_env/DeckLanding-v0`` and ``ihrcf_env/DeckLandingRaw-v0`` are deprecated aliases of
+the hover ids.
 """
 
+from __future__ import annotations
+
 import warnings
+from typing import Any
 
 from gymnasium.envs.registration import register, registry
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
-ENV_ID = "ihrcf_env/DeckLanding-v0"  # wrapped with the IHRCF/ATDA/ground-truth observation (raw=True: raw)
-RAW_ENV_ID = "ihrcf_env/DeckLandingRaw-v0"  # the raw DeckLandingEnv
-ENV_V1_ID = "ihrcf_env/DeckLanding-v1"  # the v1 landing task, flat RL observation (raw=True: raw)
+HOVER_ID = "ihrcf_env/DeckHover-v0"
+HOVER_RAW_ID = "ihrcf_env/DeckHoverRaw-v0"
+LANDING_V1_ID = "ihrcf_env/DeckLanding-v1"
+#: Deprecated ids -> the ids they stand for.
+DEPRECATED_IDS: dict[str, str] = {
+    "ihrcf_env/DeckLanding-v0": HOVER_ID,
+    "ihrcf_env/DeckLandingRaw-v0": HOVER_RAW_ID,
+}
+#: Every id this package registers.
+ENV_IDS: tuple[str, ...] = (HOVER_ID, HOVER_RAW_ID, LANDING_V1_ID, *DEPRECATED_IDS)
 
-if ENV_ID not in registry:
-    register(id=ENV_ID, entry_point="ihrcf_env.wrappers.estimates:make_deck_landing", max_episode_steps=600)
-if RAW_ENV_ID not in registry:
-    register(id=RAW_ENV_ID, entry_point="ihrcf_env.envs.deck_landing:DeckLandingEnv", max_episode_steps=600)
-if ENV_V1_ID not in registry:
-    register(
-        id=ENV_V1_ID, entry_point="ihrcf_env.wrappers.landing_obs:make_deck_landing_v1", max_episode_steps=600
-    )
 
-# v0 is not an outdated v1: it is the paper's hover experiment, kept as it is, and v1 is a different
-# task (landing). Gymnasium warns "out of date" on every make of a lower version; silence exactly that.
-warnings.filterwarnings(
-    "ignore", message=r".*ihrcf_env/DeckLanding-v0 is out of date", category=DeprecationWarning
-)
+def _deprecated(old: str, new: str, entry: str) -> Any:
+    def make(**kwargs: Any) -> Any:
+        warnings.warn(f"{old} is deprecated: use {new} (same env)", DeprecationWarning, stacklevel=3)
+        module, _, name = entry.partition(":")
+        import importlib
+
+        return getattr(importlib.import_module(module), name)(**kwargs)
+
+    return make
+
+
+_ENTRY = {
+    HOVER_ID: "ihrcf_env.wrappers.estimates:make_deck_hover",
+    HOVER_RAW_ID: "ihrcf_env.envs.deck_landing:DeckLandingEnv",
+    LANDING_V1_ID: "ihrcf_env.wrappers.landing_obs:make_deck_landing_v1",
+}
+for _id, _entry in _ENTRY.items():
+    if _id not in registry:
+        register(id=_id, entry_point=_entry, max_episode_steps=600)
+for _old, _new in DEPRECATED_IDS.items():
+    if _old not in registry:
+        register(id=_old, entry_point=_deprecated(_old, _new, _ENTRY[_new]), max_episode_steps=600)
+
+
+def make_config(**options: Any) -> Any:
+    """The validated :class:`~ihrcf_env.envs.config.DeckLandingConfig` of ``options`` (see
+    :func:`ihrcf_env.envs.config.make_config`; imports the simulator)."""
+    from ihrcf_env.envs.config import make_config as _make
+
+    return _make(**options)
+
+
+def register_estimator(name: str, factory: Any, *, replace: bool = False) -> None:
+    """Register a deck-pose estimator from user code (see
+    :func:`ihrcf_env.core.estimators.registry.register_estimator`)."""
+    from ihrcf_env.core.estimators.registry import register_estimator as _register
+
+    _register(name, factory, replace=replace)

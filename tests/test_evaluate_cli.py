@@ -33,8 +33,8 @@ def _error(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
         (["--policy", "blind:0.3", "--env-id", "ihrcf_env/Nothing-v9"], "--env-id"),
         (["--policy", "blind:0.3", "--camera-model", "painted"], "--camera-model"),
         (["--policy", "blind:0.3", "--sensor-preset", "perfect"], "--sensor-preset"),
-        (["--policy", "scripted", "--env-id", "ihrcf_env/DeckLandingRaw-v0"], "--policy"),
-        (["--policy", "blind:0.3", "--env-id", "ihrcf_env/DeckLanding-v0", "--deck-motion"], "deck_motion"),
+        (["--policy", "scripted", "--env-id", "ihrcf_env/DeckHoverRaw-v0"], "--policy"),
+        (["--policy", "blind:0.3", "--env-id", "ihrcf_env/DeckHover-v0", "--deck-motion"], "deck_motion"),
     ],
 )
 def test_bad_input_names_the_argument(

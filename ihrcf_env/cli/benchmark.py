@@ -54,7 +54,7 @@ from ihrcf_env.sim.sensors.camera import realism_cost_ms
 def speed(size: int, steps: int, control_hz: int = 20) -> tuple[float, float]:
     """(env steps per second, real-time factor) for camera ``size`` (0 = no camera)."""
     kw = {"camera": False} if size == 0 else {"camera_width": size, "camera_height": size}
-    env = gym.make("ihrcf_env/DeckLandingRaw-v0", control_hz=control_hz, max_episode_steps=steps + 10, **kw)
+    env = gym.make("ihrcf_env/DeckHoverRaw-v0", control_hz=control_hz, max_episode_steps=steps + 10, **kw)
     try:
         sps = steps_per_second(env, steps)
     finally:
@@ -72,9 +72,9 @@ def estimation_ms(frames: int) -> float | None:
 
     if not default_calibration_path().is_file():
         return None
-    env = gym.make("ihrcf_env/DeckLandingRaw-v0", max_episode_steps=frames + 10)
+    env = gym.make("ihrcf_env/DeckHoverRaw-v0", max_episode_steps=frames + 10)
     try:
-        deck = env.unwrapped.config.deck  # type: ignore[attr-defined]
+        deck = env.unwrapped.config.world.deck  # type: ignore[attr-defined]
         est = estimator_from_calibration(
             Calibration.load(default_calibration_path()), deck.tag_size, deck.tag_id
         )

@@ -33,7 +33,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ihrcf_env import ENV_V1_ID
+from ihrcf_env import LANDING_V1_ID
 from ihrcf_env.control.policies import BlindDescent, Policy, ScriptedLanding
 
 SB3_ALGOS = ("PPO", "SAC", "TD3", "A2C", "DDPG")
@@ -148,7 +148,7 @@ def make_policy(spec: str, env: gym.Env, algo: str = "PPO") -> Policy:
         except AttributeError:
             raise PolicyError(
                 "--policy scripted needs the v1 observation (obs_slices/obs_scales): use --env-id "
-                + ENV_V1_ID
+                + LANDING_V1_ID
             ) from None
     if spec.startswith("blind:"):
         text = spec.removeprefix("blind:")
@@ -263,7 +263,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    ap.add_argument("--env-id", default=ENV_V1_ID, help=f"registered env id (default {ENV_V1_ID})")
+    ap.add_argument("--env-id", default=LANDING_V1_ID, help=f"registered env id (default {LANDING_V1_ID})")
     ap.add_argument("--policy", required=True, help="scripted | blind:VZ | a stable-baselines3 .zip")
     ap.add_argument("--episodes", type=int, default=10, help="episodes (seeds), default 10")
     ap.add_argument("--seed", type=int, default=0, help="first seed (default 0)")

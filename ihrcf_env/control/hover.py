@@ -1,6 +1,6 @@
 """Hover-tracking controller: hold a height above the moving deck and follow it with one pose estimate.
 
-For ``action_mode="velocity"`` of ``ihrcf_env/DeckLanding-v0``. It flies from a deck-pose estimate
+For ``action_mode="velocity"`` of ``ihrcf_env/DeckHover-v0``. It flies from a deck-pose estimate
 in the drone body frame (FLU; ``obs["ihrcf"]`` in the examples) and the IMU attitude, never from
 ground truth:
 

@@ -1,6 +1,6 @@
 """Vision/ToF landing controller on a moving deck, from the drone's own sensing only.
 
-For ``action_mode="velocity"`` of ``ihrcf_env/DeckLanding-v0``. The controller reads only
+For ``action_mode="velocity"`` of ``ihrcf_env/DeckHover-v0``. The controller reads only
 ``obs["imu"]``, ``obs["ihrcf"]``, ``obs["ranges"]`` and ``obs["ranges_valid"]``, never
 ``obs["ground_truth"]`` or ``info``, so it runs unchanged on a real drone's sensing. Phases:
 
@@ -131,7 +131,7 @@ class LandingController:
     Call :meth:`reset` at every episode start, then :meth:`act` once per control step.
 
     Args:
-        control_hz: the env's control rate (``env.unwrapped.config.control_hz``).
+        control_hz: the env's control rate (``env.unwrapped.config.world.control_hz``).
         max_velocity: the env's action scale (m/s, m/s, m/s, rad/s).
         rig: the ToF/camera geometry (the drone's own, not ground truth).
         config: tunables.

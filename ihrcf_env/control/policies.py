@@ -148,7 +148,7 @@ class ScriptedLanding:
         return cls(
             env.get_wrapper_attr("obs_slices"),
             env.get_wrapper_attr("obs_scales"),
-            int(base.config.control_hz),
+            int(base.config.world.control_hz),
             tuple(float(v) for v in getattr(base, "max_velocity", np.ones(4))),
             base.rig,
             config,

@@ -1,44 +1,36 @@
-"""The deck-landing task's configuration: every ``gym.make`` option, validated in one place.
+"""The one path of the options: ``gym.make`` keyword arguments -> a validated :class:`DeckLandingConfig`.
 
-:func:`make_config` takes the keyword arguments of ``gym.make("ihrcf_env/DeckLandingRaw-v0", ...)``
-(the names and defaults of :class:`~ihrcf_env.envs.deck_landing.DeckLandingEnv`) and returns a
-:class:`DeckLandingConfig`, or raises TypeError (wrong type) / ValueError (out of range,
-inconsistent) with the option's name in the message. It touches no PyBullet client: a bad option
-fails before any physics client or temporary file exists.
+:func:`make_config` takes every option of every deck task (the env's, the task's and the observation
+wrappers') and returns a :class:`DeckLandingConfig`, or raises TypeError (wrong kind) / ValueError
+(out of range, inconsistent, absurd magnitude) naming the option. It touches no PyBullet client: a
+bad option fails before any physics client or temporary file exists. The env takes the config; each
+component gets its typed part:
 
-A :class:`DeckLandingConfig` holds
+* ``world``: :class:`~ihrcf_env.sim.world.WorldConfig` (control rate, camera, ToF, IMU, autopilot
+  feedback, deck plate and tag, Stewart geometry, action mode);
+* ``task``: :class:`~ihrcf_env.envs.task_config.TaskConfig` (start, arena, deck motion, thresholds,
+  rewards, and the landing goal of the landing task);
+* ``observation``: :class:`ObservationConfig` (the estimator wrappers' options, the calibration
+  loaded and checked against the camera);
+* ``wind`` (:class:`~ihrcf_env.sim.disturbances.WindParams` or None), ``disturbances``,
+  ``render_mode``, ``chase_size``.
 
-* ``world``: the simulated world, :class:`~ihrcf_env.sim.world.WorldConfig` (control rate, camera,
-  ToF, deck plate and tag, Stewart geometry, action mode);
-* ``task``: :class:`TaskConfig`, i.e. the start distribution (:class:`StartDistribution`), the
-  arena (:class:`Arena`), the deck motion (:class:`DeckMotion`), success/crash thresholds
-  (:class:`Thresholds`), reward weights (:class:`RewardWeights`) and the velocity action scale;
-* ``render_mode``, ``chase_size`` and ``disturbances``.
+``task`` names the task whose defaults apply (:data:`TASK_DEFAULTS`): ``"hover"`` (the paper's
+hover-and-track experiment, ``ihrcf_env/DeckHover-v0``) or ``"landing-v1"``
+(``ihrcf_env/DeckLanding-v1``). Options of one task only (:data:`LANDING_OPTIONS`,
+:data:`HOVER_OPTIONS`) are refused by the other.
 
-Each dataclass checks its own fields in ``__post_init__`` (messages name the ``gym.make`` option);
-:class:`DeckLandingConfig` checks what involves several of them: the start altitudes against the
-deck's highest reach and the arena's ceiling, the arena against the deck, the sea-state amplitudes
-against the Stewart legs' stroke, the tag id.
+Sensor realism: ``sensor_preset`` (``"ideal"`` or ``"realistic"``) chooses together the camera
+(``camera_quality``), the ToF sensors (``tof_noise``: one ray, or the VL53L1X cone model), the IMU
+(``imu_noise``) and the autopilot's feedback (``autopilot_feedback``: ``"truth"`` or a drifting
+GNSS/INS ``"estimated"`` state); see :data:`SENSOR_PRESETS`. Each of those options, given,
+overrides the preset; ``tof_noise``, ``imu_noise`` and ``autopilot_feedback`` also take their
+model's parameter dataclass or a dict of some of its parameters (overriding the realistic
+defaults, e.g. ``tof_noise={"ambient": 1.0}``).
 
-Sensor realism: ``sensor_preset`` (``"ideal"``, the default and every result before the option
-existed, bit for bit; or ``"realistic"``) chooses together the camera (``camera_quality``), the ToF
-sensors (``tof_noise``: one ray, or the VL53L1X cone model), the IMU (``imu_noise``: BMI088
-noise, biases and attitude-filter error) and the autopilot's feedback (``autopilot_feedback``:
-``"truth"`` or a drifting GNSS/INS ``"estimated"`` state); see :data:`SENSOR_PRESETS`. Each of those
-options, given, overrides the preset; ``tof_noise``, ``imu_noise`` and ``autopilot_feedback`` also
-take their model's parameter dataclass (:class:`~ihrcf_env.sim.sensors.tof.VL53L1X`,
-:class:`~ihrcf_env.sim.sensors.imu.IMUNoise`, :class:`~ihrcf_env.sim.navigation.NavigationErrors`)
-or a dict of some of its parameters (overriding the realistic defaults, e.g.
-``tof_noise={"ambient": 1.0}``); a bad parameter raises naming the option and the key.
-
-Start altitude bounds: the drone's landing legs reach 0.10 m below its centre, and a tilted,
-moving deck rises under a drone that is off its centre, so the lowest start (``start_altitude -
-start_altitude_jitter``, or ``reset(options={"altitude": ...})``) must be at least
-:data:`MIN_START_ALTITUDE` = 0.3 m above the deck origin, otherwise an episode could end (even
-"successfully") at its first step. Note that below ~0.45 m (:data:`TAG_VIEW_ALTITUDE`) the
-0.40 m tag no longer fits in the 60 deg camera's view, so the tag-based estimators cannot see it
-there. The highest start, above the deck's highest possible position, must stay
-:data:`CEILING_MARGIN` below ``arena_ceiling``.
+Start altitude bounds: the lowest start must be :data:`MIN_START_ALTITUDE` above the deck origin
+(legs 0.10 m below the drone's centre, a tilted deck rising under it); the highest start, above
+the deck's highest reach, must stay :data:`CEILING_MARGIN` below ``arena_ceiling``.
 """
 
 from __future__ import annotations
@@ -48,23 +40,42 @@ import dataclasses
 import functools
 import math
 import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from numbers import Integral, Real
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import cv2
 import numpy as np
 
-from ihrcf_env.core.profiles import (
-    PROFILE_NAMES,
-    MotionProfile,
-    check_sea_state_amplitudes,
-    make_profile,
-    sea_state_amplitudes,
+from ihrcf_env.core.calibration import Calibration, default_calibration_path
+from ihrcf_env.core.checks import (
+    check_bool,
+    check_int,
+    check_positive,
+    check_real,
+    check_reals,
+    check_str,
+    describe,
+    from_fields,
+    set_field,
+)
+from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedParams, check_estimator_names
+from ihrcf_env.core.profiles import check_sea_state_amplitudes
+from ihrcf_env.envs.task_config import (
+    ARENA_MARGIN,
+    CEILING_MARGIN,
+    DEFAULT_HORIZON_S,
+    MIN_START_ALTITUDE,
+    Arena,
+    DeckMotion,
+    LandingGoal,
+    ProfileSpec,
+    RewardWeightsV1,
+    StartDistribution,
+    TaskConfig,
 )
 from ihrcf_env.sim.deck import DeckConfig
-from ihrcf_env.sim.disturbances import Disturbance
+from ihrcf_env.sim.disturbances import Disturbance, WindParams
 from ihrcf_env.sim.navigation import FEEDBACK_MODES, NavigationConfig, NavigationErrors
 from ihrcf_env.sim.sensors import TOF_PRESETS, CameraConfig, ToFConfig
 from ihrcf_env.sim.sensors.camera import CAMERA_QUALITIES
@@ -75,20 +86,20 @@ from ihrcf_env.sim.world import ACTION_MODES, CAMERA_MODELS, CAMERA_OUTPUTS, Wor
 if TYPE_CHECKING:
     from ihrcf_env.core.estimators.detector_model import DetectorModel
 
-#: Seconds of deck motion checked against the legs' stroke at reset when ``horizon_s`` is None.
-DEFAULT_HORIZON_S = 600.0
-#: Longest ``horizon_s`` (s): the check samples the profile at 20 Hz over the whole horizon.
-MAX_HORIZON_S = 3600.0
-#: Lowest start altitude above the deck origin (m): legs 0.10 m below the centre plus a tilted deck.
-MIN_START_ALTITUDE = 0.3
-#: Below about this altitude (m) the 0.40 m tag leaves the default camera's view.
-TAG_VIEW_ALTITUDE = 0.45
-#: The highest start stays this far (m) below ``arena_ceiling``.
-CEILING_MARGIN = 0.5
-#: ``arena_half_width`` exceeds the start offset and the deck's half size by at least this (m).
-ARENA_MARGIN = 0.5
+__all__ = [
+    "ARENA_MARGIN",
+    "CEILING_MARGIN",
+    "DEFAULT_HORIZON_S",
+    "MIN_START_ALTITUDE",
+    "DeckLandingConfig",
+    "ObservationConfig",
+    "make_config",
+]
+
 #: Largest chase-view image side (px).
 MAX_CHASE_SIZE = 4096
+#: Largest camera image side (px).
+MAX_IMAGE_SIZE = 4096
 RENDER_MODES: tuple[str, ...] = ("human", "rgb_array")
 #: ``sensor_preset``: the model each preset selects for ``camera_quality``, ``tof_noise``,
 #: ``imu_noise`` and ``autopilot_feedback`` (each option, given, overrides its preset).
@@ -106,237 +117,143 @@ SENSOR_PRESETS: dict[str, dict[str, str]] = {
         "autopilot_feedback": "estimated",
     },
 }
+#: The defaults that differ between the tasks (an option left at None takes its task's value).
+TASK_DEFAULTS: dict[str, dict[str, Any]] = {
+    "hover": {
+        "deck_profile": "paper",
+        "random_deck_start": False,
+        "sensor_preset": "ideal",
+        "start_altitude": 1.0,
+        "start_altitude_jitter": 0.05,
+        "start_offset": 0.1,
+        "start_yaw": 0.2,
+        "wind": False,
+    },
+    "landing-v1": {
+        "deck_profile": "sea_state",
+        "random_deck_start": True,
+        "sensor_preset": "realistic",
+        "start_altitude": 2.25,
+        "start_altitude_jitter": 0.75,
+        "start_offset": 1.0,
+        "start_yaw": math.pi,
+        "wind": True,
+    },
+}
+#: Options of the landing task only.
+LANDING_OPTIONS: tuple[str, ...] = (
+    "success_radius",
+    "start_in_view",
+    "view_margin",
+    "reward_weights",
+    "privileged",
+    "deck_motion",
+)
+#: Options of the hover task only (its observation wrapper's).
+HOVER_OPTIONS: tuple[str, ...] = ("keep_image", "flatten")
+#: Largest IHRCF rigid-fit residual threshold (m).
+MAX_RESIDUAL = 1.0
 
 
-# -- type checks (each names the option) ------------------------------------------------------------
-def _is_real(value: object) -> bool:
-    return isinstance(value, Real) and not isinstance(value, bool | np.bool_)
+def fused_params_for_tof(model: VL53L1X | None) -> FusedParams:
+    """The fused filter's parameters for the env's ToF model: with the VL53L1X model (per-sensor
+    constant offsets of sigma ``offset_sigma``) a common-mode range-offset state of prior sigma
+    ``offset_sigma / 2`` (the mean of four independent offsets); the ideal ToF (None): none."""
+    if model is None or model.offset_sigma <= 0:
+        return FusedParams()
+    return FusedParams(range_offset_sigma=model.offset_sigma / 2)
 
 
-def check_real(name: str, value: object, unit: str = "") -> float:
-    """``value`` as a finite float; TypeError for non-numbers and bools, ValueError for NaN/inf."""
-    if not _is_real(value):
-        raise TypeError(f"{name} must be a real number{unit}, got {type(value).__name__} {value!r}")
-    v = float(value)  # type: ignore[arg-type]
-    if not math.isfinite(v):
-        raise ValueError(f"{name} must be finite{unit}, got {value!r}")
-    return v
-
-
-def check_int(name: str, value: object) -> int:
-    """``value`` as an int; TypeError for floats (even 20.0), strings and bools."""
-    if not isinstance(value, Integral) or isinstance(value, bool | np.bool_):
-        raise TypeError(f"{name} must be an integer, got {type(value).__name__} {value!r}")
-    return int(value)
-
-
-def check_bool(name: str, value: object) -> bool:
-    if not isinstance(value, bool | np.bool_):
-        raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
-    return bool(value)
-
-
-def check_reals(name: str, value: object, n: int, unit: str = "") -> tuple[float, ...]:
-    """``value`` as a tuple of ``n`` finite floats (a sequence or 1-D array of real numbers)."""
-    items = list(value) if isinstance(value, Sequence | np.ndarray) and not isinstance(value, str) else None
-    if items is None or len(items) != n:
-        raise TypeError(f"{name} must be {n} real numbers{unit}, got {type(value).__name__} {value!r}")
-    return tuple(check_real(f"{name}[{i}]", v, unit) for i, v in enumerate(items))
-
-
-def check_str(name: str, value: object, choices: Sequence[str]) -> str:
-    if not isinstance(value, str):
-        raise TypeError(f"{name} must be one of {tuple(choices)}, got {type(value).__name__} {value!r}")
-    if value not in choices:
-        raise ValueError(f"{name} must be one of {tuple(choices)}, got {value!r}")
-    return value
-
-
-def _positive(name: str, value: float, unit: str = "") -> None:
-    if not value > 0:
-        raise ValueError(f"{name} must be > 0{unit}, got {value!r}")
-
-
-def _non_negative(name: str, value: float, unit: str = "") -> None:
-    if not value >= 0:
-        raise ValueError(f"{name} must be >= 0{unit}, got {value!r}")
-
-
-def check_non_negative_fields(obj: object, name: Callable[[str], str]) -> None:
-    """Check every field of the frozen dataclass ``obj`` is a finite real >= 0 (errors named by
-    ``name(field)``) and store it as a float."""
-    for f in dataclasses.fields(obj):  # type: ignore[arg-type]
-        v = check_real(name(f.name), getattr(obj, f.name))
-        _non_negative(name(f.name), v)
-        _set(obj, f.name, v)
-
-
-def _set(obj: object, attr: str, value: object) -> None:
-    """Normalise a field of a frozen dataclass in ``__post_init__``."""
-    object.__setattr__(obj, attr, value)
-
-
-# -- the task ------------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class StartDistribution:
-    """Seeded start of an episode relative to the deck frame origin: altitude uniform in
-    ``altitude +- altitude_jitter`` (m), horizontal offset uniform in ``+-offset`` per world axis
-    (m), yaw uniform in ``+-yaw`` (rad). Options ``start_altitude``, ``start_altitude_jitter``,
-    ``start_offset``, ``start_yaw``."""
+class ObservationConfig:
+    """What the estimator wrappers observe (:mod:`ihrcf_env.wrappers`).
 
-    altitude: float = 1.0
-    altitude_jitter: float = 0.05
-    offset: float = 0.1
-    yaw: float = 0.2
+    ``raw``: no wrapper (the raw env's Dict observation); ``calibration``: the loaded calibration
+    (None when raw or without a camera), checked against the camera; ``keep_image`` / ``flatten``:
+    the hover task's wrapper options; ``max_residual`` (m): IHRCF's rigid-fit threshold;
+    ``estimators``: registered names, in order; ``fused_params``: the fused filter's parameters
+    (resolved from the ToF model when not given); ``privileged`` / ``deck_motion``: the landing
+    task's flat observation options."""
 
-    def __post_init__(self) -> None:
-        _set(self, "altitude", check_real("start_altitude", self.altitude, " (m)"))
-        _set(self, "altitude_jitter", check_real("start_altitude_jitter", self.altitude_jitter, " (m)"))
-        _set(self, "offset", check_real("start_offset", self.offset, " (m)"))
-        _set(self, "yaw", check_real("start_yaw", self.yaw, " (rad)"))
-        _non_negative("start_altitude_jitter", self.altitude_jitter, " (m)")
-        _non_negative("start_offset", self.offset, " (m)")
-        if not 0 <= self.yaw <= math.pi:
-            raise ValueError(f"start_yaw must be in [0, pi] (rad), got {self.yaw!r}")
-        if self.lowest < MIN_START_ALTITUDE:
-            raise ValueError(
-                f"start_altitude - start_altitude_jitter = {self.altitude:g} - {self.altitude_jitter:g} m "
-                f"is below the lowest allowed start, {MIN_START_ALTITUDE} m above the deck: the drone's "
-                f"legs reach 0.10 m below its centre and a tilted deck rises under it, so an episode "
-                f"could end at its first step (note: below ~{TAG_VIEW_ALTITUDE} m the tag also leaves "
-                f"the camera's view)"
+    raw: bool = False
+    calibration: Calibration | None = None
+    keep_image: bool | None = None
+    flatten: bool = False
+    max_residual: float = 0.01
+    estimators: tuple[str, ...] = DEFAULT_ESTIMATORS
+    fused_params: FusedParams = field(default_factory=FusedParams)
+    privileged: bool = False
+    deck_motion: bool = False
+
+
+def load_calibration(calibration: object) -> Calibration:
+    """The calibration itself, the file at a path, or the shipped file for None (TypeError naming
+    ``calibration`` for anything else; the file's CalibrationError for a bad file)."""
+    if isinstance(calibration, Calibration):
+        return calibration
+    if calibration is None:
+        return Calibration.load(default_calibration_path())
+    if isinstance(calibration, str | os.PathLike):
+        return Calibration.load(calibration)
+    raise TypeError(
+        "calibration must be a Calibration, a path (str or os.PathLike) to a calibration file, or "
+        f"None for the shipped file; got {describe(calibration)}"
+    )
+
+
+def observation_options(
+    *,
+    raw: object = False,
+    calibration: object = None,
+    keep_image: object = None,
+    flatten: object = False,
+    max_residual: object = 0.01,
+    estimators: object = DEFAULT_ESTIMATORS,
+    fused_params: object = None,
+    privileged: object = False,
+    deck_motion: object = False,
+) -> tuple[bool, bool | None, bool, float, tuple[str, ...], FusedParams | None, bool, bool]:
+    """The wrapper options' type and range checks (no file read): (raw, keep_image, flatten,
+    max_residual, estimators, fused_params, privileged, deck_motion)."""
+    is_raw = check_bool("raw", raw)
+    if calibration is not None and not isinstance(calibration, Calibration | str | os.PathLike):
+        raise TypeError(
+            "calibration must be a Calibration, a path (str or os.PathLike) to a calibration file, or "
+            f"None for the shipped file; got {describe(calibration)}"
+        )
+    keep = None if keep_image is None else check_bool("keep_image", keep_image)
+    flat = check_bool("flatten", flatten)
+    residual = check_positive("max_residual", max_residual, "m", high=MAX_RESIDUAL)
+    names = check_estimator_names(estimators)  # type: ignore[arg-type]
+    if fused_params is not None and not isinstance(fused_params, FusedParams):
+        raise TypeError(
+            "fused_params must be an ihrcf_env.core.estimators.FusedParams or None, got "
+            f"{describe(fused_params)}"
+        )
+    priv = check_bool("privileged", privileged)
+    motion = check_bool("deck_motion", deck_motion)
+    if motion and "fused" not in names:
+        raise ValueError(
+            f"deck_motion needs the fused estimator (estimators must include 'fused'), got {names}"
+        )
+    if is_raw:
+        given = [
+            n
+            for n, v, d in (
+                ("keep_image", keep, None),
+                ("flatten", flat, False),
+                ("privileged", priv, False),
+                ("deck_motion", motion, False),
+                ("calibration", calibration, None),
+                ("fused_params", fused_params, None),
             )
-
-    @property
-    def lowest(self) -> float:
-        return self.altitude - self.altitude_jitter
-
-    @property
-    def highest(self) -> float:
-        return self.altitude + self.altitude_jitter
+            if v != d
+        ]
+        if given:
+            raise ValueError(f"{', '.join(given)}: observation-wrapper options have no effect with raw=True")
+    return is_raw, keep, flat, residual, names, fused_params, priv, motion
 
 
-@dataclass(frozen=True)
-class Arena:
-    """The drone crashes ("left the arena") beyond ``+-half_width`` (m) in world x or y, or above
-    ``ceiling`` (m, world z). Options ``arena_half_width``, ``arena_ceiling``."""
-
-    half_width: float = 5.0
-    ceiling: float = 6.0
-
-    def __post_init__(self) -> None:
-        _set(self, "half_width", check_real("arena_half_width", self.half_width, " (m)"))
-        _set(self, "ceiling", check_real("arena_ceiling", self.ceiling, " (m)"))
-        _positive("arena_half_width", self.half_width, " (m)")
-        _positive("arena_ceiling", self.ceiling, " (m)")
-
-
-@dataclass(frozen=True)
-class Thresholds:
-    """Touchdown on the deck is a success if the approach speed along the deck normal is below
-    ``success_speed`` (m/s) and the drone-deck tilt below ``success_tilt`` (rad); a tilt over
-    ``crash_tilt`` (rad) in flight is a crash."""
-
-    success_speed: float = 0.5
-    success_tilt: float = math.radians(10.0)
-    crash_tilt: float = math.radians(60.0)
-
-    def __post_init__(self) -> None:
-        for name, unit in (("success_speed", " (m/s)"), ("success_tilt", " (rad)"), ("crash_tilt", " (rad)")):
-            v = check_real(f"Thresholds.{name}", getattr(self, name), unit)
-            _positive(f"Thresholds.{name}", v, unit)
-            _set(self, name, v)
-        if not self.success_tilt < self.crash_tilt <= math.pi:
-            raise ValueError(
-                f"Thresholds need success_tilt < crash_tilt <= pi, got {self.success_tilt}, {self.crash_tilt}"
-            )
-
-
-@dataclass(frozen=True)
-class RewardWeights:
-    """Per-step reward ``-position_xy |e_xy| - position_z max(e_z, 0) - velocity |v_rel| -
-    attitude tilt - action |a|^2``, plus ``+success`` / ``-crash`` at the end (all weights >= 0)."""
-
-    position_xy: float = 1.0
-    position_z: float = 0.2
-    velocity: float = 0.1
-    attitude: float = 0.1
-    action: float = 0.01
-    success: float = 100.0
-    crash: float = 100.0
-
-    def __post_init__(self) -> None:
-        check_non_negative_fields(self, lambda n: f"RewardWeights.{n}")
-
-
-ProfileSpec = str | Callable[[float], Any] | MotionProfile
-
-
-@dataclass(frozen=True)
-class DeckMotion:
-    """How the deck moves. Options ``deck_profile``, ``sea_state_amplitudes`` (only with
-    ``"sea_state"``), ``random_deck_start`` (start at a seeded time in [0, 130) s of the profile)
-    and ``horizon_s`` (seconds of motion checked against the legs' stroke at reset; beyond it the
-    deck stops rather than fail mid-episode)."""
-
-    profile: ProfileSpec = "paper"
-    sea_state_amplitudes: Mapping[str, float] | None = None
-    random_start: bool = False
-    horizon_s: float = DEFAULT_HORIZON_S
-
-    def __post_init__(self) -> None:
-        prof = self.profile
-        if isinstance(prof, str):
-            check_str("deck_profile", prof, PROFILE_NAMES)
-        elif not (isinstance(prof, MotionProfile) or callable(prof)):
-            raise TypeError(
-                f"deck_profile must be one of {PROFILE_NAMES}, a MotionProfile or a callable "
-                f"t -> (offset (3,), rpy (3,)), got {type(prof).__name__} {prof!r}"
-            )
-        if self.sea_state_amplitudes is not None:
-            if prof != "sea_state":
-                raise ValueError(
-                    f"sea_state_amplitudes is only used with deck_profile='sea_state', got "
-                    f"deck_profile={prof!r}: drop it or choose 'sea_state'"
-                )
-            sea_state_amplitudes(self.sea_state_amplitudes)  # types, names, signs
-            _set(self, "sea_state_amplitudes", dict(self.sea_state_amplitudes))
-        _set(self, "random_start", check_bool("random_deck_start", self.random_start))
-        h = check_real("horizon_s", self.horizon_s, " (s)")
-        if not 0 < h <= MAX_HORIZON_S:
-            raise ValueError(f"horizon_s must be in (0, {MAX_HORIZON_S:g}] s, got {self.horizon_s!r}")
-        _set(self, "horizon_s", h)
-
-    def make_profile(self, rng: np.random.Generator) -> MotionProfile:
-        """This episode's profile (a sea state draws its periods and phases from ``rng``)."""
-        return make_profile(self.profile, rng, self.sea_state_amplitudes)
-
-
-@dataclass(frozen=True)
-class TaskConfig:
-    """The landing task: start, arena, deck motion, outcome thresholds, reward and action scale
-    (``max_velocity``: m/s, m/s, m/s, rad/s per unit velocity action)."""
-
-    start: StartDistribution = field(default_factory=StartDistribution)
-    arena: Arena = field(default_factory=Arena)
-    deck: DeckMotion = field(default_factory=DeckMotion)
-    thresholds: Thresholds = field(default_factory=Thresholds)
-    reward: RewardWeights = field(default_factory=RewardWeights)
-    max_velocity: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0)
-
-    def __post_init__(self) -> None:
-        mv = check_reals("max_velocity", self.max_velocity, 4, " (m/s, m/s, m/s, rad/s)")
-        if min(mv) <= 0:
-            raise ValueError(f"max_velocity must be 4 positive numbers (m/s, m/s, m/s, rad/s), got {mv!r}")
-        _set(self, "max_velocity", mv)
-        if self.start.offset + ARENA_MARGIN > self.arena.half_width:
-            raise ValueError(
-                f"start_offset {self.start.offset:g} m must stay {ARENA_MARGIN} m inside arena_half_width "
-                f"{self.arena.half_width:g} m"
-            )
-
-
-# -- everything ----------------------------------------------------------------------------------
 @functools.cache
 def apriltag_ids() -> int:
     """Number of tags in the AprilTag 36h11 family (valid ``tag_id`` 0 .. n - 1)."""
@@ -350,9 +267,11 @@ class DeckLandingConfig:
 
     world: WorldConfig = field(default_factory=WorldConfig)
     task: TaskConfig = field(default_factory=TaskConfig)
+    observation: ObservationConfig = field(default_factory=ObservationConfig)
     render_mode: str | None = None
     chase_size: tuple[int, int] = (640, 480)
     disturbances: tuple[Disturbance, ...] = ()
+    wind: WindParams | None = None
 
     def __post_init__(self) -> None:
         if self.render_mode is not None:
@@ -360,12 +279,9 @@ class DeckLandingConfig:
         size = self.chase_size
         if not (isinstance(size, Sequence | np.ndarray) and not isinstance(size, str) and len(size) == 2):
             raise TypeError(f"chase_size must be (width, height) in pixels, got {size!r}")
-        w, h = check_int("chase_size[0]", size[0]), check_int("chase_size[1]", size[1])
-        if not (0 < w <= MAX_CHASE_SIZE and 0 < h <= MAX_CHASE_SIZE):
-            raise ValueError(
-                f"chase_size must be (width, height) in [1, {MAX_CHASE_SIZE}] pixels, got {size!r}"
-            )
-        _set(self, "chase_size", (w, h))
+        w = check_int("chase_size[0]", size[0], low=1, high=MAX_CHASE_SIZE)
+        h = check_int("chase_size[1]", size[1], low=1, high=MAX_CHASE_SIZE)
+        set_field(self, "chase_size", (w, h))
         if isinstance(self.disturbances, str | Disturbance) or not isinstance(self.disturbances, Sequence):
             raise TypeError(f"disturbances must be a sequence of Disturbance, got {self.disturbances!r}")
         for d in self.disturbances:
@@ -374,12 +290,12 @@ class DeckLandingConfig:
                     f"disturbances: {d!r} is not a Disturbance "
                     "(reset(rng) and __call__(t, position, velocity))"
                 )
-        _set(self, "disturbances", tuple(self.disturbances))
+        set_field(self, "disturbances", tuple(self.disturbances))
+        if self.wind is not None and not isinstance(self.wind, WindParams):
+            raise TypeError(f"wind must be WindParams or None, got {describe(self.wind)}")
 
         deck = self.world.deck
-        tag_id = check_int("tag_id", deck.tag_id)
-        if not 0 <= tag_id < apriltag_ids():
-            raise ValueError(f"tag_id must be in [0, {apriltag_ids() - 1}] for AprilTag 36h11, got {tag_id}")
+        check_int("tag_id", deck.tag_id, low=0, high=apriltag_ids() - 1)
         task = self.task
         if task.arena.half_width < deck.size / 2 + ARENA_MARGIN:
             raise ValueError(
@@ -410,32 +326,11 @@ class DeckLandingConfig:
         return self.task.arena.ceiling - CEILING_MARGIN - self.deck_reach
 
 
-T = TypeVar("T")
-
-
-def _build(cls: type[T], options: Mapping[str, tuple[str, object]], **fixed: object) -> T:
-    """``cls(**fields)`` from ``{option name: (field name, value)}``; a ValueError/TypeError of the
-    dataclass' own checks is re-raised with the option's name in front (each option is first tried
-    alone, so the error is pinned on the right one)."""
-    for option, (attr, value) in options.items():
-        try:
-            cls(**{attr: value})
-        except (TypeError, ValueError) as e:
-            msg = str(e)
-            raise type(e)(msg if option in msg else f"{option}: {msg}") from None
-    return cls(**{attr: value for attr, value in options.values()}, **fixed)
-
-
 M = TypeVar("M")
 
 
 def model_option(
-    name: str,
-    value: object,
-    preset: str,
-    names: Sequence[str],
-    cls: type[M],
-    default: M,
+    name: str, value: object, preset: str, names: Sequence[str], cls: type[M], default: M
 ) -> str | M:
     """A sensor-model option: None (the ``sensor_preset``'s choice ``preset``), one of ``names``, an
     instance of the parameter dataclass ``cls``, or a mapping of some of its parameters (overrides of
@@ -444,22 +339,21 @@ def model_option(
         return preset
     if isinstance(value, str):
         return check_str(name, value, names)
-    if isinstance(value, cls):
-        return value
-    if isinstance(value, Mapping):
-        known = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
-        for key, v in value.items():
-            if key not in known:
-                raise ValueError(f"{name} has no parameter {key!r}; known: {', '.join(known)}")
-            try:
-                dataclasses.replace(default, **{key: v})  # type: ignore[type-var]
-            except (TypeError, ValueError) as e:
-                raise type(e)(f"{name}[{key!r}]: {e}") from None
-        return dataclasses.replace(default, **value)  # type: ignore[type-var]
+    if isinstance(value, cls | Mapping):
+        return from_fields(name, cls, value, default)
     raise TypeError(
         f"{name} must be one of {tuple(names)}, a {cls.__name__} or a dict of its parameters, "
-        f"got {type(value).__name__} {value!r}"
+        f"got {describe(value)}"
     )
+
+
+def _built(option: str, build: Any, *args: Any, **kwargs: Any) -> Any:
+    """``build(*args, **kwargs)`` with the option's name in front of a TypeError / ValueError."""
+    try:
+        return build(*args, **kwargs)
+    except (TypeError, ValueError) as e:
+        msg = str(e)
+        raise type(e)(msg if option in msg else f"{option}: {msg}") from None
 
 
 def _camera_options(
@@ -486,8 +380,8 @@ def _camera_options(
         )
     hz: int | None = None
     if camera_hz is not None:
-        hz = check_int("camera_hz", camera_hz)
-        rate = check_int("control_hz", control_hz)
+        hz = check_int("camera_hz", camera_hz, low=1, high=10_000)
+        rate = check_int("control_hz", control_hz, low=1, high=10_000)
         if hz <= 0 or rate % hz != 0:
             raise ValueError(f"camera_hz must be a positive divisor of control_hz ({rate}) in Hz, got {hz!r}")
     if not has_camera:
@@ -528,14 +422,23 @@ def _camera_options(
     return model, output, hz, detector
 
 
+def _wind_option(wind: object) -> WindParams | None:
+    """``wind``: True (the default :class:`WindParams`), False or None (calm), a WindParams or a dict
+    of some of its fields."""
+    if wind is None or isinstance(wind, bool | np.bool_):
+        return WindParams() if wind else None
+    return from_fields("wind", WindParams, wind)
+
+
 def make_config(
     *,
+    task: str = "hover",
     render_mode: str | None = None,
     action_mode: str = "velocity",
     control_hz: int = 20,
-    deck_profile: ProfileSpec = "paper",
+    deck_profile: ProfileSpec | None = None,
     sea_state_amplitudes: Mapping[str, float] | None = None,
-    random_deck_start: bool = False,
+    random_deck_start: bool | None = None,
     camera: bool = True,
     camera_width: int = 512,
     camera_height: int = 512,
@@ -545,7 +448,7 @@ def make_config(
     camera_output: str | None = None,
     camera_hz: int | None = None,
     detector_model: str | os.PathLike[str] | DetectorModel | None = None,
-    sensor_preset: str = "ideal",
+    sensor_preset: str | None = None,
     camera_quality: str | None = None,
     tof_noise: str | Mapping[str, Any] | VL53L1X | None = None,
     imu_noise: str | Mapping[str, Any] | IMUNoise | None = None,
@@ -553,31 +456,88 @@ def make_config(
     tof_max_range: float = 4.0,
     tag_id: int = 0,
     tag_size: float = 0.4,
-    start_altitude: float = 1.0,
-    start_altitude_jitter: float = 0.05,
-    start_offset: float = 0.1,
-    start_yaw: float = 0.2,
+    start_altitude: float | None = None,
+    start_altitude_jitter: float | None = None,
+    start_offset: float | None = None,
+    start_yaw: float | None = None,
     max_velocity: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0),
     arena_half_width: float = 5.0,
     arena_ceiling: float = 6.0,
     horizon_s: float | None = None,
     chase_size: tuple[int, int] = (640, 480),
+    wind: bool | WindParams | Mapping[str, Any] | None = None,
     disturbances: Sequence[Disturbance] = (),
+    success_radius: float | None = None,
+    start_in_view: bool | None = None,
+    view_margin: float | None = None,
+    reward_weights: RewardWeightsV1 | Mapping[str, float] | None = None,
+    raw: bool = False,
+    calibration: Calibration | str | os.PathLike[str] | None = None,
+    keep_image: bool | None = None,
+    flatten: bool = False,
+    max_residual: float = 0.01,
+    estimators: Sequence[str] = DEFAULT_ESTIMATORS,
+    fused_params: FusedParams | None = None,
+    privileged: bool = False,
+    deck_motion: bool = False,
 ) -> DeckLandingConfig:
-    """The configuration for the options of ``DeckLandingEnv`` (same names, same defaults; see the
-    module docstring and the README's options table). Raises TypeError / ValueError naming the
-    option. ``disturbances`` are deep-copied: every env gets its own."""
+    """The validated configuration of a deck task (module docstring). Options left at None take
+    ``task``'s default (:data:`TASK_DEFAULTS`). Raises TypeError / ValueError naming the option.
+    ``disturbances`` are deep-copied: every env gets its own."""
+    defaults = TASK_DEFAULTS[check_str("task", task, tuple(TASK_DEFAULTS))]
+    landing = task != "hover"
+
+    def pick(name: str, value: Any) -> Any:
+        return defaults[name] if value is None else value
+
+    is_raw, keep, flat, residual, names, fused, priv, motion = observation_options(
+        raw=raw,
+        calibration=calibration,
+        keep_image=keep_image,
+        flatten=flatten,
+        max_residual=max_residual,
+        estimators=estimators,
+        fused_params=fused_params,
+        privileged=privileged,
+        deck_motion=deck_motion,
+    )
+    given = {
+        "success_radius": success_radius,
+        "start_in_view": start_in_view,
+        "view_margin": view_margin,
+        "reward_weights": reward_weights,
+        "privileged": privileged or None,
+        "deck_motion": deck_motion or None,
+        "keep_image": keep_image,
+        "flatten": flatten or None,
+    }
+    wrong = [n for n in (HOVER_OPTIONS if landing else LANDING_OPTIONS) if given[n] is not None]
+    if wrong:
+        other = (
+            "hover task (ihrcf_env/DeckHover-v0)" if landing else "landing task (ihrcf_env/DeckLanding-v1)"
+        )
+        raise ValueError(f"{', '.join(wrong)}: option(s) of the {other} only")
+
     has_camera = check_bool("camera", camera)
-    distortion = check_reals("camera_distortion", camera_distortion, 2)
+    if has_camera and not is_raw and camera_output is None and (landing or keep is False or flat):
+        camera_output = "corners"  # no image in the observation: the rendered camera renders the tag window
+    distortion = check_reals("camera_distortion", camera_distortion, 2, low=-1.0, high=1.0)
     if not has_camera and any(distortion):
         raise ValueError(
             f"camera_distortion {camera_distortion!r} has no effect with camera=False: drop it or "
             "turn the camera on"
         )
+    rate = check_int("control_hz", control_hz, low=1, high=1000)
     cam_model, cam_output, cam_hz, detector = _camera_options(
-        has_camera, camera_model, camera_output, camera_hz, detector_model, control_hz
+        has_camera, camera_model, camera_output, camera_hz, detector_model, rate
     )
-    preset = SENSOR_PRESETS[check_str("sensor_preset", sensor_preset, tuple(SENSOR_PRESETS))]
+    if not has_camera and not is_raw:
+        raise ValueError(
+            "camera=False leaves IHRCF and ATDA without an image: use camera=True, or raw=True for a "
+            "camera-less simulation"
+        )
+    preset_name = check_str("sensor_preset", pick("sensor_preset", sensor_preset), tuple(SENSOR_PRESETS))
+    preset = SENSOR_PRESETS[preset_name]
     quality = (
         preset["camera_quality"]
         if camera_quality is None
@@ -590,26 +550,20 @@ def make_config(
         )
     cam = None
     if has_camera:
-        cam = _build(
+        cam = _built(
+            "camera options",
             CameraConfig,
-            {
-                "camera_width": ("width", check_int("camera_width", camera_width)),
-                "camera_height": ("height", check_int("camera_height", camera_height)),
-                "camera_fov": ("fov", check_real("camera_fov", camera_fov, " (rad)")),
-                "camera_distortion": ("distortion", distortion),
-                "camera_quality": ("quality", quality),
-            },
+            width=check_int("camera_width", camera_width, low=16, high=MAX_IMAGE_SIZE),
+            height=check_int("camera_height", camera_height, low=16, high=MAX_IMAGE_SIZE),
+            fov=check_real("camera_fov", camera_fov, "rad", low=math.radians(5), high=math.radians(170)),
+            distortion=distortion,
+            quality=quality,
         )
     tof_model = model_option(
         "tof_noise", tof_noise, preset["tof_noise"], tuple(TOF_PRESETS), VL53L1X, VL53L1X()
     )
-    tof = _build(
-        ToFConfig,
-        {
-            "tof_max_range": ("max_range", check_real("tof_max_range", tof_max_range, " (m)")),
-            "tof_noise": ("noise", tof_model),
-        },
-    )
+    max_range = check_positive("tof_max_range", tof_max_range, "m", high=100.0)
+    tof = _built("tof_noise", ToFConfig, max_range=max_range, noise=tof_model)
     imu = IMUConfig(
         model_option("imu_noise", imu_noise, preset["imu_noise"], IMU_NOISE_PRESETS, IMUNoise, IMUNoise())
     )
@@ -623,19 +577,15 @@ def make_config(
             NavigationErrors(),
         )
     )
-    deck = _build(
+    deck = _built(
+        "tag_size",
         DeckConfig,
-        {
-            "tag_id": ("tag_id", check_int("tag_id", tag_id)),
-            "tag_size": ("tag_size", check_real("tag_size", tag_size, " (m)")),
-        },
+        tag_id=check_int("tag_id", tag_id, low=0, high=apriltag_ids() - 1),
+        tag_size=check_positive("tag_size", tag_size, "m", high=10.0),
     )
-    world = _build(
-        WorldConfig,
-        {
-            "control_hz": ("control_hz", check_int("control_hz", control_hz)),
-            "action_mode": ("action_mode", check_str("action_mode", action_mode, ACTION_MODES)),
-        },
+    world = WorldConfig(
+        control_hz=rate,
+        action_mode=check_str("action_mode", action_mode, ACTION_MODES),
         camera=cam,
         tof=tof,
         imu=imu,
@@ -646,22 +596,59 @@ def make_config(
         camera_hz=cam_hz,
         detector_model=detector,
     )
-    task = TaskConfig(
-        start=StartDistribution(start_altitude, start_altitude_jitter, start_offset, start_yaw),
+    goal = None
+    if landing:
+        weights = (
+            RewardWeightsV1()
+            if reward_weights is None
+            else from_fields("reward_weights", RewardWeightsV1, reward_weights)
+        )
+        goal = LandingGoal(
+            success_radius=0.15 if success_radius is None else success_radius,
+            start_in_view=True if start_in_view is None else start_in_view,
+            view_margin=0.1 if view_margin is None else view_margin,
+            reward=weights,
+        )
+    task_cfg = TaskConfig(
+        start=StartDistribution(
+            pick("start_altitude", start_altitude),
+            pick("start_altitude_jitter", start_altitude_jitter),
+            pick("start_offset", start_offset),
+            pick("start_yaw", start_yaw),
+        ),
         arena=Arena(arena_half_width, arena_ceiling),
         deck=DeckMotion(
-            deck_profile,
+            pick("deck_profile", deck_profile),
             sea_state_amplitudes,
-            random_deck_start,
+            pick("random_deck_start", random_deck_start),
             DEFAULT_HORIZON_S if horizon_s is None else horizon_s,
         ),
         max_velocity=max_velocity,
+        landing=goal,
+    )
+    cal = None
+    if not is_raw:
+        cal = load_calibration(calibration)
+        assert cam is not None
+        cal.check_matches(cam.width, cam.height, cam.fov, world.rig, distortion=cam.distortion)
+    observation = ObservationConfig(
+        raw=is_raw,
+        calibration=cal,
+        keep_image=keep,
+        flatten=flat,
+        max_residual=residual,
+        estimators=names,
+        fused_params=fused if fused is not None else fused_params_for_tof(tof.model),
+        privileged=priv,
+        deck_motion=motion,
     )
     cfg = DeckLandingConfig(
         world=world,
-        task=task,
+        task=task_cfg,
+        observation=observation,
         render_mode=render_mode,
         chase_size=chase_size,
         disturbances=disturbances,  # type: ignore[arg-type]  # checked, made a tuple
+        wind=_wind_option(pick("wind", wind)),
     )
     return dataclasses.replace(cfg, disturbances=copy.deepcopy(cfg.disturbances)) if cfg.disturbances else cfg

@@ -11,21 +11,25 @@ key               shape / dtype            meaning
                                            corners (OpenCV pixel centres and corner order), zeros
                                            when not detected (``info["tag_reason"]`` says why)
 ``tag_detected``  Discrete(2)              ``camera_output="corners"``: 1 = the tag was detected
+``tag_status``    Discrete(len(TAG_STATUS))  ``camera_output="corners"``: why not (0: detected; the
+                                           reasons in :data:`~ihrcf_env.sim.sensors.base.TAG_STATUS`)
+``camera_age``    (1,) float32, s          age of the camera frame shown (0 when it is new)
 ``ranges``        (4,) float32, m          ToF ps1..ps4 along the optical axis, in [0, max_range]
 ``ranges_valid``  (4,) int8                1 = valid reading; invalid readings read max_range
 ``imu``           Dict                     ``quaternion`` (4,) x, y, z, w world-from-body;
                                            ``angular_velocity`` (3,) rad/s body frame;
                                            ``linear_acceleration`` (3,) m/s^2 specific force, body
+``nav_velocity``  (3,) float32, m/s        the autopilot's velocity estimate (world frame): the
+                                           truth or the GNSS/INS estimate (``autopilot_feedback``)
 ================  =======================  =====================================================
 
 Camera (``camera_model``): ``"rendered"`` (default) renders with TinyRenderer; with
 ``camera_output="corners"`` it renders only the window around the tag's projection and detects the
 tag there (same corners as the full frame within 0.05 px). ``"projected"`` renders nothing: the tag
 corners are projected through the true camera and a detector model fitted on rendered frames
-(``python -m ihrcf_env.fit_detector``) adds the detector's noise and failures. ``camera_hz``
+(``ihrcf-fit-detector``) adds the detector's noise and failures. ``camera_hz``
 (default: the control rate, must divide it) delivers a frame every ``control_hz / camera_hz`` steps;
-in between the last frame is repeated and ``info["camera_time"]`` / ``info["camera_age"]`` (s) say
-when it was taken.
+in between the last frame is repeated and ``camera_age`` (s) says how old it is.
 
 Action: ``Box(-1, 1, (4,))``, values outside are clipped (NaN/inf raise ValueError).
 ``"velocity"`` mode: ``(vx, vy, vz, yaw_rate) = action * max_velocity`` with vx, vy in the heading
@@ -40,7 +44,8 @@ Reward per step (each term also in ``info`` as ``reward_<name>``): ``position = 
 crash. Termination: touchdown (success if the relative vertical speed < 0.5 m/s, the relative tilt
 < 10 deg and the drone is over the deck; a crash otherwise), a tilt > 60 deg, or leaving the arena.
 Truncation only by ``max_episode_steps`` (TimeLimit). The weights and thresholds are the defaults of
-:class:`~ihrcf_env.envs.config.RewardWeights` and :class:`~ihrcf_env.envs.config.Thresholds`.
+:class:`~ihrcf_env.envs.task_config.RewardWeights` and
+:class:`~ihrcf_env.envs.task_config.Thresholds`.
 
 Misuse raises: a bad option TypeError/ValueError naming it (before any PyBullet client exists),
 ``step`` after a terminated episode or after ``close`` RuntimeError, copying or pickling TypeError.
@@ -49,9 +54,7 @@ Misuse raises: a bad option TypeError/ValueError naming it (before any PyBullet 
 from __future__ import annotations
 
 import math
-import os
-from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any, ClassVar, NoReturn, SupportsIndex
+from typing import Any, ClassVar, NoReturn, SupportsIndex
 
 import gymnasium as gym
 import numpy as np
@@ -60,30 +63,23 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from ihrcf_env.core.arrays import clip
+from ihrcf_env.core.checks import check_mapping, check_real, check_reals
 from ihrcf_env.core.frames import euler_from_matrix, quat_from_matrix
 from ihrcf_env.core.profiles import PAPER_DURATION, MotionProfile, ShiftedProfile
 from ihrcf_env.core.rig import SensorRig
-from ihrcf_env.envs.config import (
-    ARENA_MARGIN,
-    MIN_START_ALTITUDE,
-    DeckLandingConfig,
-    TaskConfig,
-    check_real,
-    check_reals,
-    make_config,
-)
+from ihrcf_env.core.seeding import SeedStreams
+from ihrcf_env.envs.config import ARENA_MARGIN, MIN_START_ALTITUDE, DeckLandingConfig, make_config
 from ihrcf_env.envs.display import require_gui_display
-from ihrcf_env.sim.disturbances import Disturbance
-from ihrcf_env.sim.navigation import NavigationErrors
+from ihrcf_env.sim.disturbances import Wind
 from ihrcf_env.sim.sensors import CameraConfig
-from ihrcf_env.sim.sensors.imu import IMUNoise
-from ihrcf_env.sim.sensors.tof import VL53L1X
-from ihrcf_env.sim.world import Snapshot, Touchdown, World, WorldConfig
-
-if TYPE_CHECKING:
-    from ihrcf_env.core.estimators.detector_model import DetectorModel
+from ihrcf_env.sim.sensors.base import TAG_STATUS
+from ihrcf_env.sim.world import CAMERA_SENSORS, Snapshot, Touchdown, World, WorldConfig
 
 RESET_OPTIONS = ("altitude", "offset", "yaw", "deck_time")
+#: Upper bound (s) of ``camera_age`` in the observation.
+MAX_SENSOR_AGE = 10.0
+#: Bound (m/s) of ``nav_velocity`` in the observation.
+MAX_NAV_VELOCITY = 20.0
 
 _NO_COPY = (
     "a DeckLandingEnv owns a live PyBullet physics client, which cannot be copied or pickled; make "
@@ -93,109 +89,44 @@ _NO_COPY = (
 
 
 class DeckLandingEnv(gym.Env):
-    """Quadrotor landing on a 6-DOF Stewart deck, sensed by a downward camera and four ToF beams.
+    """Quadrotor on a 6-DOF Stewart deck, sensed by a downward camera and four ToF beams: the raw
+    env of the hover task (``ihrcf_env/DeckHoverRaw-v0``) and the base of the landing tasks.
 
     Frames and conventions: see :mod:`ihrcf_env.core.frames`. Ground truth is in ``info``: the deck
     pose in the drone body frame (``deck_position_body`` m, ``deck_euler_body`` roll/pitch/yaw rad),
     world poses of drone and deck, the six leg lengths and contact flags.
 
-    The keyword arguments are validated into a :class:`~ihrcf_env.envs.config.DeckLandingConfig`
-    (:func:`~ihrcf_env.envs.config.make_config`) before any PyBullet client exists; a bad one raises
-    TypeError or ValueError naming it. ``self.config`` is the world's
-    :class:`~ihrcf_env.sim.world.WorldConfig`, ``self.task`` the
-    :class:`~ihrcf_env.envs.config.TaskConfig`. ``disturbances`` (see
-    :mod:`ihrcf_env.sim.disturbances`) push the drone at every physics step; each env deep-copies
-    them. ``sensor_preset`` (``"ideal"`` or ``"realistic"``) sets the camera, ToF, IMU and autopilot
-    feedback models together; ``camera_quality``, ``tof_noise``, ``imu_noise`` and
-    ``autopilot_feedback`` override it one by one (see :mod:`ihrcf_env.envs.config`). The env
-    cannot be copied or pickled (it owns a physics client) and, once closed, raises RuntimeError
-    on use. Only one ``render_mode="human"`` env can be open per process (one PyBullet
-    GUI).
+    The env's one input is a validated :class:`~ihrcf_env.envs.config.DeckLandingConfig`
+    (``config``; or keyword options, validated by :func:`~ihrcf_env.envs.config.make_config` before
+    any PyBullet client exists). ``self.config`` is that config. Randomness: ``reset(seed=s)``
+    seeds ``np_random``; each episode then draws one key from it and spawns independent streams
+    (:class:`~ihrcf_env.core.seeding.SeedStreams`) for the start (``"start"``), the deck motion
+    (``"deck"``), the wind (``"wind"``), each disturbance and each sensor, so the camera model, a
+    sensor preset or the estimator set never change the start, deck or wind of a seed. The env
+    cannot be copied or pickled (it owns a physics client); a closed env raises RuntimeError on use;
+    an env dropped without ``close()`` releases its client when garbage-collected. Only one
+    ``render_mode="human"`` env can be open per process (one PyBullet GUI).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
     _gui_owner: ClassVar[DeckLandingEnv | None] = None
+    #: The task whose defaults ``**options`` take (see :data:`~ihrcf_env.envs.config.TASK_DEFAULTS`).
+    task_name = "hover"
 
-    def __init__(
-        self,
-        render_mode: str | None = None,
-        action_mode: str = "velocity",
-        control_hz: int = 20,
-        deck_profile: str | Callable[[float], Any] | MotionProfile = "paper",
-        sea_state_amplitudes: Mapping[str, float] | None = None,
-        random_deck_start: bool = False,
-        camera: bool = True,
-        camera_width: int = 512,
-        camera_height: int = 512,
-        camera_fov: float = math.radians(60.0),
-        camera_distortion: tuple[float, float] = (0.0, 0.0),
-        camera_model: str = "rendered",
-        camera_output: str | None = None,
-        camera_hz: int | None = None,
-        detector_model: str | os.PathLike[str] | DetectorModel | None = None,
-        sensor_preset: str = "ideal",
-        camera_quality: str | None = None,
-        tof_noise: str | Mapping[str, Any] | VL53L1X | None = None,
-        imu_noise: str | Mapping[str, Any] | IMUNoise | None = None,
-        autopilot_feedback: str | Mapping[str, Any] | NavigationErrors | None = None,
-        tof_max_range: float = 4.0,
-        tag_id: int = 0,
-        tag_size: float = 0.4,
-        start_altitude: float = 1.0,
-        start_altitude_jitter: float = 0.05,
-        start_offset: float = 0.1,
-        start_yaw: float = 0.2,
-        max_velocity: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0),
-        arena_half_width: float = 5.0,
-        arena_ceiling: float = 6.0,
-        horizon_s: float | None = None,
-        chase_size: tuple[int, int] = (640, 480),
-        disturbances: Sequence[Disturbance] = (),
-    ) -> None:
+    def __init__(self, config: DeckLandingConfig | None = None, **options: Any) -> None:
         self._closed = True  # until the world exists
-        cfg = make_config(
-            render_mode=render_mode,
-            action_mode=action_mode,
-            control_hz=control_hz,
-            deck_profile=deck_profile,
-            sea_state_amplitudes=sea_state_amplitudes,
-            random_deck_start=random_deck_start,
-            camera=camera,
-            camera_width=camera_width,
-            camera_height=camera_height,
-            camera_fov=camera_fov,
-            camera_distortion=camera_distortion,
-            camera_model=camera_model,
-            camera_output=camera_output,
-            camera_hz=camera_hz,
-            detector_model=detector_model,
-            sensor_preset=sensor_preset,
-            camera_quality=camera_quality,
-            tof_noise=tof_noise,
-            imu_noise=imu_noise,
-            autopilot_feedback=autopilot_feedback,
-            tof_max_range=tof_max_range,
-            tag_id=tag_id,
-            tag_size=tag_size,
-            start_altitude=start_altitude,
-            start_altitude_jitter=start_altitude_jitter,
-            start_offset=start_offset,
-            start_yaw=start_yaw,
-            max_velocity=max_velocity,
-            arena_half_width=arena_half_width,
-            arena_ceiling=arena_ceiling,
-            horizon_s=horizon_s,
-            chase_size=chase_size,
-            disturbances=disturbances,
-        )
+        if config is None:
+            config = make_config(task=self.task_name, **{"raw": True, **options})
+        elif options:
+            raise TypeError(f"give either config or options, not both (got config and {sorted(options)})")
+        elif not isinstance(config, DeckLandingConfig):
+            raise TypeError(f"config must be a DeckLandingConfig (ihrcf_env.make_config), got {config!r}")
+        cfg = config
         gui = cfg.render_mode == "human"
         if gui:
             self._claim_gui()
-        self.settings: DeckLandingConfig = cfg
-        self.config: WorldConfig = cfg.world
-        self.task: TaskConfig = cfg.task
+        self.config: DeckLandingConfig = cfg
         self.render_mode = cfg.render_mode
-        self.chase_size = cfg.chase_size
         self.metadata = {**self.metadata, "render_fps": cfg.world.control_hz}
         self.observation_space = _observation_space(cfg.world)
         self.action_space = spaces.Box(-1.0, 1.0, (4,), np.float32)
@@ -205,12 +136,21 @@ class DeckLandingEnv(gym.Env):
         self._tag_reason = ""
         cam = cfg.world.camera
         self._corner_bound = float(max(cam.width, cam.height)) if cam is not None else 0.0
+        self._camera_name = next((n for n in CAMERA_SENSORS if cam is not None), "")
+        #: the env's wind (None: calm air); its force is one of the world's disturbances
+        self.wind: Wind | None = Wind(cfg.wind) if cfg.wind is not None else None
 
-        self.world = World(self.config, gui=gui)  # releases its client itself if it fails
+        self.world = World(cfg.world, gui=gui)  # releases its client itself if it fails
         self._closed = False
         try:
+            self._camera_name = next((n for n in CAMERA_SENSORS if n in self.world.sensors), "")
             for d in cfg.disturbances:
                 self.world.add_disturbance(d)
+            streams = [f"disturbance.{i}" for i in range(len(cfg.disturbances))]
+            if self.wind is not None:
+                self.world.add_disturbance(self.wind)
+                streams.append("wind")
+            self.world.disturbance_streams = tuple(streams)
             self._state_id = p.saveState(physicsClientId=self.world.client)
         except BaseException:
             self.close()
@@ -220,23 +160,26 @@ class DeckLandingEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict, dict]:
         """Start hovering above the deck.
 
-        The start is drawn from ``np_random``: altitude ``start_altitude +- start_altitude_jitter``
-        above the deck origin, a horizontal offset uniform in ``+-start_offset`` per axis (m) and a
-        yaw uniform in ``+-start_yaw`` (rad). With ``random_deck_start`` the deck's motion starts at a
-        time uniform in [0, 130) s of its profile instead of at t = 0. ``options`` may fix
-        ``altitude`` (m, in [0.3 m, the highest start allowed by arena_ceiling]), ``offset``
-        ((x, y) m, world), ``yaw`` (rad) and ``deck_time`` (s).
+        The start is drawn from the ``"start"`` stream: altitude ``start_altitude +-
+        start_altitude_jitter`` above the deck origin, a horizontal offset uniform in
+        ``+-start_offset`` per axis (m) and a yaw uniform in ``+-start_yaw`` (rad). With
+        ``random_deck_start`` the deck's motion starts at a time uniform in [0, 130) s of its
+        profile instead of at t = 0. ``options`` may fix ``altitude`` (m, in [0.3 m, the highest
+        start allowed by arena_ceiling]), ``offset`` ((x, y) m, world), ``yaw`` (rad) and
+        ``deck_time`` (s).
         """
         self._check_open()
+        opts = dict(check_mapping("reset options", options)) if options is not None else {}
         super().reset(seed=seed)
-        alt, off, yaw, deck_time = self._draw_start(dict(options or {}))
-        profile = self.task.deck.make_profile(self.np_random)
+        streams = SeedStreams.from_generator(self.np_random)
+        alt, off, yaw, deck_time = self._draw_start(opts, streams.generator("start"))
+        profile = self.config.task.deck.make_profile(streams.generator("deck"))
         if deck_time:
             profile = ShiftedProfile(profile, deck_time)
         self._profile = None  # no episode while the world is being reset (or if that fails)
         p.restoreState(stateId=self._state_id, physicsClientId=self.world.client)
-        self.world.reset(profile, self.task.deck.horizon_s, altitude=alt, offset_xy=off, yaw=yaw)
-        self.world.reset_random(self.np_random)
+        self.world.reset(profile, self.config.task.deck.horizon_s, altitude=alt, offset_xy=off, yaw=yaw)
+        self.world.reset_random(streams)
         self._profile = profile
         self._episode_over = False
         self._last_touchdown = None
@@ -252,13 +195,8 @@ class DeckLandingEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         if self._episode_over:
             raise RuntimeError("episode is over (terminated): call reset() before stepping again")
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != (4,):
-            raise ValueError(f"action must have shape (4,), got {a.shape}")
-        if not np.isfinite(a).all():
-            raise ValueError(f"action contains NaN or inf: {a.tolist()}")
-        a = clip(a, -1.0, 1.0)
-        if self.config.action_mode == "velocity":
+        a = _check_action(action)
+        if self.config.world.action_mode == "velocity":
             self.world.set_velocity_setpoint(a * self.max_velocity)
         else:
             self.world.set_motor_thrusts((a + 1.0) / 2.0)
@@ -319,7 +257,7 @@ class DeckLandingEnv(gym.Env):
     @property
     def max_velocity(self) -> NDArray[np.float64]:
         """Velocity action scale (m/s, m/s, m/s, rad/s)."""
-        return np.asarray(self.task.max_velocity, dtype=np.float64)
+        return np.asarray(self.config.task.max_velocity, dtype=np.float64)
 
     def _check_open(self) -> None:
         if self._closed:
@@ -336,44 +274,39 @@ class DeckLandingEnv(gym.Env):
         require_gui_display()
         DeckLandingEnv._gui_owner = self
 
-    def _draw_start(self, options: dict[str, Any]) -> tuple[float, tuple[float, float], float, float]:
+    def _draw_start(
+        self, options: dict[str, Any], rng: np.random.Generator
+    ) -> tuple[float, tuple[float, float], float, float]:
         """(altitude m, offset (x, y) m, yaw rad, deck start time s) of a new episode: drawn from
-        ``np_random`` (always, so ``options`` do not shift the random stream), then ``options``."""
-        unknown = set(options) - set(RESET_OPTIONS)
+        ``rng`` (always, so ``options`` do not shift the stream), then ``options``."""
+        unknown = sorted(map(str, set(options) - set(RESET_OPTIONS)))
         if unknown:
-            raise ValueError(
-                f"reset options has unknown keys {sorted(unknown)}; known: {', '.join(RESET_OPTIONS)}"
-            )
-        start, rng = self.task.start, self.np_random
+            raise ValueError(f"reset options has unknown keys {unknown}; known: {', '.join(RESET_OPTIONS)}")
+        task = self.config.task
+        start = task.start
         alt = start.altitude + rng.uniform(-1, 1) * start.altitude_jitter
         off = rng.uniform(-1, 1, 2) * start.offset
         yaw = rng.uniform(-1, 1) * start.yaw
-        deck_time = rng.uniform(0.0, PAPER_DURATION) if self.task.deck.random_start else 0.0
+        deck_time = rng.uniform(0.0, PAPER_DURATION) if task.deck.random_start else 0.0
         if "altitude" in options:
-            alt = check_real("options['altitude']", options["altitude"], " (m)")
-            top = self.settings.max_start_altitude
-            if not MIN_START_ALTITUDE <= alt <= top:
-                raise ValueError(
-                    f"options['altitude'] must be in [{MIN_START_ALTITUDE}, {top:.3f}] m above the deck "
-                    f"(legs clear of the deck, {self.task.arena.ceiling:g} m arena_ceiling), got {alt!r}"
-                )
+            top = self.config.max_start_altitude
+            alt = check_real(
+                "options['altitude']", options["altitude"], "m", low=MIN_START_ALTITUDE, high=top
+            )
         if "offset" in options:
-            off = np.array(check_reals("options['offset']", options["offset"], 2, " (m)"))
-            limit = self.task.arena.half_width - ARENA_MARGIN
-            if np.max(np.abs(off)) > limit:
-                raise ValueError(
-                    f"options['offset'] must be within +-{limit:g} m (arena), got {off.tolist()}"
-                )
+            limit = task.arena.half_width - ARENA_MARGIN
+            off = np.array(
+                check_reals("options['offset']", options["offset"], 2, "m", low=-limit, high=limit)
+            )
         if "yaw" in options:
-            yaw = check_real("options['yaw']", options["yaw"], " (rad)")
+            yaw = check_real("options['yaw']", options["yaw"], "rad", low=-4 * math.pi, high=4 * math.pi)
         if "deck_time" in options:
-            deck_time = check_real("options['deck_time']", options["deck_time"], " (s)")
-            if deck_time < 0:
-                raise ValueError(f"options['deck_time'] must be a finite time >= 0 (s), got {deck_time!r}")
+            deck_time = check_real("options['deck_time']", options["deck_time"], "s", low=0.0, high=1e6)
         return float(alt), (float(off[0]), float(off[1])), float(yaw), float(deck_time)
 
     def _get_obs(self) -> dict[str, Any]:
-        r = self.world.read_sensors(self.np_random)
+        w = self.world
+        r = w.read_sensors()
         obs: dict[str, Any] = {}
         if "image" in r:
             obs["image"] = r["image"]
@@ -381,6 +314,10 @@ class DeckLandingEnv(gym.Env):
             self._tag_reason = str(r["tag_reason"])
             obs["tag_corners"] = clip(r["tag_corners"], -1.0, self._corner_bound).astype(np.float32)
             obs["tag_detected"] = int(bool(r["tag_detected"]))
+            obs["tag_status"] = int(r["tag_status"])
+        if self._camera_name:
+            age = w.time - w.sample_times[self._camera_name]
+            obs["camera_age"] = np.array([min(max(age, 0.0), MAX_SENSOR_AGE)], np.float32)
         obs["ranges"] = r["ranges"]
         obs["ranges_valid"] = r["ranges_valid"]
         obs["imu"] = {
@@ -388,11 +325,13 @@ class DeckLandingEnv(gym.Env):
             "angular_velocity": clip(r["angular_velocity"], -50.0, 50.0).astype(np.float32),
             "linear_acceleration": clip(r["linear_acceleration"], -200.0, 200.0).astype(np.float32),
         }
+        v = w.nav_velocity()
+        obs["nav_velocity"] = clip(v, -MAX_NAV_VELOCITY, MAX_NAV_VELOCITY).astype(np.float32)
         return obs
 
     def _outcome(self, touchdown: Touchdown | None, s: Snapshot) -> tuple[str, str]:
         """("flying" | "success" | "crash", reason)."""
-        th, arena = self.task.thresholds, self.task.arena
+        th, arena = self.config.task.thresholds, self.config.task.arena
         if touchdown is not None:
             if touchdown.body != "deck":
                 return "crash", f"hit the {touchdown.body}"
@@ -416,7 +355,7 @@ class DeckLandingEnv(gym.Env):
     def _get_rew(
         self, action: NDArray[np.float64], outcome: str, s: Snapshot
     ) -> tuple[float, dict[str, float]]:
-        w = self.task.reward
+        w = self.config.task.reward
         e = s.drone_position - s.deck_position
         terms = {
             "reward_position": -w.position_xy * math.hypot(e[0], e[1]) - w.position_z * max(float(e[2]), 0.0),
@@ -433,10 +372,10 @@ class DeckLandingEnv(gym.Env):
         w = self.world
         contacts = w.contact_bodies()
         info: dict[str, Any] = {"time": w.time}
-        if self.config.camera is not None:
-            info["camera_time"] = w.camera_time
-            info["camera_age"] = w.time - w.camera_time
-            if self.config.camera_output == "corners":
+        if self._camera_name:
+            info["camera_time"] = w.sample_times[self._camera_name]
+            info["camera_age"] = w.time - info["camera_time"]
+            if self.config.world.camera_output == "corners":
                 info["tag_reason"] = self._tag_reason
         # copies: the snapshot's arrays are read-only and shared (World.snapshot is memoised)
         return info | {
@@ -450,6 +389,8 @@ class DeckLandingEnv(gym.Env):
             "leg_lengths": w.deck.geometry.leg_lengths(s.deck_position, s.deck_rotation),
             "contact_deck": w.deck.body in contacts,
             "contact_ground": w.ground in contacts or w.deck.base_body in contacts,
+            "wind_velocity": self.wind.velocity(w.time) if self.wind is not None else np.zeros(3),
+            "relative_velocity": s.relative_velocity.copy(),
         }
 
     # -- rendering -----------------------------------------------------------------------
@@ -467,7 +408,7 @@ class DeckLandingEnv(gym.Env):
         eye = target + 2.5 * back + 0.8 * side + np.array([0.0, 0.0, 1.0])
         cid = w.client
         view = p.computeViewMatrix(eye.tolist(), target.tolist(), [0, 0, 1], physicsClientId=cid)
-        width, height = self.chase_size
+        width, height = self.config.chase_size
         proj = p.computeProjectionMatrixFOV(50.0, width / height, 0.05, 30.0, physicsClientId=cid)
         cfg = CameraConfig(width=width, height=height)
         return render_rgb(cid, cfg, view, proj)
@@ -480,23 +421,31 @@ class DeckLandingEnv(gym.Env):
     # -- conveniences for tools ---------------------------------------------------------
     @property
     def rig(self) -> SensorRig:
-        return self.config.rig
+        return self.config.world.rig
 
     @property
     def camera_config(self) -> CameraConfig | None:
-        return self.config.camera
-
-    def add_disturbance(self, disturbance: Disturbance) -> None:
-        """Push the drone with ``disturbance`` (world-frame force, N) at every physics step from now
-        on; it draws its random state from ``np_random`` at each reset."""
-        self._check_open()
-        self.world.add_disturbance(disturbance)
+        return self.config.world.camera
 
     def deck_pose_body(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Ground-truth deck (position m, euler rad) in the body frame."""
         self._check_open()
         s = self.world.snapshot()
         return s.deck_position_body.copy(), euler_from_matrix(s.deck_rotation_body)
+
+
+def _check_action(action: Any) -> NDArray[np.float64]:
+    """The action as 4 finite float64 values clipped to [-1, 1]; ValueError / TypeError naming
+    ``action`` otherwise (complex, strings, objects and NaN/inf are refused, not cast)."""
+    a = np.asarray(action)
+    if a.dtype.kind not in "biuf":
+        raise TypeError(f"action must be 4 real numbers, got an array of {a.dtype} {action!r}")
+    if a.shape != (4,):
+        raise ValueError(f"action must have shape (4,), got {a.shape}")
+    a = a.astype(np.float64)
+    if not np.isfinite(a).all():
+        raise ValueError(f"action contains NaN or inf: {a.tolist()}")
+    return clip(a, -1.0, 1.0)
 
 
 def _observation_space(world: WorldConfig) -> spaces.Dict:
@@ -508,6 +457,9 @@ def _observation_space(world: WorldConfig) -> spaces.Dict:
         bound = np.float32(max(cam.width, cam.height))
         obs["tag_corners"] = spaces.Box(np.float32(-1.0), bound, (4, 2), np.float32)
         obs["tag_detected"] = spaces.Discrete(2)
+        obs["tag_status"] = spaces.Discrete(len(TAG_STATUS))
+    if cam is not None:
+        obs["camera_age"] = spaces.Box(np.float32(0.0), np.float32(MAX_SENSOR_AGE), (1,), np.float32)
     obs["ranges"] = spaces.Box(np.float32(0.0), np.float32(world.tof.max_range), (4,), np.float32)
     obs["ranges_valid"] = spaces.MultiBinary(4)
     obs["imu"] = spaces.Dict(
@@ -517,4 +469,5 @@ def _observation_space(world: WorldConfig) -> spaces.Dict:
             "linear_acceleration": spaces.Box(-200.0, 200.0, (3,), np.float32),
         }
     )
+    obs["nav_velocity"] = spaces.Box(-MAX_NAV_VELOCITY, MAX_NAV_VELOCITY, (3,), np.float32)
     return spaces.Dict(obs)

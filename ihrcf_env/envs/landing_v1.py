@@ -1,7 +1,8 @@
 """``DeckLandingV1Env``: the landing task of ``ihrcf_env/DeckLanding-v1``, where sensing matters.
 
 A :class:`~ihrcf_env.envs.deck_landing.DeckLandingEnv` (same world, actions, sensors, options) with
-the task of :class:`LandingTaskV1`; its defaults differ from v0's (:data:`V1_DEFAULTS`):
+the landing goal of :class:`~ihrcf_env.envs.task_config.LandingGoal`; its defaults differ from the
+hover task's (:data:`V1_DEFAULTS`):
 
 * **start** 1.5-3 m above the deck origin (``start_altitude`` 2.25 +- 0.75 m), any yaw
   (``start_yaw`` pi), a horizontal offset uniform over a disc of radius ``start_offset`` (1 m)
@@ -16,7 +17,8 @@ the task of :class:`LandingTaskV1`; its defaults differ from v0's (:data:`V1_DEF
   tilt over 60 deg or leaving the arena is a crash (``info["crash_reason"]``). Both terminate; only
   the ``TimeLimit`` truncates.
 
-**Reward** (weights :class:`RewardWeightsV1`, per step, each term in ``info["reward_<term>"]``)::
+**Reward** (weights :class:`~ihrcf_env.envs.task_config.RewardWeightsV1`, per step, each term in
+``info["reward_<term>"]``)::
 
     progress = Phi(s') - Phi(s)        Phi = -(distance d_xy + height h + speed |v_rel|)
     time     = -time / control_hz
@@ -38,38 +40,27 @@ from its first soft, off-target touchdowns towards the target (with one flat -10
 failure, a learner must succeed in ~40 % of its attempts before trying beats hovering: PPO settled
 on hovering). The order success > hover > crash still holds with fixed policies (test).
 
-``info`` adds to v0's ground truth ``nav_velocity`` (the autopilot's velocity estimate, world, m/s:
-a sensor, not ground truth), ``wind_velocity``, ``relative_velocity`` (world, m/s), ``tag_offset``
-(m, horizontal) and ``is_success``. The observation is the raw env's; ``ihrcf_env/DeckLanding-v1``
-wraps it (:mod:`ihrcf_env.wrappers.landing_obs`).
+``info`` adds ``tag_offset`` (m, horizontal) and ``is_success`` to the ground truth of the hover
+task's ``info`` (which has ``wind_velocity`` and ``relative_velocity``, world, m/s). The
+observation is the raw env's; ``ihrcf_env/DeckLanding-v1`` wraps it
+(:mod:`ihrcf_env.wrappers.landing_obs`).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ihrcf_env.envs.config import check_bool, check_non_negative_fields, check_real
+from ihrcf_env.envs.config import TASK_DEFAULTS
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
-from ihrcf_env.sim.disturbances import Disturbance, Wind, WindParams
+from ihrcf_env.envs.task_config import LandingGoal
 from ihrcf_env.sim.world import Snapshot, Touchdown
 
-#: ``gym.make`` defaults of v1 that differ from v0's (any of them can still be given).
-V1_DEFAULTS: dict[str, Any] = {
-    "deck_profile": "sea_state",
-    "random_deck_start": True,
-    "sensor_preset": "realistic",
-    "start_altitude": 2.25,
-    "start_altitude_jitter": 0.75,
-    "start_offset": 1.0,
-    "start_yaw": math.pi,
-}
+#: ``gym.make`` defaults of v1 that differ from the hover task's (any of them can still be given).
+V1_DEFAULTS: dict[str, Any] = TASK_DEFAULTS["landing-v1"]
 #: Legs below the drone's centre (m): the height of the centre above the deck when landed.
 LEG_LENGTH = 0.10
 #: Half of the tag's printed extent around its centre (m) per metre of ``tag_size``: the black
@@ -77,120 +68,23 @@ LEG_LENGTH = 0.10
 TAG_EXTENT = 10.0 / 8.0 / 2.0
 
 
-def _fields_from(name: str, cls: type, value: object) -> Any:
-    """``cls`` itself, or a ``cls`` built from a mapping of some of its fields (errors name ``name``)."""
-    if isinstance(value, cls):
-        return value
-    if isinstance(value, Mapping):
-        known = [f.name for f in dataclasses.fields(cls)]
-        for key in value:
-            if key not in known:
-                raise ValueError(f"{name} has no parameter {key!r}; known: {', '.join(known)}")
-        try:
-            return cls(**value)
-        except (TypeError, ValueError) as e:
-            raise type(e)(f"{name}: {e}") from None
-    raise TypeError(
-        f"{name} must be a {cls.__name__} or a dict of its fields, got {type(value).__name__} {value!r}"
-    )
-
-
-@dataclass(frozen=True)
-class RewardWeightsV1:
-    """Weights of the v1 reward (module docstring): ``distance`` (1/m), ``height`` (1/m), ``speed``
-    (s/m) of the potential; ``time`` (1/s) and ``action`` (1/s) per second of flight; ``success``,
-    ``crash`` and ``near_miss`` (<= crash) once. All >= 0."""
-
-    distance: float = 10.0
-    height: float = 5.0
-    speed: float = 5.0
-    time: float = 1.0
-    action: float = 0.2
-    success: float = 100.0
-    crash: float = 100.0
-    near_miss: float = 20.0
-
-    def __post_init__(self) -> None:
-        check_non_negative_fields(self, lambda n: f"reward_weights[{n!r}]")
-        if self.near_miss > self.crash:
-            raise ValueError(
-                f"reward_weights['near_miss'] ({self.near_miss}) must not exceed reward_weights['crash'] "
-                f"({self.crash})"
-            )
-
-
-@dataclass(frozen=True)
-class LandingTaskV1:
-    """What v1 adds to the task: ``success_radius`` (m, horizontal, drone centre to tag centre),
-    ``start_in_view`` (clip the start offset so the tag is in view), ``view_margin`` (m kept between
-    the tag and the image border at the start, for the deck's motion), ``wind`` (None: calm) and
-    the reward weights."""
-
-    success_radius: float = 0.15
-    start_in_view: bool = True
-    view_margin: float = 0.1
-    wind: WindParams | None = field(default_factory=WindParams)
-    reward: RewardWeightsV1 = field(default_factory=RewardWeightsV1)
-
-    def __post_init__(self) -> None:
-        r = check_real("success_radius", self.success_radius, " (m)")
-        if not 0 < r <= 1.0:
-            raise ValueError(f"success_radius must be in (0, 1] m, got {self.success_radius!r}")
-        object.__setattr__(self, "success_radius", r)
-        object.__setattr__(self, "start_in_view", check_bool("start_in_view", self.start_in_view))
-        m = check_real("view_margin", self.view_margin, " (m)")
-        if m < 0:
-            raise ValueError(f"view_margin must be >= 0 (m), got {self.view_margin!r}")
-        object.__setattr__(self, "view_margin", m)
-
-
-def make_task_v1(
-    success_radius: object = 0.15,
-    start_in_view: object = True,
-    view_margin: object = 0.1,
-    wind: object = True,
-    reward_weights: object = None,
-) -> LandingTaskV1:
-    """The validated :class:`LandingTaskV1` of the v1 options; TypeError / ValueError naming the
-    option. ``wind``: True (default :class:`WindParams`), False or None (calm), a
-    :class:`WindParams` or a dict of some of its fields; ``reward_weights``: None, a
-    :class:`RewardWeightsV1` or a dict of some of its fields."""
-    if wind is None or isinstance(wind, bool | np.bool_):
-        wind_params = WindParams() if wind else None
-    else:
-        wind_params = _fields_from("wind", WindParams, wind)
-    weights = (
-        RewardWeightsV1()
-        if reward_weights is None
-        else _fields_from("reward_weights", RewardWeightsV1, reward_weights)
-    )
-    return LandingTaskV1(success_radius, start_in_view, view_margin, wind_params, weights)  # type: ignore[arg-type]
-
-
 class DeckLandingV1Env(DeckLandingEnv):
-    """The v1 landing task (module docstring). Keyword arguments: those of :func:`make_task_v1`,
-    then any of :class:`DeckLandingEnv`'s (v1 defaults in :data:`V1_DEFAULTS`); ``disturbances``
-    are applied besides the wind. ``self.landing`` is the :class:`LandingTaskV1`, ``self.wind`` the
-    env's :class:`~ihrcf_env.sim.disturbances.Wind` (None when calm)."""
+    """The v1 landing task (module docstring). ``config`` (or options validated by
+    :func:`~ihrcf_env.envs.config.make_config` with ``task="landing-v1"``, v1 defaults in
+    :data:`V1_DEFAULTS`); ``self.goal`` is the config's
+    :class:`~ihrcf_env.envs.task_config.LandingGoal`, ``self.wind`` the env's wind (None when
+    calm)."""
 
-    def __init__(
-        self,
-        success_radius: float = 0.15,
-        start_in_view: bool = True,
-        view_margin: float = 0.1,
-        wind: bool | WindParams | Mapping[str, Any] | None = True,
-        reward_weights: RewardWeightsV1 | Mapping[str, float] | None = None,
-        disturbances: Sequence[Disturbance] = (),
-        **kwargs: Any,
-    ) -> None:
+    task_name = "landing-v1"
+
+    def __init__(self, config: Any = None, **options: Any) -> None:
         self._closed = True  # until the parent has a world
-        task = make_task_v1(success_radius, start_in_view, view_margin, wind, reward_weights)
-        if isinstance(disturbances, str | Disturbance) or not isinstance(disturbances, Sequence):
-            raise TypeError(f"disturbances must be a sequence of Disturbance, got {disturbances!r}")
-        extra = (Wind(task.wind),) if task.wind is not None else ()
-        super().__init__(disturbances=(*disturbances, *extra), **{**V1_DEFAULTS, **kwargs})
-        self.landing = task
-        self.wind: Wind | None = self.world.disturbances[-1] if extra else None  # type: ignore[assignment]
+        super().__init__(config, **options)
+        goal = self.config.task.landing
+        if goal is None:
+            self.close()
+            raise ValueError('DeckLandingV1Env needs a landing-task config (make_config(task="landing-v1"))')
+        self.goal: LandingGoal = goal
         self._phi = 0.0
 
     # -- start -------------------------------------------------------------------------------
@@ -198,21 +92,23 @@ class DeckLandingV1Env(DeckLandingEnv):
         """Largest start offset (m) at ``altitude`` (m above the deck origin): ``start_offset``, or
         less so that the tag and its white border stay ``view_margin`` inside the image whatever the
         yaw (the inscribed circle of the view); 0 if even a centred start cannot see it."""
-        limit = self.task.start.offset
-        cam = self.config.camera
-        if cam is None or not self.landing.start_in_view:
+        limit = self.config.task.start.offset
+        cam = self.config.world.camera
+        if cam is None or not self.goal.start_in_view:
             return limit
         tan_half = math.tan(cam.fov / 2) * min(1.0, cam.width / cam.height)
         depth = altitude + float(self.rig.camera_position[2])  # the camera sits below the centre
         half_view = depth * tan_half
-        tag = self.config.deck.tag_size * TAG_EXTENT * math.sqrt(2.0)
-        return float(min(limit, max(0.0, half_view - tag - self.landing.view_margin)))
+        tag = self.config.world.deck.tag_size * TAG_EXTENT * math.sqrt(2.0)
+        return float(min(limit, max(0.0, half_view - tag - self.goal.view_margin)))
 
-    def _draw_start(self, options: dict[str, Any]) -> tuple[float, tuple[float, float], float, float]:
-        """v0's draw (altitude, yaw, deck time and option checks), then the offset over the disc of
-        :meth:`start_radius` (uniform in area) unless ``options["offset"]`` fixes it."""
-        alt, off, yaw, deck_time = super()._draw_start(options)
-        u, phi = self.np_random.uniform(), self.np_random.uniform(0.0, 2.0 * math.pi)
+    def _draw_start(
+        self, options: dict[str, Any], rng: np.random.Generator
+    ) -> tuple[float, tuple[float, float], float, float]:
+        """The hover task's draw (altitude, yaw, deck time and option checks), then the offset over
+        the disc of :meth:`start_radius` (uniform in area) unless ``options["offset"]`` fixes it."""
+        alt, off, yaw, deck_time = super()._draw_start(options, rng)
+        u, phi = rng.uniform(), rng.uniform(0.0, 2.0 * math.pi)
         if "offset" not in options:
             r = self.start_radius(alt) * math.sqrt(u)
             off = (r * math.cos(phi), r * math.sin(phi))
@@ -238,7 +134,7 @@ class DeckLandingV1Env(DeckLandingEnv):
     def potential(self, s: Snapshot, touchdown: Touchdown | None = None) -> float:
         """Shaping potential Phi (module docstring) of the state ``s``; after a ``touchdown`` its
         approach speed stands for the speed (the contact has already changed the velocity)."""
-        w = self.landing.reward
+        w = self.goal.reward
         height = max(float(s.drone_position[2] - s.deck_position[2]) - LEG_LENGTH, 0.0)
         speed = (
             abs(touchdown.relative_vertical_speed)
@@ -249,7 +145,7 @@ class DeckLandingV1Env(DeckLandingEnv):
 
     def _outcome(self, touchdown: Touchdown | None, s: Snapshot) -> tuple[str, str]:
         outcome, reason = super()._outcome(touchdown, s)
-        radius = self.landing.success_radius
+        radius = self.goal.success_radius
         if outcome == "success" and self.tag_offset(s) > radius:
             return "crash", f"touched down {self.tag_offset(s):.2f} m from the tag centre (> {radius:g} m)"
         return outcome, reason
@@ -257,7 +153,7 @@ class DeckLandingV1Env(DeckLandingEnv):
     def _get_rew(
         self, action: NDArray[np.float64], outcome: str, s: Snapshot
     ) -> tuple[float, dict[str, float]]:
-        w, dt = self.landing.reward, 1.0 / self.config.control_hz
+        w, dt = self.goal.reward, 1.0 / self.config.world.control_hz
         phi = self.potential(s, self._last_touchdown if outcome != "flying" else None)
         terms = {
             "reward_progress": phi - self._phi,
@@ -276,24 +172,20 @@ class DeckLandingV1Env(DeckLandingEnv):
         td = self._last_touchdown
         if td is None or td.body != "deck" or not td.on_deck:
             return math.inf
-        th = self.task.thresholds
+        th = self.config.task.thresholds
         return max(
             abs(td.relative_vertical_speed) / th.success_speed,
             td.relative_tilt / th.success_tilt,
-            self.tag_offset(s) / self.landing.success_radius,
+            self.tag_offset(s) / self.goal.success_radius,
         )
 
     def failure_penalty(self, s: Snapshot) -> float:
         """The penalty (> 0) of a failed episode: graded by :meth:`miss` for a touchdown on the deck,
         the full ``crash`` weight otherwise (module docstring)."""
-        w = self.landing.reward
+        w = self.goal.reward
         return w.near_miss + (w.crash - w.near_miss) * min(1.0, max(0.0, self.miss(s) - 1.0))
 
     def _get_info(self, s: Snapshot) -> dict[str, Any]:
         info = super()._get_info(s)
-        t = self.world.time
-        info["nav_velocity"] = self.world.nav_velocity()
-        info["wind_velocity"] = self.wind.velocity(t) if self.wind is not None else np.zeros(3)
-        info["relative_velocity"] = s.relative_velocity
         info["tag_offset"] = self.tag_offset(s)
         return info

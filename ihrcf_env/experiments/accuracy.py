@@ -24,7 +24,7 @@ HOVER_START: dict[str, Any] = {"altitude": 1.0, "offset": (0.0, 0.0), "yaw": 0.0
 def hover_rollout(
     env: gym.Env, frames: int, seed: int = 0, altitude: float = 1.0, track: str | None = None
 ) -> Recording:
-    """Reset ``env`` (``ihrcf_env/DeckLanding-v0``) to :data:`HOVER_START` (at ``altitude`` m above
+    """Reset ``env`` (``ihrcf_env/DeckHover-v0``) to :data:`HOVER_START` (at ``altitude`` m above
     the deck) and record ``frames`` control steps of the hover; score it with
     :meth:`Recording.error_stats`.
 
@@ -56,7 +56,7 @@ def make_accuracy_env(
     deck_profile: str = "paper",
     **env_kwargs: Any,
 ) -> gym.Env:
-    """``ihrcf_env/DeckLanding-v0`` for a ``frames``-step accuracy run (no image kept).
+    """``ihrcf_env/DeckHover-v0`` for a ``frames``-step accuracy run (no image kept).
 
     Args:
         frames: control steps to be run; the episode limits are set beyond them.
@@ -70,7 +70,7 @@ def make_accuracy_env(
     if tof_noise is not None:
         env_kwargs["tof_noise"] = tof_noise
     return gym.make(
-        "ihrcf_env/DeckLanding-v0",
+        "ihrcf_env/DeckHover-v0",
         calibration=calibration,
         keep_image=False,
         camera_distortion=tuple(distortion),

@@ -207,7 +207,8 @@ class CameraValidation:
 def _estimators(
     cal: Calibration, tag_size: float, tag_id: int, tof_model: object, names: Sequence[str] = ESTIMATORS
 ) -> DeckPoseEstimator:
-    from ihrcf_env.wrappers.estimates import estimator_from_calibration, fused_params_for_tof
+    from ihrcf_env.envs.config import fused_params_for_tof
+    from ihrcf_env.wrappers import estimator_from_calibration
 
     return estimator_from_calibration(
         cal,

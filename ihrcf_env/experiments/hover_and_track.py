@@ -46,7 +46,7 @@ def run(
         raise ValueError(f"seconds must be positive, got {seconds!r}")
     n = max(int(round(seconds * CONTROL_HZ)), 1)
     env = gym.make(
-        "ihrcf_env/DeckLanding-v0",
+        "ihrcf_env/DeckHover-v0",
         deck_profile=profile,
         tof_noise=tof_noise,
         keep_image=False,

@@ -71,7 +71,7 @@ def evaluate(
         kwargs["tof_noise"] = tof_noise
     hz = int(kwargs.get("control_hz", 20))
     env = gym.make(
-        "ihrcf_env/DeckLanding-v0",
+        "ihrcf_env/DeckHover-v0",
         deck_profile=profile,
         keep_image=False,
         max_episode_steps=max(1, int(round(max_seconds * hz))),

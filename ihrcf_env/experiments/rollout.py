@@ -88,7 +88,7 @@ def rollout(
     """Reset ``env`` and step it ``steps`` times (fewer if the episode ends), recording every step.
 
     Args:
-        env: ``ihrcf_env/DeckLanding-v0`` (the wrapped env, dict observation), velocity actions.
+        env: ``ihrcf_env/DeckHover-v0`` (the wrapped env, dict observation), velocity actions.
         steps: control steps to run.
         policy: observation -> normalised action; ``None`` sends zeros (the autopilot holds its pose).
         seed, options: passed to ``env.reset``.
@@ -97,7 +97,7 @@ def rollout(
     if steps < 1:
         raise ValueError(f"steps must be >= 1, got {steps!r}")
     base = env.unwrapped
-    hz = float(base.config.control_hz)  # type: ignore[attr-defined]
+    hz = float(base.config.world.control_hz)  # type: ignore[attr-defined]
     max_velocity = np.asarray(base.max_velocity, dtype=np.float64)  # type: ignore[attr-defined]
     n = int(steps)
     obs, info = env.reset(seed=seed, options=dict(options) if options is not None else None)

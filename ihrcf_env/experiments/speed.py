@@ -21,7 +21,7 @@ import numpy as np
 
 import ihrcf_env  # noqa: F401  (registers the envs)
 
-WRAPPED = "ihrcf_env/DeckLanding-v0"
+WRAPPED = "ihrcf_env/DeckHover-v0"
 #: The wrapped env's camera modes: label -> gym.make kwargs (all estimators, 1 m hover).
 CAMERA_MODES: dict[str, dict[str, Any]] = {
     "rendered 512, image kept": {"keep_image": True},
@@ -65,7 +65,7 @@ def wrapped_speed(
     control_hz: int = 20,
     warmup: int = 5,
 ) -> Speed:
-    """Steps/s of the wrapped env (``ihrcf_env/DeckLanding-v0``, flat observation unless the kwargs
+    """Steps/s of the wrapped env (``ihrcf_env/DeckHover-v0``, flat observation unless the kwargs
     keep the image) with ``kwargs``, zero actions, at the 1 m hover."""
     kw = {**_hover_kwargs(control_hz), **kwargs}
     if not kw.get("keep_image", False):
@@ -214,7 +214,8 @@ def component_costs(frames: int = 100, sensor_preset: str = "ideal") -> dict[str
     from ihrcf_env.envs.config import make_config
     from ihrcf_env.sim.sensors.base import TAG_CAMERA
     from ihrcf_env.sim.world import World
-    from ihrcf_env.wrappers.estimates import estimator_from_calibration, fused_params_for_tof
+    from ihrcf_env.envs.config import fused_params_for_tof
+    from ihrcf_env.wrappers import estimator_from_calibration
 
     cfg = make_config(sensor_preset=sensor_preset, **_hover_kwargs(20))
     projected = make_config(sensor_preset=sensor_preset, camera_model="projected", **_hover_kwargs(20))

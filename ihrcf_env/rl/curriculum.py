@@ -43,10 +43,10 @@ class StartCurriculum(gym.Wrapper[Any, Any, Any, Any]):
     ):
         super().__init__(env)
         base = env.unwrapped
-        for attr in ("task", "start_radius"):
+        for attr in ("goal", "start_radius"):
             if not hasattr(base, attr):
                 raise TypeError(f"env must be a DeckLanding-v1 env (no {attr!r}), got {type(base).__name__}")
-        start = base.task.start  # type: ignore[attr-defined]
+        start = base.config.task.start  # type: ignore[attr-defined]
         try:
             lo, hi = (float(v) for v in easy_altitude)
         except (TypeError, ValueError):

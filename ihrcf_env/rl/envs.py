@@ -1,7 +1,7 @@
 """The env factory shared by the learning scripts (SB3 and RLlib).
 
 ``ihrcf_env/DeckLanding-v1`` is the learning task (one-level float32 Box observation,
-``info["is_success"]`` at episode end). ``ihrcf_env/DeckLanding-v0`` is accepted too (made with
+``info["is_success"]`` at episode end). ``ihrcf_env/DeckHover-v0`` is accepted too (made with
 ``flatten=True``, its ``info["outcome"]`` turned into ``info["is_success"]``) so that the scripts run
 on the paper's hover env as well.
 """
@@ -18,7 +18,7 @@ from gymnasium.envs.registration import registry
 import ihrcf_env
 
 V1_ID = "ihrcf_env/DeckLanding-v1"
-V0_ID = ihrcf_env.ENV_ID
+V0_ID = ihrcf_env.HOVER_ID
 
 
 class SuccessInfo(gym.Wrapper[Any, Any, Any, Any]):
@@ -33,7 +33,7 @@ class SuccessInfo(gym.Wrapper[Any, Any, Any, Any]):
 
 
 def default_env_id() -> str:
-    """``ihrcf_env/DeckLanding-v1`` when registered, else ``ihrcf_env/DeckLanding-v0``."""
+    """``ihrcf_env/DeckLanding-v1`` when registered, else ``ihrcf_env/DeckHover-v0``."""
     return V1_ID if V1_ID in registry else V0_ID
 
 

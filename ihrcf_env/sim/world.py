@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import struct
 import tempfile
+import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -22,6 +23,7 @@ from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.frames import matrix_from_quat, relative_pose
 from ihrcf_env.core.profiles import MotionProfile
 from ihrcf_env.core.rig import SensorRig
+from ihrcf_env.core.seeding import SeedStreams
 from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.sim.deck import Deck, DeckConfig, DeckTrajectory, rigid_point_velocity
 from ihrcf_env.sim.disturbances import Disturbance
@@ -43,6 +45,16 @@ CAMERA_MODELS: tuple[str, ...] = ("rendered", "projected")
 CAMERA_OUTPUTS: tuple[str, ...] = ("image", "corners")
 #: Names of the camera sensors in ``World.sensors`` (read at ``camera_hz``, held in between).
 CAMERA_SENSORS: tuple[str, ...] = ("camera", TAG_CAMERA)
+
+
+def _release(client: int, tmp: tempfile.TemporaryDirectory[str]) -> None:
+    """Disconnect ``client`` and remove ``tmp`` (a world's finalizer: also runs for a world that is
+    dropped without ``close()``)."""
+    try:
+        p.disconnect(physicsClientId=client)
+    except p.error:
+        pass
+    tmp.cleanup()
 
 
 @dataclass(frozen=True)
@@ -164,6 +176,8 @@ class World:
             raise RuntimeError("could not start a PyBullet physics client" + (" with a GUI" if gui else ""))
         self._closed = False
         self._tmp = tempfile.TemporaryDirectory(prefix="ihrcf_env_")
+        # released when the world is closed, garbage-collected or the interpreter exits
+        self._finalizer = weakref.finalize(self, _release, self.client, self._tmp)
         try:
             self._build(gui)
         except BaseException:
@@ -202,10 +216,15 @@ class World:
             self.sensors.update(self._camera_sensor(cfg.camera))
         self.sensors["tof"] = self.tof
         self.sensors["imu"] = self.imu_sensor
+        for name in CAMERA_SENSORS:
+            if name in self.sensors:
+                self.sensors[name].update_interval = cfg.camera_every  # type: ignore[attr-defined]
         self.disturbances: list[Disturbance] = []
         self.tick = 0
-        self._camera_held: dict[str, NDArray] = {}
-        self.camera_time = math.nan  # s, simulated time of the last camera frame (NaN: none yet)
+        self._held: dict[str, dict[str, NDArray]] = {}  # sensor -> its last reading
+        #: sensor name -> simulated time (s) of the reading shown (NaN: none yet this episode)
+        self.sample_times: dict[str, float] = dict.fromkeys(self.sensors, math.nan)
+        self._rngs: dict[str, np.random.Generator] = {}  # stream name -> this episode's generator
         self._motor_cmd = [0.0] * 4
         self._acc_world = np.zeros(3)
         self._setpoint = (0.0, 0.0, 0.0, 0.0)
@@ -253,8 +272,8 @@ class World:
             plate_half_thickness=self.config.deck.thickness / 2,
         )
         self.tick = 0
-        self._camera_held = {}
-        self.camera_time = math.nan
+        self._held = {}
+        self.sample_times = dict.fromkeys(self.sensors, math.nan)
         self.deck.set_trajectory(traj)
         deck_pos, _ = self.deck.pose()
         start = np.array([deck_pos[0] + offset_xy[0], deck_pos[1] + offset_xy[1], deck_pos[2] + altitude])
@@ -265,16 +284,24 @@ class World:
         self._acc_world = np.zeros(3)
         self.deck.update_visuals()
 
-    def reset_random(self, rng: np.random.Generator) -> None:
-        """Let sensors, disturbances and the navigation estimate draw this episode's random state
-        (biases, gusts, navigation errors) from ``rng``, in that order. With an estimated navigation
-        the position hold then engages on the estimate (as an autopilot's does), not on the truth."""
-        for sensor in self.sensors.values():
+    def reset_random(self, streams: SeedStreams | np.random.Generator) -> None:
+        """Draw this episode's random state (sensor biases, gusts, navigation errors), each subsystem
+        from its own stream of ``streams`` (a Generator: streams keyed by one draw from it): sensor
+        ``name`` from ``"sensor.<name>"``, the i-th disturbance from ``disturbance_streams[i]``
+        (default ``"disturbance.<i>"``), the navigation estimate from ``"navigation"``. A sensor
+        keeps drawing its per-reading noise from its stream. With an estimated navigation the
+        position hold then engages on the estimate (as an autopilot's does), not on the truth."""
+        if isinstance(streams, np.random.Generator):
+            streams = SeedStreams.from_generator(streams)
+        self._rngs = {}
+        for name, sensor in self.sensors.items():
+            rng = self._rngs[name] = streams.generator(f"sensor.{name}")
             sensor.reset(rng)
-        for d in self.disturbances:
-            d.reset(rng)
+        names = self.disturbance_streams
+        for i, d in enumerate(self.disturbances):
+            d.reset(streams.generator(names[i] if i < len(names) else f"disturbance.{i}"))
         nav = self.navigation
-        nav.reset(rng)
+        nav.reset(streams.generator("navigation"))
         if not nav.ideal:
             pos, _, vel, _ = self.quad.state()
             est, _ = nav.estimate(self.time, pos, vel)
@@ -282,7 +309,8 @@ class World:
 
     def close(self) -> None:
         """Disconnect the client (and any a sensor holds: the tag window's tag scene) and remove
-        temporary files; safe to call twice."""
+        temporary files; safe to call twice. A world dropped without ``close()`` releases its client
+        when it is garbage-collected."""
         if self._closed:
             return
         self._closed = True
@@ -293,11 +321,7 @@ class World:
                     close()
                 except p.error:
                     pass
-        try:
-            p.disconnect(physicsClientId=self.client)
-        except p.error:
-            pass
-        self._tmp.cleanup()
+        self._finalizer()
 
     @property
     def closed(self) -> bool:
@@ -314,6 +338,10 @@ class World:
                 f"disturbance must have reset(rng) and __call__(t, position, velocity), got {disturbance!r}"
             )
         self.disturbances.append(disturbance)
+
+    #: Stream names of the disturbances, by position (others: ``"disturbance.<i>"``); the env names
+    #: its wind ``"wind"``, so user disturbances never shift the wind's draws.
+    disturbance_streams: tuple[str, ...] = ()
 
     @property
     def time(self) -> float:
@@ -443,37 +471,50 @@ class World:
         )
 
     def read_sensors(
-        self, rng: np.random.Generator, names: tuple[str, ...] | None = None
+        self, rng: np.random.Generator | None = None, names: tuple[str, ...] | None = None
     ) -> dict[str, NDArray]:
         """One reading of the sensors ``names`` (default: all, in :attr:`sensors` order), merged into
         one mapping of measurement names (``image``, or ``tag_corners``/``tag_detected``/``tag_reason``;
         ``ranges``, ``ranges_valid``, ``quaternion``, ``angular_velocity``, ``linear_acceleration``)
         to arrays. Call once per control step: noise models advance by one control period.
 
-        With the default ``names`` the camera (:data:`CAMERA_SENSORS`) delivers a new frame only
-        every :attr:`WorldConfig.camera_every` control steps (``camera_hz``), counted from the
-        episode's start; in between its last frame is repeated (the same arrays) and
-        :attr:`camera_time` (s) still says when it was taken. Named explicitly, a sensor is always
+        Each sensor samples every ``update_interval`` control steps (its attribute, default 1; the
+        camera's is ``control_hz / camera_hz``), counted from the episode's start; in between its
+        last reading is repeated (fresh copies of the same arrays) and :attr:`sample_times` (s)
+        still says when it was taken. Noise is drawn from each sensor's own stream (see
+        :meth:`reset_random`), or from ``rng`` when given. Named explicitly, a sensor is always
         read."""
         state = self.body_state()
         control_dt = self.config.substeps * self.dt
+        step = self.tick // self.config.substeps
         out: dict[str, NDArray] = {}
         held = names is None
-        every = self.config.camera_every
-        due = (self.tick // self.config.substeps) % every == 0 or not self._camera_held
         for name in names if names is not None else tuple(self.sensors):
-            is_camera = name in CAMERA_SENSORS
-            if held and is_camera and not due:
-                out.update({k: v.copy() for k, v in self._camera_held.items()})  # fresh arrays per step
+            sensor = self.sensors[name]
+            every = int(getattr(sensor, "update_interval", 1))
+            last = self._held.get(name)
+            if held and last is not None and step % every != 0:
+                out.update({k: v.copy() for k, v in last.items()})
                 continue
             if name == "camera":
                 self.deck.update_visuals()
-            reading = self.sensors[name].read(state, control_dt * (every if is_camera else 1), rng)
+            gen = rng if rng is not None else self._rngs.get(name)
+            if gen is None:  # before the first reset_random: a fixed stream
+                gen = self._rngs[name] = SeedStreams(0).generator(f"sensor.{name}")
+            reading = sensor.read(state, control_dt * every, gen)
             out.update(reading)
-            if held and is_camera:
-                self._camera_held = dict(reading)
-                self.camera_time = state.time
+            if held:
+                self._held[name] = dict(reading)
+                self.sample_times[name] = state.time
         return out
+
+    @property
+    def camera_time(self) -> float:
+        """Simulated time (s) of the camera frame last delivered (NaN: none yet this episode)."""
+        for name in CAMERA_SENSORS:
+            if name in self.sample_times:
+                return self.sample_times[name]
+        return math.nan
 
     def render_camera(self) -> NDArray[np.uint8]:
         """The downward camera's RGB image (H, W, 3) uint8."""

@@ -26,6 +26,7 @@ from ihrcf_env.core.profiles import (
 )
 from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.envs.config import (
+    ObservationConfig,
     DEFAULT_HORIZON_S,
     MIN_START_ALTITUDE,
     DeckLandingConfig,
@@ -35,8 +36,8 @@ from ihrcf_env.envs.deck_landing import DeckLandingEnv
 from ihrcf_env.sim.deck import DeckTrajectory
 from ihrcf_env.sim.disturbances import ConstantForce
 
-RAW = "ihrcf_env/DeckLandingRaw-v0"
-WRAPPED = "ihrcf_env/DeckLanding-v0"
+RAW = "ihrcf_env/DeckHoverRaw-v0"
+WRAPPED = "ihrcf_env/DeckHover-v0"
 NO_CAM = {"camera": False}
 
 
@@ -51,17 +52,20 @@ def _run(code: str, env: dict[str, str] | None = None, timeout: float = 180) -> 
 
 
 # -- the config: one place, same names and defaults as the env ------------------------------------
-def test_config_options_match_the_env_signature():
-    env_params = inspect.signature(DeckLandingEnv.__init__).parameters
-    cfg_params = inspect.signature(make_config).parameters
-    assert [n for n in env_params if n != "self"] == list(cfg_params)
-    for name, prm in cfg_params.items():
-        assert env_params[name].default == prm.default, name
+def test_the_env_takes_a_config_or_options_only():
+    """One signature of the options (make_config's): the env takes the validated config, or
+    options forwarded to make_config."""
+    env_params = list(inspect.signature(DeckLandingEnv.__init__).parameters)
+    assert env_params == ["self", "config", "options"]
+    with pytest.raises(TypeError, match="config or options"):
+        DeckLandingEnv(make_config(raw=True, camera=False), camera=False)
+    with pytest.raises(TypeError, match="DeckLandingConfig"):
+        DeckLandingEnv({"camera": False})
 
 
 def test_default_options_give_the_default_config():
-    cfg = make_config()
-    assert cfg == DeckLandingConfig()
+    cfg = make_config(raw=True)
+    assert cfg == DeckLandingConfig(observation=ObservationConfig(raw=True))
     assert cfg.task.deck.horizon_s == DEFAULT_HORIZON_S
     assert cfg.task.start.lowest >= MIN_START_ALTITUDE
 
@@ -72,7 +76,7 @@ import sys
 import gymnasium as gym
 import ihrcf_env
 try:
-    env = gym.make("ihrcf_env/DeckLandingRaw-v0", render_mode="human", camera=False)
+    env = gym.make("ihrcf_env/DeckHoverRaw-v0", render_mode="human", camera=False)
 except RuntimeError as e:
     print(e)
     sys.exit(3)
@@ -230,22 +234,22 @@ before = (clients(), temp_dirs())
 failures = 0
 for _ in range(30):  # rejected before the world exists
     try:
-        gym.make("ihrcf_env/DeckLandingRaw-v0", tag_id=-1)
+        gym.make("ihrcf_env/DeckHoverRaw-v0", tag_id=-1)
     except ValueError:
         failures += 1
 for _ in range(5):  # fails after the world exists
     with mock.patch.object(dl.p, "saveState", side_effect=RuntimeError("boom")):
         try:
-            gym.make("ihrcf_env/DeckLandingRaw-v0", camera=False)
+            gym.make("ihrcf_env/DeckHoverRaw-v0", camera=False)
         except RuntimeError:
             failures += 1
 for _ in range(5):  # the wrapper rejects the env's camera for the shipped calibration
     try:
-        gym.make("ihrcf_env/DeckLanding-v0", camera_width=96, camera_height=96)
+        gym.make("ihrcf_env/DeckHover-v0", camera_width=96, camera_height=96)
     except Exception:
         failures += 1
 after = (clients(), temp_dirs())
-env = gym.make("ihrcf_env/DeckLandingRaw-v0", camera=False)  # counting works: one open env shows
+env = gym.make("ihrcf_env/DeckHoverRaw-v0", camera=False)  # counting works: one open env shows
 during = (clients(), temp_dirs())
 env.close()
 print(failures, before, after, during)
@@ -359,7 +363,7 @@ def test_deck_stops_where_a_callable_profile_turns_unusable_beyond_the_horizon(m
             _, _, terminated, _, info = env.step(np.zeros(4))
             assert not terminated
             heights.append(info["deck_position_world"][2])
-        home = env.unwrapped.config.stewart.home_height
+        home = env.unwrapped.config.world.stewart.home_height
         assert heights[100] == pytest.approx(home + 0.05, abs=1e-3)  # moving at 5 s
         assert heights[-1] == pytest.approx(home + 0.06, abs=1e-3)  # stopped at 6 s
         assert np.ptp(heights[130:]) < 1e-4
@@ -420,7 +424,7 @@ BAD_OPTIONS = [
     ({"camera_distortion": "0"}, TypeError, "camera_distortion"),
     ({"camera_distortion": (0.0, 2.0)}, ValueError, "camera_distortion"),
     ({"camera_distortion": (-0.05, 0.0), "camera": False}, ValueError, "camera_distortion"),  # ignored
-    ({"sensor_preset": None}, TypeError, "sensor_preset"),
+    ({"sensor_preset": 3}, TypeError, "sensor_preset"),
     ({"sensor_preset": "perfect"}, ValueError, "sensor_preset"),
     ({"camera_quality": 1}, TypeError, "camera_quality"),
     ({"camera_quality": "cinematic"}, ValueError, "camera_quality"),
@@ -465,7 +469,25 @@ BAD_OPTIONS = [
     ({"tag_size": 0.7}, ValueError, "tag_size"),  # does not fit on the 0.8 m deck
     ({"start_altitude": "1"}, TypeError, "start_altitude"),
     ({"start_altitude": True}, TypeError, "start_altitude"),
-    ({"start_altitude_jitter": None}, TypeError, "start_altitude_jitter"),
+    ({"start_altitude_jitter": "0.1"}, TypeError, "start_altitude_jitter"),
+    ({"task": "hover"}, TypeError, "task"),  # the id names the task
+    ({"raw": 1}, TypeError, "raw"),
+    ({"calibration": 5}, TypeError, "calibration"),
+    ({"calibration": "cal.json"}, ValueError, "calibration"),  # raw: no wrapper to use it
+    ({"keep_image": "yes"}, TypeError, "keep_image"),
+    ({"flatten": 1}, TypeError, "flatten"),
+    ({"max_residual": 1e300}, ValueError, "max_residual"),
+    ({"max_residual": 0.0}, ValueError, "max_residual"),
+    ({"estimators": ("nope",)}, ValueError, "estimators"),
+    ({"fused_params": {}}, TypeError, "fused_params"),
+    ({"privileged": True}, ValueError, "privileged"),  # a landing-task option
+    ({"deck_motion": 1}, TypeError, "deck_motion"),
+    ({"success_radius": 0.1}, ValueError, "success_radius"),
+    ({"start_in_view": True}, ValueError, "start_in_view"),
+    ({"view_margin": 0.1}, ValueError, "view_margin"),
+    ({"reward_weights": {}}, ValueError, "reward_weights"),
+    ({"wind": "strong"}, TypeError, "wind"),
+    ({"wind": {"gale": 3.0}}, ValueError, "wind"),
     ({"start_offset": [0.1]}, TypeError, "start_offset"),
     ({"start_yaw": math.nan}, ValueError, "start_yaw"),
     ({"max_velocity": ("1", 1, 1, 1)}, TypeError, "max_velocity"),
@@ -547,7 +569,7 @@ def test_disturbance_pushes_the_drone_and_is_per_env():
                 _, _, _, _, info = env.step(np.zeros(4))
             xs.append(info["drone_position_world"][0])
         assert xs[1] - xs[0] > 0.02  # the position hold lags behind a steady 3 N push
-        assert pushed.unwrapped.settings.disturbances[0] is not push  # each env has its own copy
+        assert pushed.unwrapped.config.disturbances[0] is not push  # each env has its own copy
     finally:
         plain.close()
         pushed.close()

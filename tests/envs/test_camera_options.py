@@ -14,8 +14,8 @@ import pytest
 import ihrcf_env  # noqa: F401  (registers the envs)
 from ihrcf_env.envs.config import make_config
 
-RAW = "ihrcf_env/DeckLandingRaw-v0"
-WRAPPED = "ihrcf_env/DeckLanding-v0"
+RAW = "ihrcf_env/DeckHoverRaw-v0"
+WRAPPED = "ihrcf_env/DeckHover-v0"
 
 
 def _rollout(env: gym.Env, steps: int, seed: int = 3) -> tuple[list, list]:
@@ -60,14 +60,14 @@ def test_projected_defaults_to_corners_and_the_wrapper_drops_the_image():
 def test_keep_image_false_renders_the_tag_window():
     env = gym.make(WRAPPED, keep_image=False, deck_profile="static")
     try:
-        assert env.unwrapped.config.camera_output == "corners"
+        assert env.unwrapped.config.world.camera_output == "corners"
         obs, _ = env.reset(seed=0)
         assert "image" not in obs and obs["ihrcf"]["valid"] == 1
     finally:
         env.close()
     kept = gym.make(WRAPPED, keep_image=False, camera_output="image", deck_profile="static")
     try:  # an explicit camera_output wins
-        assert kept.unwrapped.config.camera_output == "image"
+        assert kept.unwrapped.config.world.camera_output == "image"
     finally:
         kept.close()
 

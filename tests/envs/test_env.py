@@ -12,16 +12,16 @@ from gymnasium.utils.env_checker import check_env
 import ihrcf_env  # noqa: F401  (registers the env)
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
 
-ENV_ID = "ihrcf_env/DeckLandingRaw-v0"  # the raw env; the wrapped id is tested in test_wrapper.py
+HOVER_ID = "ihrcf_env/DeckHoverRaw-v0"  # the raw env; the wrapped id is tested in test_wrapper.py
 SMALL = {"camera_width": 96, "camera_height": 96}
 
 
 def raw(**kw) -> DeckLandingEnv:
-    return gym.make(ENV_ID, **kw).unwrapped
+    return gym.make(HOVER_ID, **kw).unwrapped
 
 
 def test_check_env_passes():
-    env = gym.make(ENV_ID, **SMALL)
+    env = gym.make(HOVER_ID, **SMALL)
     try:
         check_env(env.unwrapped, skip_render_check=True)
     finally:
@@ -29,7 +29,7 @@ def test_check_env_passes():
 
 
 def test_check_env_motor_mode_without_camera():
-    env = gym.make(ENV_ID, camera=False, action_mode="motors")
+    env = gym.make(HOVER_ID, camera=False, action_mode="motors")
     try:
         check_env(env.unwrapped, skip_render_check=True)
         assert "image" not in env.observation_space.spaces
@@ -39,7 +39,7 @@ def test_check_env_motor_mode_without_camera():
 
 def test_make_in_fresh_interpreter():
     code = (
-        "import gymnasium as gym, ihrcf_env; e = gym.make('ihrcf_env/DeckLandingRaw-v0', camera=False); "
+        "import gymnasium as gym, ihrcf_env; e = gym.make('ihrcf_env/DeckHoverRaw-v0', camera=False); "
         "o, i = e.reset(seed=0); print(sorted(o)); e.close()"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
@@ -65,7 +65,7 @@ def _equal(a, b) -> bool:
 
 def test_same_seed_same_actions_bitwise_identical():
     kw = dict(deck_profile="sea_state", tof_noise="realistic", **SMALL)
-    e1, e2 = gym.make(ENV_ID, **kw), gym.make(ENV_ID, **kw)
+    e1, e2 = gym.make(HOVER_ID, **kw), gym.make(HOVER_ID, **kw)
     try:
         s1, s2 = _rollout(e1, 123, 60), _rollout(e2, 123, 60)
         assert all(_equal(a, b) for a, b in zip(s1, s2, strict=True))
@@ -185,7 +185,7 @@ def test_nan_or_inf_action_raises(bad):
 @pytest.mark.filterwarnings("ignore:.*render_mode.*:UserWarning")  # gymnasium warns before our ValueError
 def test_bad_config_raises_at_make(kwargs, name):
     with pytest.raises(ValueError, match=name):
-        gym.make(ENV_ID, **kwargs)
+        gym.make(HOVER_ID, **kwargs)
 
 
 def test_profile_exceeding_stroke_raises_naming_time_and_leg():
@@ -242,7 +242,7 @@ def test_landing_beside_the_deck_is_a_crash():
 
 
 def test_truncation_only_by_max_episode_steps():
-    env = gym.make(ENV_ID, camera=False, max_episode_steps=5)
+    env = gym.make(HOVER_ID, camera=False, max_episode_steps=5)
     try:
         env.reset(seed=0)
         flags = [env.step(np.zeros(4))[3] for _ in range(5)]
@@ -252,7 +252,7 @@ def test_truncation_only_by_max_episode_steps():
 
 
 def test_rgb_array_render_and_double_close():
-    env = gym.make(ENV_ID, render_mode="rgb_array", camera=False, chase_size=(160, 120))
+    env = gym.make(HOVER_ID, render_mode="rgb_array", camera=False, chase_size=(160, 120))
     env.reset(seed=0)
     frame = env.render()
     assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
@@ -262,7 +262,7 @@ def test_rgb_array_render_and_double_close():
 
 
 def test_observations_are_finite_and_in_space():
-    env = gym.make(ENV_ID, tof_noise="realistic", **SMALL)
+    env = gym.make(HOVER_ID, tof_noise="realistic", **SMALL)
     try:
         obs, _ = env.reset(seed=9)
         rng = np.random.default_rng(0)
@@ -300,7 +300,7 @@ def test_random_deck_start_is_seeded_and_deck_time_option_sets_it():
         assert not np.array_equal(a["deck_quaternion_world"], c["deck_quaternion_world"])
         _, d = env.reset(seed=0, options={"deck_time": 37.0})
         off, rpy = paper_profile()(37.0)
-        home = env.config.stewart.home_position
+        home = env.config.world.stewart.home_position
         np.testing.assert_allclose(d["deck_position_world"], home + off, atol=1e-6)
         with pytest.raises(ValueError, match="deck_time"):
             env.reset(options={"deck_time": -1.0})

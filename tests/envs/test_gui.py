@@ -24,7 +24,7 @@ from gymnasium.utils.passive_env_checker import env_render_passive_checker
 import ihrcf_env
 
 warnings.simplefilter("ignore")
-ID = "ihrcf_env/DeckLandingRaw-v0"
+ID = "ihrcf_env/DeckHoverRaw-v0"
 SMALL = {"camera_width": 64, "camera_height": 64}
 
 env = gym.make(ID, render_mode="human", **SMALL)

@@ -24,7 +24,7 @@ DIVE = np.array([0.0, 0.0, -1.0, 0.0], np.float32)  # full-speed descent
 
 
 def make(**kwargs: Any) -> gym.Env:
-    return gym.make(ihrcf_env.ENV_V1_ID, **{**FAST, **kwargs})
+    return gym.make(ihrcf_env.LANDING_V1_ID, **{**FAST, **kwargs})
 
 
 def test_registered_with_v1_defaults() -> None:
@@ -33,10 +33,12 @@ def test_registered_with_v1_defaults() -> None:
         base = env.unwrapped
         assert isinstance(base, DeckLandingV1Env)
         assert env.spec is not None and env.spec.max_episode_steps == 600
-        assert base.task.deck.profile == "sea_state" and base.task.deck.random_start
-        assert base.config.navigation.feedback == "estimated"  # the realistic preset
-        assert isinstance(base.wind, Wind) and base.landing.success_radius == 0.15
-        assert base.task.start.lowest == pytest.approx(1.5) and base.task.start.highest == pytest.approx(3.0)
+        assert base.config.task.deck.profile == "sea_state" and base.config.task.deck.random_start
+        assert base.config.world.navigation.feedback == "estimated"  # the realistic preset
+        assert isinstance(base.wind, Wind) and base.goal.success_radius == 0.15
+        assert base.config.task.start.lowest == pytest.approx(
+            1.5
+        ) and base.config.task.start.highest == pytest.approx(3.0)
     finally:
         env.close()
 
@@ -154,13 +156,13 @@ class _Constant:
 def test_returns_order_success_hover_crash() -> None:
     """On the default v1 task (projected camera for speed): the scripted landing (own sensing) >
     a safe hover until the time limit > a crash (full-speed dive), seed by seed."""
-    env = gym.make(ihrcf_env.ENV_V1_ID, camera_model="projected", horizon_s=60.0)
+    env = gym.make(ihrcf_env.LANDING_V1_ID, camera_model="projected", horizon_s=60.0)
     try:
         base = env.unwrapped
         scripted = ScriptedLanding(
             env.get_wrapper_attr("obs_slices"),
             env.get_wrapper_attr("obs_scales"),
-            base.config.control_hz,
+            base.config.world.control_hz,
             base.max_velocity,
             base.rig,
         )
@@ -195,7 +197,7 @@ def test_wind_leans_the_drone_and_info_has_it() -> None:
         lean = R[:, 2][:2]  # the thrust axis tilts into the wind (towards where it comes from)
         assert float(lean @ w[:2]) < 0
         assert math.degrees(math.asin(np.linalg.norm(lean))) == pytest.approx(5.2, abs=1.0)
-        assert np.linalg.norm(info["nav_velocity"]) < 0.3  # holding position
+        assert np.linalg.norm(info["relative_velocity"]) < 0.3  # holding position (static deck)
     finally:
         env.close()
     calm = make(wind=False)

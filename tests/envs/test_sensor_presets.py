@@ -17,7 +17,7 @@ from ihrcf_env.sim.navigation import NavigationErrors
 from ihrcf_env.sim.sensors.imu import IMUNoise
 from ihrcf_env.sim.sensors.tof import VL53L1X
 
-RAW = "ihrcf_env/DeckLandingRaw-v0"
+RAW = "ihrcf_env/DeckHoverRaw-v0"
 SMALL = {"camera_width": 96, "camera_height": 96}
 
 
@@ -56,7 +56,7 @@ def test_each_option_overrides_its_preset(kwargs, expected) -> None:
 def test_camera_quality_overrides_the_preset() -> None:
     assert _models(sensor_preset="realistic", camera_quality="ideal")[0] == "ideal"
     assert _models(camera_quality="realistic")[0] == "realistic"
-    assert make_config(sensor_preset="realistic", camera=False).world.camera is None  # no camera: fine
+    assert make_config(sensor_preset="realistic", camera=False, raw=True).world.camera is None  # fine
 
 
 def test_parameter_dicts_and_dataclasses() -> None:
@@ -80,7 +80,7 @@ def test_explicit_ideal_is_the_default() -> None:
         "autopilot_feedback": "truth",
         "camera_quality": "ideal",
     }
-    assert make_config(**explicit) == make_config()
+    assert make_config(raw=True, **explicit) == make_config(raw=True)
     envs = [gym.make(RAW, **SMALL), gym.make(RAW, **SMALL, **explicit)]
     try:
         runs = [_rollout(e, seed=3, n=20) for e in envs]
@@ -139,7 +139,7 @@ def test_observations_are_finite_in_space_and_flagged(kwargs) -> None:
     try:
         obs, _ = env.reset(seed=5)
         rng = np.random.default_rng(1)
-        max_range = np.float32(env.unwrapped.config.tof.max_range)
+        max_range = np.float32(env.unwrapped.config.world.tof.max_range)
         valid_count = steps = 0
         for _ in range(60):
             obs, _, term, _, _ = env.step(rng.uniform(-0.5, 0.5, 4))

@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def _thunk(steps: int):
-    return lambda: gym.make("ihrcf_env/DeckLanding-v0", flatten=True, max_episode_steps=steps)
+    return lambda: gym.make("ihrcf_env/DeckHover-v0", flatten=True, max_episode_steps=steps)
 
 
 def test_async_vector_env_steps_and_autoresets():
@@ -32,7 +32,7 @@ def test_async_vector_env_steps_and_autoresets():
                     done_at[i] = k
         assert done_at == {0: 3, 1: 5}
         # with the same seeds the sub-envs start like single envs do
-        single = gym.make("ihrcf_env/DeckLanding-v0", flatten=True)
+        single = gym.make("ihrcf_env/DeckHover-v0", flatten=True)
         o, _ = single.reset(seed=1)
         single.close()
         np.testing.assert_array_equal(first[0], o)

@@ -48,7 +48,7 @@ def test_recording_scores_each_estimator_against_ground_truth() -> None:
 
 
 def test_rollout_stops_where_the_episode_ends() -> None:
-    env = gym.make("ihrcf_env/DeckLanding-v0", deck_profile="static", keep_image=False, max_episode_steps=3)
+    env = gym.make("ihrcf_env/DeckHover-v0", deck_profile="static", keep_image=False, max_episode_steps=3)
     try:
         calls = []
         rec = rollout(env, 5, lambda obs: calls.append(obs) or np.zeros(4), seed=0, options=HOVER_START)
@@ -69,7 +69,7 @@ def test_accuracy_scores_the_hover() -> None:
 
 
 def test_hover_rollout_is_the_paper_start() -> None:
-    env = gym.make("ihrcf_env/DeckLanding-v0", deck_profile="static", keep_image=False)
+    env = gym.make("ihrcf_env/DeckHover-v0", deck_profile="static", keep_image=False)
     try:
         rec = hover_rollout(env, 2)
     finally:
@@ -79,7 +79,7 @@ def test_hover_rollout_is_the_paper_start() -> None:
 
 
 def test_hover_rollout_at_another_altitude() -> None:
-    env = gym.make("ihrcf_env/DeckLanding-v0", deck_profile="static", keep_image=False)
+    env = gym.make("ihrcf_env/DeckHover-v0", deck_profile="static", keep_image=False)
     try:
         rec = hover_rollout(env, 2, altitude=2.0)
     finally:
@@ -95,7 +95,7 @@ class _Terminal(io.StringIO):
 
 @pytest.mark.parametrize(("stream", "shown"), [(_Terminal, True), (io.StringIO, False)])
 def test_progress_bar_only_on_a_terminal(stream: type[io.StringIO], shown: bool) -> None:
-    env = gym.make("ihrcf_env/DeckLanding-v0", deck_profile="static", keep_image=False)
+    env = gym.make("ihrcf_env/DeckHover-v0", deck_profile="static", keep_image=False)
     err = stream()
     try:
         with contextlib.redirect_stderr(err):
@@ -107,7 +107,7 @@ def test_progress_bar_only_on_a_terminal(stream: type[io.StringIO], shown: bool)
 
 def test_hover_rollout_can_hold_over_the_tag_horizontally() -> None:
     env = gym.make(
-        "ihrcf_env/DeckLanding-v0", deck_profile="static", keep_image=False, autopilot_feedback="estimated"
+        "ihrcf_env/DeckHover-v0", deck_profile="static", keep_image=False, autopilot_feedback="estimated"
     )
     try:
         rec = hover_rollout(env, 40, seed=3, track="fused")

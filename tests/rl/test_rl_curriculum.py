@@ -81,7 +81,7 @@ def test_bad_input_names_the_parameter() -> None:
             StartCurriculum(e).set_curriculum_level(1.2)
     finally:
         e.close()
-    v0 = make_env("ihrcf_env/DeckLanding-v0", "projected")
+    v0 = make_env("ihrcf_env/DeckHover-v0", "projected")
     try:
         with pytest.raises(TypeError, match="DeckLanding-v1"):
             StartCurriculum(v0)

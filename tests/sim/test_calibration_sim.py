@@ -16,7 +16,7 @@ import numpy as np
 import pybullet as p
 import pytest
 
-from ihrcf_env import ENV_ID
+from ihrcf_env import HOVER_ID
 from ihrcf_env.cli.calibrate import main as calibrate_main
 from ihrcf_env.core.calibration import (
     YCBCR_THRESHOLDS,
@@ -276,7 +276,7 @@ def test_rendered_pads_on_tilted_deck_sit_at_table_pixels(world, scene, shipped,
 def test_estimator_loader_uses_the_shipped_file_and_names_bad_files(tmp_path: Path):
     """Item 5 through the estimator-facing loader (the env's pose-estimate wrapper): the default env
     loads the shipped file; a corrupt or inconsistent file gives an error naming it and the problem."""
-    env = gym.make(ENV_ID)
+    env = gym.make(HOVER_ID)
     try:
         cal = env.get_wrapper_attr("calibration")
         assert cal.source == str(default_calibration_path())
@@ -286,16 +286,16 @@ def test_estimator_loader_uses_the_shipped_file_and_names_bad_files(tmp_path: Pa
     corrupt = tmp_path / "corrupt.json"
     corrupt.write_text(text[: len(text) // 2], encoding="utf-8")
     with pytest.raises(CalibrationError, match=r"corrupt\.json.*not a valid calibration JSON"):
-        gym.make(ENV_ID, calibration=corrupt)
+        gym.make(HOVER_ID, calibration=corrupt)
     data = json.loads(text)
     data["tables"]["ps3"]["ranges"] = data["tables"]["ps3"]["ranges"][:3]
     data["tables"]["ps3"]["pixels"] = data["tables"]["ps3"]["pixels"][:3]
     short = tmp_path / "short.json"
     short.write_text(json.dumps(data), encoding="utf-8")
     with pytest.raises(CalibrationError, match=r"short\.json: bad 'tables'.*ps3.*at least 4"):
-        gym.make(ENV_ID, calibration=short)
+        gym.make(HOVER_ID, calibration=short)
     with pytest.raises(CalibrationError, match=r"nothere\.json.*not found.*python -m ihrcf_env\.calibrate"):
-        gym.make(ENV_ID, calibration=tmp_path / "nothere.json")
+        gym.make(HOVER_ID, calibration=tmp_path / "nothere.json")
     # A camera config the shipped file was not made for: the error gives the command to make one.
     with pytest.raises(CalibrationError, match="--width 320 --height 240 --fov-deg 70"):
         Calibration.load(default_calibration_path()).check_matches(320, 240, math.radians(70), RIG)

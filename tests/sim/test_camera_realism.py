@@ -28,7 +28,7 @@ from ihrcf_env.sim.sensors.imaging import (
     vignetting_gain,
 )
 from ihrcf_env.sim.world import World, WorldConfig
-from ihrcf_env.wrappers.estimates import estimator_from_calibration
+from ihrcf_env.wrappers import estimator_from_calibration
 
 REALISTIC = CameraConfig(quality="realistic")
 

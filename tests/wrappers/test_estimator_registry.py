@@ -14,7 +14,7 @@ from ihrcf_env.core.estimators import ESTIMATORS, EstimatorConfig, PoseEstimate,
 from ihrcf_env.core.frames import matrix_from_euler
 from ihrcf_env.wrappers.estimates import flat_slices
 
-ENV_ID = "ihrcf_env/DeckLanding-v0"
+HOVER_ID = "ihrcf_env/DeckHover-v0"
 
 
 class BelowAtHeight:
@@ -43,7 +43,7 @@ def toy(monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 def test_default_layout_is_untouched_by_a_registered_estimator(toy):
-    env = gym.make(ENV_ID, flatten=True)
+    env = gym.make(HOVER_ID, flatten=True)
     try:
         assert env.observation_space.shape == (46,)  # ihrcf, atda, fused, ground_truth
         assert env.get_wrapper_attr("flat_slices") == flat_slices()
@@ -53,7 +53,7 @@ def test_default_layout_is_untouched_by_a_registered_estimator(toy):
 
 def test_opted_in_estimator_gets_its_key_reason_and_slices(toy):
     names = ("ihrcf", "atda", "toy")
-    env = gym.make(ENV_ID, keep_image=False, estimators=names)
+    env = gym.make(HOVER_ID, keep_image=False, estimators=names)
     try:
         obs, info = env.reset(seed=0)
         assert set(obs) >= {"ihrcf", "atda", "toy", "ground_truth"}
@@ -65,7 +65,7 @@ def test_opted_in_estimator_gets_its_key_reason_and_slices(toy):
         assert toy_source.times == [0.0, info["time"]]  # reset, then one step, with the env's time
     finally:
         env.close()
-    flat = gym.make(ENV_ID, flatten=True, estimators=names)
+    flat = gym.make(HOVER_ID, flatten=True, estimators=names)
     try:
         s = flat.get_wrapper_attr("flat_slices")
         assert s == flat_slices(names)

@@ -15,21 +15,21 @@ from ihrcf_env.envs.deck_landing import DeckLandingEnv
 from ihrcf_env.experiments.accuracy import hover_rollout
 from ihrcf_env.wrappers.estimates import DeckPoseObservation, flat_slices
 
-ENV_ID = "ihrcf_env/DeckLanding-v0"
+HOVER_ID = "ihrcf_env/DeckHover-v0"
 
 # Paper Table 2, IHRCF mean absolute errors (m, m, m, deg, deg, deg)
 PAPER_IHRCF = np.array([0.0035, 0.0039, 0.0041, 0.98, 1.3731, 1.180])
 
 
 def test_wrapped_is_default_and_raw_is_available():
-    env = gym.make(ENV_ID)
+    env = gym.make(HOVER_ID)
     try:
         assert any(isinstance(w, DeckPoseObservation) for w in _chain(env))
         for key in ("ihrcf", "atda", "fused", "ground_truth", "image", "ranges"):
             assert key in env.observation_space.spaces
     finally:
         env.close()
-    raw = gym.make(ENV_ID, raw=True)
+    raw = gym.make(HOVER_ID, raw=True)
     try:
         assert "ihrcf" not in raw.observation_space.spaces
     finally:
@@ -75,7 +75,7 @@ def test_check_env_on_wrapped_env(flatten, keep_image):
 
 
 def test_flat_observation_for_rl_libraries():
-    env = gym.make(ENV_ID, flatten=True)
+    env = gym.make(HOVER_ID, flatten=True)
     try:
         s = env.get_wrapper_attr("flat_slices")
         assert s == flat_slices()
@@ -119,7 +119,7 @@ def test_flat_and_dict_observations_agree_block_by_block():
 
 
 def test_estimates_by_name_and_info_reasons():
-    env = gym.make(ENV_ID, keep_image=False)
+    env = gym.make(HOVER_ID, keep_image=False)
     try:
         _, info = env.reset(seed=0)
         wrapper = env.get_wrapper_attr("estimators")
@@ -139,7 +139,7 @@ def test_estimates_by_name_and_info_reasons():
 
 
 def test_tag_out_of_view_gives_invalid_zeros():
-    env = gym.make(ENV_ID, deck_profile="static")
+    env = gym.make(HOVER_ID, deck_profile="static")
     try:
         obs, info = env.reset(seed=0, options={"altitude": 1.0, "offset": (2.5, 0.0)})
         for key in ("ihrcf", "atda", "fused"):
@@ -154,7 +154,7 @@ def test_tag_out_of_view_gives_invalid_zeros():
 
 def test_tag_seen_on_a_level_static_deck():
     # regression: OpenCV's default candidate filtering lost the tag among the nested squares here
-    env = gym.make(ENV_ID, deck_profile="static", keep_image=False)
+    env = gym.make(HOVER_ID, deck_profile="static", keep_image=False)
     try:
         obs, info = env.reset(seed=0)
         assert obs["ihrcf"]["valid"] == 1 and obs["atda"]["valid"] == 1, info["ihrcf_reason"]
@@ -164,26 +164,26 @@ def test_tag_seen_on_a_level_static_deck():
 
 def test_calibration_mismatch_gives_the_command():
     with pytest.raises(CalibrationError, match="python -m ihrcf_env.calibrate"):
-        gym.make(ENV_ID, camera_fov=math.radians(50.0))
+        gym.make(HOVER_ID, camera_fov=math.radians(50.0))
 
 
 def test_missing_calibration_file_is_named(tmp_path):
     missing = tmp_path / "nope.json"
     with pytest.raises(CalibrationError, match="nope.json"):
-        gym.make(ENV_ID, calibration=missing)
+        gym.make(HOVER_ID, calibration=missing)
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
     with pytest.raises(CalibrationError, match="bad.json"):
-        gym.make(ENV_ID, calibration=bad)
+        gym.make(HOVER_ID, calibration=bad)
 
 
 def test_camera_off_needs_raw():
     with pytest.raises(ValueError, match="raw=True"):
-        gym.make(ENV_ID, camera=False)
+        gym.make(HOVER_ID, camera=False)
 
 
 def test_ihrcf_beats_the_paper_over_100_frames_and_atda_on_height():
-    env = gym.make(ENV_ID, keep_image=False)
+    env = gym.make(HOVER_ID, keep_image=False)
     try:
         stats = hover_rollout(env, 120).error_stats()
     finally:
@@ -198,7 +198,7 @@ def test_ihrcf_beats_the_paper_over_100_frames_and_atda_on_height():
 
 
 def test_realistic_tof_still_valid_and_finite():
-    env = gym.make(ENV_ID, keep_image=False, tof_noise="realistic")
+    env = gym.make(HOVER_ID, keep_image=False, tof_noise="realistic")
     try:
         rec = hover_rollout(env, 60, seed=3)
     finally:
@@ -210,14 +210,14 @@ def test_realistic_tof_still_valid_and_finite():
 
 def test_distorted_camera_needs_a_calibration_made_for_it(tmp_path):
     with pytest.raises(CalibrationError, match=r"--k1 -0\.05 --k2 0"):
-        gym.make(ENV_ID, camera_distortion=(-0.05, 0.0))
+        gym.make(HOVER_ID, camera_distortion=(-0.05, 0.0))
     from ihrcf_env.cli.calibrate import main as calibrate
 
     out = tmp_path / "cal_k1.json"
     assert (
         calibrate(["--k1", "-0.05", "--stages", "24", "--views", "6", "--quiet", "--output", str(out)]) == 0
     )
-    env = gym.make(ENV_ID, camera_distortion=(-0.05, 0.0), calibration=out, keep_image=False)
+    env = gym.make(HOVER_ID, camera_distortion=(-0.05, 0.0), calibration=out, keep_image=False)
     try:
         obs, _ = env.reset(seed=0, options={"altitude": 1.0, "offset": (0.0, 0.0)})
         assert obs["ihrcf"]["valid"] == 1 and obs["atda"]["valid"] == 1
@@ -230,7 +230,7 @@ def test_distorted_camera_needs_a_calibration_made_for_it(tmp_path):
 def test_fused_in_the_simulator_with_realistic_ranges():
     """The fused filter gets the IMU and the sim time, converges within a second and beats IHRCF's
     tilt by far with VL53L1X-like ranges (the issue's targets: <= 2 mm, <= 0.5 deg)."""
-    env = gym.make(ENV_ID, keep_image=False, tof_noise="realistic", max_episode_steps=None, horizon_s=10)
+    env = gym.make(HOVER_ID, keep_image=False, tof_noise="realistic", max_episode_steps=None, horizon_s=10)
     try:
         rec = hover_rollout(env, 120, seed=0)
         frame = env.get_wrapper_attr("last_frame")
@@ -251,12 +251,12 @@ def test_fused_range_offset_state_follows_the_tof_model():
     """The VL53L1X's per-sensor offsets give the fused filter a common-mode range-offset state
     (prior sigma offset_sigma / 2, the mean of four); the ideal ToF none; explicit params win."""
     for preset in ("realistic", "ideal"):
-        env = gym.make(ENV_ID, keep_image=False, sensor_preset=preset)
+        env = gym.make(HOVER_ID, keep_image=False, sensor_preset=preset)
         try:
             fused = env.get_wrapper_attr("estimators")["fused"]
             base = env.unwrapped
             assert isinstance(base, DeckLandingEnv)
-            model = base.config.tof.model
+            model = base.config.world.tof.model
         finally:
             env.close()
         if preset == "realistic":
@@ -266,7 +266,7 @@ def test_fused_range_offset_state_follows_the_tof_model():
             assert model is None and fused.params.range_offset_sigma == 0.0
             assert fused.params == FusedParams()
     custom = FusedParams(min_updates=3)
-    env = gym.make(ENV_ID, keep_image=False, sensor_preset="realistic", fused_params=custom)
+    env = gym.make(HOVER_ID, keep_image=False, sensor_preset="realistic", fused_params=custom)
     try:
         assert env.get_wrapper_attr("estimators")["fused"].params is custom
     finally:

@@ -4,9 +4,10 @@ Each entry of :data:`ESTIMATORS` maps an observation key to a factory building a
 :class:`~ihrcf_env.core.estimators.base.DeckPoseSource` from an :class:`EstimatorConfig`. Everything
 downstream (:class:`~ihrcf_env.core.estimators.pipeline.DeckPoseEstimator`, the observation wrapper's
 spaces, ``obs`` keys, ``info[f"{name}_reason"]`` and the flat layout) loops over the names, so a new
-estimator is one new module implementing the protocol plus one line here (and, if it needs more
-than the rig, the tag and the calibration, a field of :class:`EstimatorConfig` with a default).
-:data:`DEFAULT_ESTIMATORS` is what ``ihrcf_env/DeckLanding-v0`` shows; others are opted in by name.
+estimator is one class implementing the protocol plus one :func:`register_estimator` call, from
+the package or from user code (if it needs more than the rig, the tag and the calibration, a field
+of :class:`EstimatorConfig` with a default).
+:data:`DEFAULT_ESTIMATORS` is what ``ihrcf_env/DeckHover-v0`` shows; others are opted in by name.
 """
 
 from __future__ import annotations
@@ -59,11 +60,39 @@ ESTIMATORS: dict[str, EstimatorFactory] = {
     ),
 }
 
-#: The estimators of ``ihrcf_env/DeckLanding-v0`` (its observation layout), in order.
+
+def register_estimator(name: str, factory: EstimatorFactory, *, replace: bool = False) -> None:
+    """Add the estimator ``name`` (an observation key) built by ``factory(config: EstimatorConfig)
+    -> DeckPoseSource`` (whose ``name`` must be ``name``). Registering a taken name raises
+    ValueError unless ``replace``; reserved names and non-callables raise."""
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ValueError(
+            f"estimator name must be an identifier (it becomes an observation key), got {name!r}"
+        )
+    if name in RESERVED_NAMES:
+        raise ValueError(f"estimator name {name!r} is reserved for another observation key")
+    if not callable(factory):
+        raise TypeError(f"factory must be callable (EstimatorConfig -> DeckPoseSource), got {factory!r}")
+    if name in ESTIMATORS and not replace:
+        raise ValueError(f"an estimator {name!r} is already registered (replace=True to replace it)")
+    ESTIMATORS[name] = factory
+
+
+def unregister_estimator(name: str) -> None:
+    """Remove a user-registered estimator (the built-in ones stay)."""
+    if name in DEFAULT_ESTIMATORS:
+        raise ValueError(f"{name!r} is a built-in estimator")
+    ESTIMATORS.pop(name, None)
+
+
+#: The estimators of ``ihrcf_env/DeckHover-v0`` (its observation layout), in order.
 DEFAULT_ESTIMATORS: tuple[str, ...] = ("ihrcf", "atda", "fused")
 
 #: Observation keys an estimator may not take.
-RESERVED_NAMES: frozenset[str] = frozenset({"ground_truth", "image", "ranges", "ranges_valid", "imu"})
+RESERVED_NAMES: frozenset[str] = frozenset(
+    {"ground_truth", "image", "ranges", "ranges_valid", "imu", "tag_corners", "tag_detected", "tag_status"}
+    | {"camera_age", "nav_velocity", "motion"}
+)
 
 
 def check_estimator_names(names: Iterable[str]) -> tuple[str, ...]:

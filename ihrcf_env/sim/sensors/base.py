@@ -38,6 +38,8 @@ class Sensor(Protocol):
     """A simulated sensor: ``read`` maps the true body state to named measurement arrays."""
 
     name: str
+    # Optional attribute ``update_interval`` (int, default 1): control steps between two samples;
+    # in between, the world repeats the last reading (dm_control's ``update_interval``).
 
     def reset(self, rng: np.random.Generator) -> None:
         """Start of an episode (re-draw biases, clear delay lines)."""
@@ -50,6 +52,28 @@ class Sensor(Protocol):
 #: Name of the tag-corner sensor in ``World.sensors`` (``camera_output="corners"``).
 TAG_CAMERA = "tag_camera"
 
+#: Why a tag-corner reading has no corners, by ``tag_status`` code (0: detected). A reason not in
+#: this table is reported as code 1.
+TAG_STATUS: tuple[str, ...] = (
+    "",
+    "tag not detected",
+    "tag outside the image",
+    "tag partly outside the image",
+    "tag partly outside the image (too close to its border)",
+    "tag seen too obliquely",
+    "tag's quiet zone cut by the image border",
+    "tag too small in the image",
+    "detector missed the tag",
+    "tag outside the camera's depth range",
+    "tag occluded",
+)
+_STATUS_CODE = {reason: i for i, reason in enumerate(TAG_STATUS)}
+
+
+def tag_status_code(reason: str) -> int:
+    """The ``tag_status`` code of a reason (0 for ``""``, detected; 1 for an unknown reason)."""
+    return _STATUS_CODE.get(reason, 1)
+
 
 def tag_reading(corners: NDArray[np.float64] | None, reason: str) -> dict[str, NDArray]:
     """The measurement mapping of a tag-corner sensor (:data:`TAG_CAMERA`).
@@ -57,13 +81,21 @@ def tag_reading(corners: NDArray[np.float64] | None, reason: str) -> dict[str, N
     ``tag_corners``: (4, 2) float64 px, the tag's corners in the (distorted) image, OpenCV
     pixel-centre convention, in :class:`~ihrcf_env.core.estimators.TagDetector`'s corner order;
     zeros when not detected. ``tag_detected``: 0-d bool array. ``tag_reason``: 0-d str array, why
-    the tag was not detected (``""`` when it was).
+    the tag was not detected (``""`` when it was); ``tag_status``: 0-d int array, its code in
+    :data:`TAG_STATUS`.
     """
     if corners is None:
+        why = reason or "tag not detected"
         return {
             "tag_corners": np.zeros((4, 2)),
             "tag_detected": np.array(False),
-            "tag_reason": np.array(reason or "tag not detected"),
+            "tag_reason": np.array(why),
+            "tag_status": np.array(max(1, tag_status_code(why))),
         }
     c = np.asarray(corners, dtype=np.float64).reshape(4, 2).copy()
-    return {"tag_corners": c, "tag_detected": np.array(True), "tag_reason": np.array("")}
+    return {
+        "tag_corners": c,
+        "tag_detected": np.array(True),
+        "tag_reason": np.array(""),
+        "tag_status": np.array(0),
+    }
