@@ -211,10 +211,9 @@ def component_costs(frames: int = 100, sensor_preset: str = "ideal") -> dict[str
     fused filter's figure is its own work on top of them, as in the wrapped env."""
     from ihrcf_env.core.calibration import Calibration, default_calibration_path
     from ihrcf_env.core.estimators import ImuSample, SensorFrame
-    from ihrcf_env.envs.config import make_config
+    from ihrcf_env.envs.config import fused_params_for_tof, make_config
     from ihrcf_env.sim.sensors.base import TAG_CAMERA
     from ihrcf_env.sim.world import World
-    from ihrcf_env.envs.config import fused_params_for_tof
     from ihrcf_env.wrappers import estimator_from_calibration
 
     cfg = make_config(sensor_preset=sensor_preset, **_hover_kwargs(20))

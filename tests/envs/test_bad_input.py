@@ -26,10 +26,10 @@ from ihrcf_env.core.profiles import (
 )
 from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.envs.config import (
-    ObservationConfig,
     DEFAULT_HORIZON_S,
     MIN_START_ALTITUDE,
     DeckLandingConfig,
+    ObservationConfig,
     make_config,
 )
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
