@@ -170,6 +170,14 @@ class Calibration:
             "report": self.report,
         }
 
+    def __eq__(self, other: object) -> bool:
+        """Equal contents (every field, arrays element-wise): a copy equals its original."""
+        if not isinstance(other, Calibration):
+            return NotImplemented
+        return self is other or self.to_json() == other.to_json()
+
+    __hash__ = None  # type: ignore[assignment]  # mutable contents
+
     def to_json(self) -> str:
         """Deterministic JSON: sorted keys, floats by ``repr`` (exact round trip), no NaN/inf."""
         try:
