@@ -82,11 +82,15 @@ class SumOfSines(MotionProfile):
             checked = []
             for j, c in enumerate(dof_comps):
                 name = f"SumOfSines.components[{k}][{j}] ({DOFS[k]})"
-                amp, freq, phase = check_reals(name, c, 3)
-                check_real(f"{name} amplitude", amp, unit, low=-amp_max, high=amp_max)
-                check_real(f"{name} frequency", freq, "Hz", low=0.0, high=MAX_FREQUENCY)
-                check_real(f"{name} phase", phase, "rad", low=-MAX_PHASE, high=MAX_PHASE)
-                checked.append((amp, freq, phase))
+                if not isinstance(c, tuple | list) or len(c) != 3:
+                    raise TypeError(f"{name} must be (amplitude, frequency_hz, phase_rad), got {describe(c)}")
+                checked.append(
+                    (
+                        check_real(f"{name} amplitude", c[0], unit, low=-amp_max, high=amp_max),
+                        check_real(f"{name} frequency", c[1], "Hz", low=0.0, high=MAX_FREQUENCY),
+                        check_real(f"{name} phase", c[2], "rad", low=-MAX_PHASE, high=MAX_PHASE),
+                    )
+                )
             out.append(tuple(checked))
         self.components = tuple(out)
 
