@@ -68,10 +68,14 @@ def disturbance_force(
             f"{_describe_disturbance(d)} must return a force of 3 real numbers (N, world frame), "
             f"got {describe(f)}{'' if items is None else ': ' + repr(f)[:80]} at t = {t:.4f} s"
         )
-    x, y, z = (float(v) for v in items)  # type: ignore[arg-type]
+    try:
+        x, y, z = (float(v) for v in items)  # type: ignore[arg-type]
+    except OverflowError:  # an int too large for a float
+        x = y = z = math.inf
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
         raise ValueError(
-            f"{_describe_disturbance(d)} returned a non-finite force {(x, y, z)!r} (N) at t = {t:.4f} s"
+            f"{_describe_disturbance(d)} returned a non-finite force {repr(tuple(items))[:80]} (N) at "
+            f"t = {t:.4f} s"
         )
     if x * x + y * y + z * z > MAX_DISTURBANCE_FORCE**2:
         raise ValueError(
