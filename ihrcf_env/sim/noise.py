@@ -127,7 +127,7 @@ class Chain:
 
 # -- stateful models of inertial sensors and estimators ----------------------------------------------
 def _check_size(size: int) -> int:
-    return check_int("size", size, low=1, high=1024)
+    return check_int("size", size, low=1, high=10**6)
 
 
 def _per_element(name: str, value: float | Sequence[float], size: int) -> NDArray[np.float64]:
