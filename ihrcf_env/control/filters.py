@@ -1,6 +1,8 @@
-"""Small state filters for controllers (pure Python, no simulator)."""
+"""Small state filters for controllers (pure Python and :mod:`ihrcf_env.core`, no simulator)."""
 
 from __future__ import annotations
+
+from ihrcf_env.core.checks import check_real
 
 
 class AlphaBeta:
@@ -8,11 +10,12 @@ class AlphaBeta:
 
     Args:
         alpha: position correction gain, in [0, 1].
-        beta: rate correction gain (dimensionless; the correction is ``beta * residual / dt``).
+        beta: rate correction gain in [0, 2] (dimensionless; the correction is ``beta * residual / dt``).
     """
 
     def __init__(self, alpha: float, beta: float) -> None:
-        self.alpha, self.beta = alpha, beta
+        self.alpha = check_real("alpha", alpha, low=0.0, high=1.0)
+        self.beta = check_real("beta", beta, low=0.0, high=2.0)
         self.x: float | None = None
         self.v = 0.0
 

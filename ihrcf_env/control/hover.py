@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ihrcf_env.core.checks import check_fields, check_real
 from ihrcf_env.core.frames import euler_from_matrix, matrix_from_euler, matrix_from_quat
 
 
@@ -33,6 +34,9 @@ class HoverGains:
     k_xy: float = 1.0
     k_z: float = 1.0
     k_yaw: float = 1.0
+
+    def __post_init__(self) -> None:
+        check_fields(self, lambda f: f"HoverGains.{f}", {f: (0.0, 100.0) for f in ("k_xy", "k_z", "k_yaw")})
 
 
 def tracking_action(
@@ -82,7 +86,7 @@ class HoverTracker:
         estimator: str = "ihrcf",
         gains: HoverGains | None = None,
     ) -> None:
-        self.height = float(height)
+        self.height = check_real("height", height, "m", low=0.0, high=100.0)
         self.max_velocity = np.asarray(max_velocity, dtype=np.float64)
         self.estimator = estimator
         self.gains = gains if gains is not None else HoverGains()

@@ -46,10 +46,64 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ihrcf_env.control.filters import AlphaBeta
+from ihrcf_env.core.checks import check_bool, check_real, is_real, set_field
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.frames import matrix_from_euler, matrix_from_quat, wrap_angle
 from ihrcf_env.core.geometry import fit_plane
 from ihrcf_env.core.rig import SensorRig
+
+_HALF_PI = math.pi / 2
+#: Bounds (inclusive) of :class:`LandingConfig`'s real fields.
+LANDING_BOUNDS: dict[str, tuple[float, float]] = {
+    "leg_length": (0.0, 2.0),
+    "hold_height": (0.05, 20.0),
+    "approach_speed": (0.01, 10.0),
+    "drop_speed": (0.01, 10.0),
+    "touch_speed": (0.01, 10.0),
+    "slow_zone": (0.0, 5.0),
+    "k_xy": (0.0, 100.0),
+    "max_xy_speed": (0.0, 20.0),
+    "k_z": (0.0, 100.0),
+    "k_yaw": (0.0, 100.0),
+    "centred_tolerance": (0.0, 10.0),
+    "height_tolerance": (0.0, 10.0),
+    "settle_time": (0.0, 1e4),
+    "commit_tilt": (0.0, _HALF_PI),
+    "max_tilt_now": (0.0, _HALF_PI),
+    "max_deck_speed": (0.0, 10.0),
+    "tag_timeout": (0.0, 1e4),
+    "drop_lag": (0.0, 100.0),
+    "heave_alpha": (0.0, 1.0),
+    "heave_beta": (0.0, 2.0),
+    "tilt_alpha": (0.0, 1.0),
+    "tilt_beta": (0.0, 2.0),
+    "drift_k1": (0.0, 100.0),
+    "drift_k2": (0.0, 100.0),
+    "drift_k3": (0.0, 100.0),
+    "tof_agreement": (0.0, 100.0),
+    "reacquire_speed": (0.0, 10.0),
+    "reacquire_after": (0.0, 1e4),
+    "reacquire_height": (0.0, 100.0),
+    "heave_timeout": (0.0, 1e4),
+    "max_deck_velocity": (0.0, 100.0),
+    "commit_below": (0.0, 100.0),
+}
+#: Fields for which ``inf`` (the default) switches the feature off.
+LANDING_OFF_AT_INF = frozenset({"heave_timeout", "max_deck_velocity", "commit_below"})
+LANDING_UNITS = {
+    **{k: "m" for k in ("leg_length", "hold_height", "slow_zone", "centred_tolerance", "height_tolerance")},
+    **{k: "m" for k in ("tof_agreement", "reacquire_height", "commit_below")},
+    **{k: "m/s" for k in ("approach_speed", "drop_speed", "touch_speed", "max_xy_speed", "max_deck_speed")},
+    **{k: "m/s" for k in ("reacquire_speed", "max_deck_velocity")},
+    **{k: "s" for k in ("settle_time", "tag_timeout", "drop_lag", "reacquire_after", "heave_timeout")},
+    **{k: "rad" for k in ("commit_tilt", "max_tilt_now")},
+    "k_xy": "1/s",
+    "k_z": "1/s",
+    "k_yaw": "1/s",
+    "drift_k1": "1/s",
+    "drift_k2": "1/s^2",
+    "drift_k3": "1/s^3",
+}
 
 
 @dataclass(frozen=True)
@@ -102,6 +156,22 @@ class LandingConfig:
     # drone is more than ``commit_below`` m under the hold height, the drop is committed (the
     # learner's own early descent is labelled as a drop, not as a climb back to the hold; inf: off).
     commit_below: float = math.inf
+
+    def __post_init__(self) -> None:
+        check_bool("LandingConfig.estimate_height", self.estimate_height)
+        for attr, (low, high) in LANDING_BOUNDS.items():
+            name = f"LandingConfig.{attr}"
+            value = getattr(self, attr)
+            if attr in LANDING_OFF_AT_INF and is_real(value) and value == math.inf:
+                set_field(self, attr, math.inf)
+                continue
+            try:
+                v = check_real(name, value, LANDING_UNITS.get(attr, ""), low=low, high=high)
+            except ValueError as e:
+                if attr in LANDING_OFF_AT_INF:
+                    raise ValueError(f"{e} (or inf: off)") from None
+                raise
+            set_field(self, attr, v)
 
 
 @dataclass

@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ihrcf_env.control.landing import LandingConfig, LandingController
+from ihrcf_env.core.checks import check_real, check_reals
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.rig import SensorRig
 
@@ -56,12 +57,10 @@ class Policy(Protocol):
 
 
 def _max_velocity(max_velocity: Sequence[float]) -> NDArray[np.float64]:
-    mv = np.asarray(max_velocity, dtype=np.float64)
-    if mv.shape != (4,) or not np.isfinite(mv).all() or np.any(mv <= 0):
-        raise ValueError(
-            f"max_velocity must be 4 positive numbers (m/s, m/s, m/s, rad/s), got {max_velocity!r}"
-        )
-    return mv
+    """The env's action scale (m/s, m/s, m/s, rad/s), each in [1e-3, 100]."""
+    return np.array(
+        check_reals("max_velocity", max_velocity, 4, "m/s, m/s, m/s, rad/s", low=1e-3, high=100.0)
+    )
 
 
 class BlindDescent:
@@ -69,11 +68,9 @@ class BlindDescent:
 
     def __init__(self, vz: float, max_velocity: Sequence[float] = (1.0, 1.0, 1.0, 1.0)) -> None:
         mv = _max_velocity(max_velocity)
-        if isinstance(vz, bool) or not isinstance(vz, int | float | np.floating) or not math.isfinite(vz):
-            raise TypeError(f"vz must be a finite number (m/s), got {type(vz).__name__} {vz!r}")
-        if not 0 < vz <= mv[2]:
-            raise ValueError(f"vz must be in (0, {mv[2]:g}] m/s (the env's max_velocity[2]), got {vz!r}")
-        self.vz = float(vz)
+        self.vz = check_real(
+            "vz", vz, "m/s, at most the env's max_velocity[2]", low=0.0, low_open=True, high=mv[2]
+        )
         self._action = np.array([0.0, 0.0, -self.vz / mv[2], 0.0], dtype=np.float32)
 
     def reset(self) -> None:

@@ -13,19 +13,30 @@ import itertools
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from numbers import Real
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
+from ihrcf_env.core.checks import check_int, check_real, check_reals, describe
 from ihrcf_env.core.stewart import StewartGeometry
 
 PoseArrays = tuple[NDArray[np.float64], NDArray[np.float64]]
 
 #: Names of the six degrees of freedom, in the order of amplitudes and components.
 DOFS: tuple[str, ...] = ("surge", "sway", "heave", "roll", "pitch", "yaw")
+
+
+#: Bounds of a deck motion: amplitude of a translation (m) or rotation (rad) per sinusoid, a
+#: frequency (Hz, below the physics rate's Nyquist frequency), a phase (rad), a period (s).
+MAX_TRANSLATION = 10.0
+MAX_ROTATION = math.pi
+MAX_FREQUENCY = 50.0
+MAX_PHASE = 1e3
+PERIOD_BOUNDS = (0.1, 1e4)
+#: Bound (s) of a profile's start time (:class:`ShiftedProfile`).
+MAX_START_TIME = 1e6
 
 
 class MotionProfile:
@@ -52,6 +63,36 @@ class SumOfSines(MotionProfile):
 
     components: tuple[tuple[tuple[float, float, float], ...], ...]
     name: str = "sum_of_sines"
+
+    def __post_init__(self) -> None:
+        comps = self.components
+        if not isinstance(comps, tuple | list) or len(comps) > len(DOFS):
+            raise TypeError(
+                f"SumOfSines.components must be a tuple of at most {len(DOFS)} tuples (one per DOF "
+                f"{DOFS}) of (amplitude, frequency_hz, phase_rad), got {describe(comps)}"
+            )
+        out = []
+        for k, dof_comps in enumerate(comps):
+            if not isinstance(dof_comps, tuple | list):
+                raise TypeError(
+                    f"SumOfSines.components[{k}] ({DOFS[k]}) must be a tuple of (amplitude, "
+                    f"frequency_hz, phase_rad), got {describe(dof_comps)}"
+                )
+            amp_max, unit = (MAX_TRANSLATION, "m") if k < 3 else (MAX_ROTATION, "rad")
+            checked = []
+            for j, c in enumerate(dof_comps):
+                name = f"SumOfSines.components[{k}][{j}] ({DOFS[k]})"
+                if not isinstance(c, tuple | list) or len(c) != 3:
+                    raise TypeError(f"{name} must be (amplitude, frequency_hz, phase_rad), got {describe(c)}")
+                checked.append(
+                    (
+                        check_real(f"{name} amplitude", c[0], unit, low=-amp_max, high=amp_max),
+                        check_real(f"{name} frequency", c[1], "Hz", low=0.0, high=MAX_FREQUENCY),
+                        check_real(f"{name} phase", c[2], "rad", low=-MAX_PHASE, high=MAX_PHASE),
+                    )
+                )
+            out.append(tuple(checked))
+        self.components = tuple(out)
 
     def sample(self, t: NDArray[np.float64]) -> PoseArrays:
         t = np.asarray(t, dtype=np.float64)
@@ -120,13 +161,8 @@ def sea_state_amplitudes(amplitudes: Mapping[str, float] | None = None) -> dict[
             f"sea_state_amplitudes has unknown degrees of freedom {sorted(map(str, unknown))}; use {DOFS}"
         )
     for k, v in amplitudes.items():
-        if isinstance(v, bool | np.bool_) or not isinstance(v, Real):
-            raise TypeError(
-                f"sea_state_amplitudes[{k!r}] must be a real number (m or rad), got {type(v).__name__} {v!r}"
-            )
-        if not (math.isfinite(v) and v >= 0):
-            raise ValueError(f"sea_state_amplitudes[{k!r}] must be finite and >= 0, got {v!r}")
-        amps[k] = float(v)
+        high, unit = (MAX_TRANSLATION, "m") if DOFS.index(k) < 3 else (MAX_ROTATION, "rad")
+        amps[k] = check_real(f"sea_state_amplitudes[{k!r}]", v, unit, low=0.0, high=high)
     return amps
 
 
@@ -142,11 +178,10 @@ def sea_state_profile(
     :data:`SEA_STATE_AMPLITUDES`; see :func:`sea_state_amplitudes` for the errors). Whether the
     legs can follow it for every seed is :func:`check_sea_state_amplitudes`' job."""
     amps = sea_state_amplitudes(amplitudes)
-    lo, hi = period_range
-    if not (0 < lo <= hi):
-        raise ValueError(f"period_range must satisfy 0 < lo <= hi, got {period_range}")
-    if n_components < 1:
-        raise ValueError(f"n_components must be >= 1, got {n_components}")
+    lo, hi = check_reals("period_range", period_range, 2, "s", low=PERIOD_BOUNDS[0], high=PERIOD_BOUNDS[1])
+    if not lo <= hi:
+        raise ValueError(f"period_range must satisfy lo <= hi, got {period_range}")
+    n_components = check_int("n_components", n_components, low=1, high=64)
     comps = []
     for dof in DOFS:
         w = rng.uniform(0.3, 1.0, n_components)
@@ -313,10 +348,8 @@ class ShiftedProfile(MotionProfile):
     """``base`` started ``t0`` seconds into its motion: pose(t) = base(t + t0)."""
 
     def __init__(self, base: MotionProfile, t0: float) -> None:
-        if not math.isfinite(t0):
-            raise ValueError(f"deck start time must be finite (s), got {t0!r}")
         self.base = base
-        self.t0 = float(t0)
+        self.t0 = check_real("deck start time", t0, "s", low=-MAX_START_TIME, high=MAX_START_TIME)
         self.name = base.name
 
     def sample(self, t: NDArray[np.float64]) -> PoseArrays:

@@ -21,11 +21,23 @@ import pybullet as p
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from ihrcf_env.core.checks import check_fields, check_int, set_field
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.frames import matrix_from_quat, quat_from_matrix
 from ihrcf_env.core.profiles import MotionProfile, sample_until_unusable
 from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.sim.assets import asset_path, tag_texture
+
+#: Physical bounds (inclusive) of :class:`DeckConfig`'s real fields (the plate must stay much
+#: heavier than the drone: it is driven, not pushed).
+DECK_BOUNDS: dict[str, tuple[float, float]] = {
+    "size": (0.1, 5.0),
+    "thickness": (0.005, 0.2),
+    "mass": (10.0, 1e4),
+    "tag_size": (0.01, 4.0),
+    "friction": (0.0, 10.0),
+}
+DECK_UNITS = {"size": "m", "thickness": "m", "mass": "kg", "tag_size": "m"}
 
 
 @dataclass(frozen=True)
@@ -40,10 +52,9 @@ class DeckConfig:
     friction: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("size", "thickness", "mass", "tag_size"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"deck {name} must be positive, got {v!r}")
+        # tag_id: its range is the tag family's, checked where the texture is made
+        set_field(self, "tag_id", check_int("deck tag_id", self.tag_id))
+        check_fields(self, lambda f: f"deck {f}", DECK_BOUNDS, DECK_UNITS)
         if self.tag_size * 10 / 8 > self.size:
             raise ValueError(
                 f"tag_size {self.tag_size} m (plus its white quiet zone) does not fit on the "
@@ -51,9 +62,52 @@ class DeckConfig:
             )
 
 
+class TickSeries:
+    """A per-tick series of a :class:`DeckTrajectory` (``times``, ``position`` or ``quaternion``),
+    indexed by the absolute physics tick: ``series[k]`` (one row) or ``series[a:b]`` (rows of ticks
+    a..b-1, step 1). Only the ticks the trajectory still keeps (``first_tick`` to ``len - 1``) can
+    be read; an older or not yet computed tick raises IndexError naming it."""
+
+    def __init__(self, trajectory: DeckTrajectory, attr: str) -> None:
+        self._traj = trajectory
+        self._attr = attr
+
+    def __len__(self) -> int:
+        return len(self._traj)
+
+    def _rows(self) -> NDArray[np.float64]:
+        rows: NDArray[np.float64] = getattr(self._traj, self._attr)
+        return rows
+
+    def _index(self, k: int) -> int:
+        first, end = self._traj.first_tick, len(self._traj)
+        if k < 0:
+            k += end
+        if not first <= k < end:
+            raise IndexError(
+                f"deck trajectory tick {k} is not kept: ticks {first}..{end - 1} are (the trajectory keeps "
+                f"a rolling window of {self._traj.window} ticks)"
+            )
+        return k - first
+
+    def __getitem__(self, key: int | slice) -> NDArray[np.float64]:
+        if isinstance(key, slice):
+            start, stop, step = key.indices(len(self._traj))
+            if step != 1:
+                raise IndexError("deck trajectory slices take step 1")
+            if stop <= start:
+                return self._rows()[:0].copy()
+            return self._rows()[self._index(start) : self._index(stop - 1) + 1].copy()
+        return self._rows()[self._index(int(key))].copy()
+
+    def __array__(self, dtype: object = None, copy: object = None) -> NDArray[np.float64]:
+        """The rows kept (ticks ``first_tick`` to ``len - 1``)."""
+        return np.asarray(self._rows(), dtype=dtype)  # type: ignore[call-overload]
+
+
 class DeckTrajectory:
     """Deck poses at every physics tick: ``position[k]``, ``quaternion[k]`` (x, y, z, w) at time
-    ``k * dt``, world frame (deck frame origin = tag centre on the top surface).
+    ``times[k] = k * dt``, world frame (deck frame origin = tag centre on the top surface).
 
     The profile is checked against the legs' stroke on a 20 Hz grid over ``check_horizon_s`` when
     the trajectory is made (ValueError naming the time and the leg). Physics-rate poses are
@@ -61,6 +115,10 @@ class DeckTrajectory:
     beyond the checked horizon leave the stroke (or the profile give no usable pose, see
     :func:`~ihrcf_env.core.profiles.sample_until_unusable`), the deck stops at its last reachable pose
     (``stalled_at`` gives the time) instead of failing mid-episode.
+
+    Memory does not grow with the episode: only the last :attr:`window` ticks made (two chunks) are
+    kept, from :attr:`first_tick` on (:class:`TickSeries` raises IndexError for older ones). Each
+    chunk is computed from its own times alone, so the poses do not depend on the window.
     """
 
     CHECK_DT = 0.05
@@ -81,24 +139,50 @@ class DeckTrajectory:
         self.dt = dt
         self._half = plate_half_thickness
         self._chunk = max(1, int(round(chunk_s / dt)))
+        #: ticks kept: the chunk being driven through and the one before it
+        self.window = 2 * self._chunk
         t = np.arange(0.0, check_horizon_s + self.CHECK_DT, self.CHECK_DT)
         offset, rpy = profile.sample(t)
         R = Rotation.from_euler("ZYX", rpy[:, ::-1]).as_matrix()
         geometry.check_stroke(t, geometry.leg_lengths(geometry.home_position + offset, R))
         self.stalled_at: float | None = None
-        self.times = np.zeros(0)
-        self.position = np.zeros((0, 3))
-        self.quaternion = np.zeros((0, 4))
-        # plain-Python copies for the per-physics-step driver
-        # (plate centre = deck origin - half thickness * z)
+        #: the absolute tick of the first row kept, and the number of ticks made so far
+        self.first_tick = 0
+        self._end = 0
+        self._times = np.zeros(0)
+        self._position = np.zeros((0, 3))
+        self._quaternion = np.zeros((0, 4))
+        # plain-Python copies of the rows kept for the per-physics-step driver (row i = tick
+        # first_tick + i; plate centre = deck origin - half thickness * z)
         self.quaternion_list: list[list[float]] = []
         self.body_position_list: list[list[float]] = []
         self.ensure(0)
 
+    @property
+    def times(self) -> TickSeries:
+        """Times (s) of the ticks kept, indexed by absolute tick."""
+        return TickSeries(self, "_times")
+
+    @property
+    def position(self) -> TickSeries:
+        """(3,) deck frame origin (world, m) per tick kept, indexed by absolute tick."""
+        return TickSeries(self, "_position")
+
+    @property
+    def quaternion(self) -> TickSeries:
+        """(4,) deck orientation (x, y, z, w), world from deck, per tick kept, indexed by absolute tick."""
+        return TickSeries(self, "_quaternion")
+
+    @property
+    def stored_ticks(self) -> int:
+        """Number of ticks held in memory (at most :attr:`window`)."""
+        return len(self.quaternion_list)
+
     def ensure(self, tick: int) -> None:
-        """Make sure poses up to physics tick ``tick`` exist (extends by whole chunks)."""
-        while tick >= len(self.times) and self.stalled_at is None:
-            k0 = len(self.times)
+        """Make sure poses up to physics tick ``tick`` exist (extends by whole chunks, then drops the
+        ticks older than the :attr:`window`)."""
+        while tick >= self._end and self.stalled_at is None:
+            k0 = self._end
             t = (k0 + np.arange(self._chunk, dtype=np.float64)) * self.dt
             offset, rpy = sample_until_unusable(self.profile, t)  # unusable pose: NaN, stalls
             rot = Rotation.from_euler("ZYX", rpy[:, ::-1])
@@ -117,14 +201,31 @@ class DeckTrajectory:
                 if k0 + n == 0:  # cannot even start: let check_stroke name the leg
                     self.geometry.check_stroke(t, legs)
             quat = rot.as_quat()[:n]
-            self.times = np.concatenate([self.times, t[:n]])
-            self.position = np.concatenate([self.position, position[:n]])
-            self.quaternion = np.concatenate([self.quaternion, quat])
-            self.quaternion_list += quat.tolist()
-            self.body_position_list += (position[:n] - matrices[:n, :, 2] * self._half).tolist()
+            drop = max(0, self._end + n - self.first_tick - self.window)  # oldest rows out of the window
+            self._times = np.concatenate([self._times[drop:], t[:n]])
+            self._position = np.concatenate([self._position[drop:], position[:n]])
+            self._quaternion = np.concatenate([self._quaternion[drop:], quat])
+            self.quaternion_list = self.quaternion_list[drop:] + quat.tolist()
+            self.body_position_list = (
+                self.body_position_list[drop:] + (position[:n] - matrices[:n, :, 2] * self._half).tolist()
+            )
+            self.first_tick += drop
+            self._end += n
+
+    def body_target(self, tick: int) -> tuple[list[float], list[float]]:
+        """(quaternion (x, y, z, w), plate body centre (m)) of the pose at ``tick`` (plain lists),
+        or of the last pose made if ``tick`` is beyond it (a stalled or unfinished trajectory)."""
+        if tick >= self._end:
+            self.ensure(tick)
+            tick = min(tick, self._end - 1)
+        i = tick - self.first_tick
+        if i < 0:
+            raise IndexError(f"deck trajectory tick {tick} is no longer kept (first kept: {self.first_tick})")
+        return self.quaternion_list[i], self.body_position_list[i]
 
     def __len__(self) -> int:
-        return len(self.times)
+        """Number of ticks made so far (kept or not)."""
+        return self._end
 
 
 def angular_velocity_between(q_from: Sequence[float], q_to: Sequence[float], dt: float) -> tuple[float, ...]:
@@ -282,13 +383,8 @@ class Deck:
         traj = self.trajectory
         assert traj is not None
         dt = traj.dt
-        k = tick + 1
-        if k >= len(traj.quaternion_list):  # beyond the poses made so far
-            traj.ensure(k)
-            k = min(k, len(traj) - 1)
+        q_t, target = traj.body_target(tick + 1)
         pos_now, q_now = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
-        q_t = traj.quaternion_list[k]
-        target = traj.body_position_list[k]
         v = (
             (target[0] - pos_now[0]) / dt,
             (target[1] - pos_now[1]) / dt,

@@ -16,11 +16,12 @@ import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from numbers import Real
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
+
+from ihrcf_env.core.checks import check_fields, check_reals, describe, is_real
 
 
 @runtime_checkable
@@ -38,14 +39,59 @@ class Disturbance(Protocol):
         ...
 
 
+#: Largest force (N) a disturbance may return: far beyond any wind or contact on a drone, far below
+#: where the physics loses its precision.
+MAX_DISTURBANCE_FORCE = 1e4
+
+
+def _describe_disturbance(d: object) -> str:
+    text = repr(d)
+    return f"disturbance {type(d).__name__} ({text if len(text) <= 80 else text[:77] + '...'})"
+
+
+def disturbance_force(
+    d: Disturbance, t: float, position: Sequence[float], velocity: Sequence[float]
+) -> tuple[float, float, float]:
+    """``d(t, position, velocity)`` checked: exactly 3 finite real numbers (N, world frame) of
+    magnitude at most :data:`MAX_DISTURBANCE_FORCE`. Raises TypeError (not a sequence of 3 real
+    numbers) or ValueError (non-finite, too large) naming the disturbance's type and repr; an
+    exception raised by the disturbance itself propagates unchanged."""
+    f = d(t, position, velocity)
+    if isinstance(f, np.ndarray):
+        items: list[object] | None = f.tolist() if f.ndim == 1 else None
+    elif isinstance(f, Sequence) and not isinstance(f, str | bytes):
+        items = list(f)
+    else:
+        items = None
+    if items is None or len(items) != 3 or not all(is_real(v) for v in items):
+        raise TypeError(
+            f"{_describe_disturbance(d)} must return a force of 3 real numbers (N, world frame), "
+            f"got {describe(f)}{'' if items is None else ': ' + repr(f)[:80]} at t = {t:.4f} s"
+        )
+    try:
+        x, y, z = (float(v) for v in items)  # type: ignore[arg-type]
+    except OverflowError:  # an int too large for a float
+        x = y = z = math.inf
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        raise ValueError(
+            f"{_describe_disturbance(d)} returned a non-finite force {repr(tuple(items))[:80]} (N) at "
+            f"t = {t:.4f} s"
+        )
+    if x * x + y * y + z * z > MAX_DISTURBANCE_FORCE**2:
+        raise ValueError(
+            f"{_describe_disturbance(d)} returned a force of {math.sqrt(x * x + y * y + z * z):.4g} N at "
+            f"t = {t:.4f} s, above the {MAX_DISTURBANCE_FORCE:g} N a disturbance may apply"
+        )
+    return (x, y, z)
+
+
 class ConstantForce:
     """A steady world-frame force (N), e.g. to test position hold or model a steady side load."""
 
     def __init__(self, force: Sequence[float] | NDArray[np.float64]) -> None:
-        f = np.asarray(force, dtype=np.float64)
-        if f.shape != (3,) or not np.isfinite(f).all():
-            raise ValueError(f"force must be 3 finite numbers (N), got {force!r}")
-        self.force = (float(f[0]), float(f[1]), float(f[2]))
+        m = MAX_DISTURBANCE_FORCE / math.sqrt(3.0)
+        fx, fy, fz = check_reals("ConstantForce force", force, 3, "N", low=-m, high=m)
+        self.force = (fx, fy, fz)
 
     def reset(self, rng: np.random.Generator) -> None:
         pass
@@ -74,6 +120,18 @@ def dryden_low_altitude(height: float) -> tuple[float, float, float, float]:
     return 0.1 / k**0.4, 0.1, h / k**1.2 * FT, h * FT
 
 
+#: Physical bounds (inclusive) of :class:`DragModel`'s fields: a 10 g micro drone to a 100 kg
+#: multirotor, air from 10 km altitude to a cold sea-level day.
+DRAG_BOUNDS: dict[str, tuple[float, float]] = {
+    "mass": (0.01, 100.0),
+    "mcoef_xy": (0.0, 10.0),
+    "mcoef_z": (0.0, 10.0),
+    "bcoef": (1.0, 1e5),
+    "rho": (0.1, 2.0),
+}
+DRAG_UNITS = {"mass": "kg", "mcoef_xy": "1/s", "mcoef_z": "1/s", "bcoef": "kg/m^2", "rho": "kg/m^3"}
+
+
 @dataclass(frozen=True)
 class DragModel:
     """Aerodynamic force on the drone from its velocity through the air ``v_a`` (world, m/s), in
@@ -98,12 +156,7 @@ class DragModel:
     rho: float = 1.225  # kg/m^3, sea-level air
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if isinstance(v, bool) or not isinstance(v, Real) or not math.isfinite(float(v)) or float(v) < 0:
-                raise ValueError(f"DragModel.{f.name} must be a finite number >= 0, got {v!r}")
-        if self.bcoef <= 0:
-            raise ValueError(f"DragModel.bcoef must be > 0 (kg/m^2), got {self.bcoef!r}")
+        check_fields(self, lambda f: f"DragModel.{f}", DRAG_BOUNDS, DRAG_UNITS)
 
     def force(self, air_velocity: Sequence[float]) -> tuple[float, float, float]:
         """Force (N, world) for the velocity through the air ``air_velocity`` (m/s, world)."""
@@ -114,12 +167,31 @@ class DragModel:
         return (-(lin_xy + q) * vx, -(lin_xy + q) * vy, -(lin_z + q) * vz)
 
 
+#: Physical bounds (inclusive) of :class:`WindParams`' real fields: mean winds to a storm (40 m/s),
+#: heights within the Dryden low-altitude model's range (1000 ft).
+WIND_BOUNDS: dict[str, tuple[float, float]] = {
+    "mean_speed_min": (0.0, 40.0),
+    "mean_speed_max": (0.0, 40.0),
+    "height": (0.1, 300.0),
+    "turbulence": (0.0, 5.0),
+    "min_advection": (0.01, 40.0),
+    "sample_dt": (1e-3, 10.0),
+}
+WIND_UNITS = {
+    "mean_speed_min": "m/s",
+    "mean_speed_max": "m/s",
+    "height": "m",
+    "min_advection": "m/s",
+    "sample_dt": "s",
+}
+
+
 @dataclass(frozen=True)
 class WindParams:
     """Parameters of :class:`Wind` (SI units).
 
     Each episode draws a mean wind speed uniform in ``[mean_speed_min, mean_speed_max]`` (m/s,
-    horizontal; the default 0-5 m/s spans calm to a gentle breeze, Beaufort 0-3) blowing towards a
+    horizontal, at most 40; the default 0-5 m/s spans calm to a gentle breeze, Beaufort 0-3) blowing towards a
     direction uniform in [0, 2 pi) (rad from world +x, counter-clockwise). Gusts are Dryden
     turbulence (:func:`dryden_low_altitude`) at ``height`` above the surface (default 5 m, a small
     ship's deck), scaled by ``turbulence`` (0: steady wind), with the mean wind as W20. The frozen
@@ -139,28 +211,12 @@ class WindParams:
     drag: DragModel = field(default_factory=DragModel)
 
     def __post_init__(self) -> None:
-        for name in (
-            "mean_speed_min",
-            "mean_speed_max",
-            "height",
-            "turbulence",
-            "min_advection",
-            "sample_dt",
-        ):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, Real) or not math.isfinite(float(v)):
-                raise TypeError(f"wind {name} must be a finite real number, got {type(v).__name__} {v!r}")
-            object.__setattr__(self, name, float(v))
-        if not 0 <= self.mean_speed_min <= self.mean_speed_max <= 30:
+        check_fields(self, lambda f: f"wind {f}", WIND_BOUNDS, WIND_UNITS)
+        if self.mean_speed_min > self.mean_speed_max:
             raise ValueError(
-                "wind mean speeds need 0 <= mean_speed_min <= mean_speed_max <= 30 m/s, got "
+                "wind mean speeds need mean_speed_min <= mean_speed_max (m/s), got "
                 f"{self.mean_speed_min!r}, {self.mean_speed_max!r}"
             )
-        for name in ("height", "min_advection", "sample_dt"):
-            if getattr(self, name) <= 0:
-                raise ValueError(f"wind {name} must be > 0, got {getattr(self, name)!r}")
-        if self.turbulence < 0:
-            raise ValueError(f"wind turbulence must be >= 0, got {self.turbulence!r}")
         if not isinstance(self.drag, DragModel):
             raise TypeError(f"wind drag must be a DragModel, got {type(self.drag).__name__} {self.drag!r}")
 

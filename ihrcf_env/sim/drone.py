@@ -24,8 +24,32 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
+from ihrcf_env.core.checks import check_fields, check_reals, set_field
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.sim.assets import asset_path
+
+#: Physical bounds (inclusive) of :class:`QuadParams`' fields (``inertia``: each axis): a 50 g micro
+#: quadrotor to a 50 kg multirotor.
+QUAD_BOUNDS: dict[str, tuple[float, float]] = {
+    "mass": (0.05, 50.0),
+    "inertia": (1e-6, 10.0),
+    "arm": (0.02, 2.0),
+    "kf": (1e-9, 1e-2),
+    "km": (1e-11, 1e-3),
+    "max_rotor_speed": (10.0, 1e4),
+    "motor_tau": (0.0, 1.0),
+    "drag": (0.0, 10.0),
+}
+QUAD_UNITS = {
+    "mass": "kg",
+    "inertia": "kg m^2",
+    "arm": "m",
+    "kf": "N/(rad/s)^2",
+    "km": "N m/(rad/s)^2",
+    "max_rotor_speed": "rad/s",
+    "motor_tau": "s",
+    "drag": "N s/m",
+}
 
 
 @dataclass(frozen=True)
@@ -40,6 +64,18 @@ class QuadParams:
     max_rotor_speed: float = 1000.0  # rad/s -> 4 kf w_max^2 = 23.5 N, thrust-to-weight 2.0
     motor_tau: float = 0.015  # s, rotor speed time constant
     drag: float = 0.08  # N s/m, linear aerodynamic drag
+
+    def __post_init__(self) -> None:
+        lo, hi = QUAD_BOUNDS["inertia"]
+        set_field(
+            self, "inertia", check_reals("QuadParams.inertia", self.inertia, 3, "kg m^2", low=lo, high=hi)
+        )
+        check_fields(
+            self,
+            lambda f: f"QuadParams.{f}",
+            {k: v for k, v in QUAD_BOUNDS.items() if k != "inertia"},
+            QUAD_UNITS,
+        )
 
     @property
     def max_thrust(self) -> float:
@@ -193,6 +229,35 @@ class Quadrotor:
         p.applyExternalTorque(self.body, -1, torque, p.WORLD_FRAME, physicsClientId=self.client)
 
 
+#: Bounds (inclusive) of :class:`VelocityGains`' fields (``k_att``, ``k_rate``: each axis).
+GAIN_BOUNDS: dict[str, tuple[float, float]] = {
+    "kp_pos": (0.0, 100.0),
+    "kd_vel": (0.0, 100.0),
+    "ki_pos": (0.0, 100.0),
+    "kp_z": (0.0, 100.0),
+    "kd_z": (0.0, 100.0),
+    "ki_z": (0.0, 100.0),
+    "max_tilt": (math.radians(1.0), math.radians(80.0)),
+    "k_att": (0.0, 100.0),
+    "k_rate": (0.0, 10.0),
+    "leash": (0.01, 100.0),
+    "i_limit": (0.0, 100.0),
+}
+GAIN_UNITS = {
+    "kp_pos": "1/s^2",
+    "kd_vel": "1/s",
+    "ki_pos": "1/s^3",
+    "kp_z": "1/s^2",
+    "kd_z": "1/s",
+    "ki_z": "1/s^3",
+    "max_tilt": "rad",
+    "k_att": "N m/rad",
+    "k_rate": "N m s/rad",
+    "leash": "m",
+    "i_limit": "m/s^2",
+}
+
+
 @dataclass(frozen=True)
 class VelocityGains:
     """Cascaded controller gains: position/velocity (outer) and attitude/rate (inner)."""
@@ -208,6 +273,15 @@ class VelocityGains:
     k_rate: tuple[float, float, float] = (0.38, 0.38, 0.3)  # N m s / rad
     leash: float = 0.5  # m, max position error before the set-point is dragged along
     i_limit: float = 2.0  # m/s^2, integrator clamp
+
+    def __post_init__(self) -> None:
+        for name in ("k_att", "k_rate"):
+            lo, hi = GAIN_BOUNDS[name]
+            set_field(
+                self, name, check_reals(f"VelocityGains.{name}", getattr(self, name), 3, low=lo, high=hi)
+            )
+        scalars = {k: v for k, v in GAIN_BOUNDS.items() if k not in ("k_att", "k_rate")}
+        check_fields(self, lambda f: f"VelocityGains.{f}", scalars, GAIN_UNITS)
 
 
 class VelocityController:

@@ -31,7 +31,6 @@ the attitude the agent observes).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
@@ -39,12 +38,31 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
-from ihrcf_env.sim.noise import check_param
+from ihrcf_env.core.checks import check_fields, check_real
 
 #: Autopilot feedback modes.
 FEEDBACK_MODES: tuple[str, ...] = ("truth", "estimated")
 
 Vec3 = tuple[float, ...]
+
+
+#: Physical bounds (inclusive) of :class:`NavigationErrors`' fields: from an RTK fix to a poor
+#: standalone GNSS, position errors correlated over a second to hours, velocity errors over a
+#: millisecond to hours.
+NAVIGATION_ERROR_BOUNDS: dict[str, tuple[float, float]] = {
+    "horizontal_sigma": (0.0, 100.0),
+    "vertical_sigma": (0.0, 100.0),
+    "position_time_constant": (1.0, 1e4),
+    "velocity_time_constant": (1e-3, 1e4),
+    "velocity_noise": (0.0, 10.0),
+}
+NAVIGATION_ERROR_UNITS = {
+    "horizontal_sigma": "m",
+    "vertical_sigma": "m",
+    "position_time_constant": "s",
+    "velocity_time_constant": "s",
+    "velocity_noise": "m/s",
+}
 
 
 @dataclass(frozen=True)
@@ -74,9 +92,7 @@ class NavigationErrors:
     velocity_noise: float = 0.02
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            positive = f.name.endswith("time_constant")
-            object.__setattr__(self, f.name, check_param(f.name, getattr(self, f.name), positive=positive))
+        check_fields(self, lambda f: f"NavigationErrors.{f}", NAVIGATION_ERROR_BOUNDS, NAVIGATION_ERROR_UNITS)
 
     @property
     def position_sigma(self) -> NDArray[np.float64]:
@@ -165,7 +181,7 @@ class GNSSINSNavigation:
 
     def __init__(self, errors: NavigationErrors, dt: float) -> None:
         self.errors = errors
-        self.dt = check_param("dt", dt, positive=True)
+        self.dt = check_real("dt", dt, "s", low=1e-5, high=1.0)
         tp, tv = errors.position_time_constant, errors.velocity_time_constant
         self._phi_v = math.exp(-self.dt / tv)
         self._phi_p = math.exp(-self.dt / tp)

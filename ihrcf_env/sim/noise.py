@@ -30,6 +30,8 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
+from ihrcf_env.core.checks import check_int, check_non_negative, check_real, check_reals, describe
+
 
 @runtime_checkable
 class NoiseModel(Protocol):
@@ -45,17 +47,11 @@ class NoiseModel(Protocol):
         ...
 
 
-def check_param(name: str, value: object, *, positive: bool = False, upper: float | None = None) -> float:
-    """A model parameter as a float: TypeError for non-numbers (bools included), ValueError naming
-    ``name`` if it is not finite, negative (zero too with ``positive``) or above ``upper``."""
-    if isinstance(value, bool | np.bool_) or not isinstance(value, int | float | np.integer | np.floating):
-        raise TypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")
-    v = float(value)
-    if not math.isfinite(v) or v < 0 or (positive and v == 0):
-        raise ValueError(f"{name} must be a finite number {'> 0' if positive else '>= 0'}, got {value!r}")
-    if upper is not None and v > upper:
-        raise ValueError(f"{name} must be <= {upper:g}, got {value!r}")
-    return v
+#: Upper bound of a generic noise standard deviation or density (units of the value): far above any
+#: sensor's, far below where squares overflow.
+MAX_SIGMA = 1e6
+#: Bounds (s) of a correlation time.
+TAU_BOUNDS = (1e-3, 1e4)
 
 
 @dataclass
@@ -78,7 +74,7 @@ class GaussianNoise:
     sigma: float
 
     def __post_init__(self) -> None:
-        self.sigma = check_param("sigma", self.sigma)
+        self.sigma = check_non_negative("sigma", self.sigma, high=MAX_SIGMA)
 
     def reset(self, rng: np.random.Generator) -> None:
         pass
@@ -98,7 +94,7 @@ class Dropout:
     probability: float
 
     def __post_init__(self) -> None:
-        self.probability = check_param("probability", self.probability, upper=1.0)
+        self.probability = check_real("probability", self.probability, low=0.0, high=1.0)
 
     def reset(self, rng: np.random.Generator) -> None:
         pass
@@ -131,19 +127,16 @@ class Chain:
 
 # -- stateful models of inertial sensors and estimators ----------------------------------------------
 def _check_size(size: int) -> int:
-    if isinstance(size, bool) or not isinstance(size, int | np.integer) or size < 1:
-        raise ValueError(f"size must be an integer >= 1, got {size!r}")
-    return int(size)
+    return check_int("size", size, low=1, high=10**6)
 
 
 def _per_element(name: str, value: float | Sequence[float], size: int) -> NDArray[np.float64]:
-    """``value`` (one number, or one per element) as a (size,) array of finite numbers >= 0."""
+    """``value`` (one number, or one per element) as a (size,) array of numbers in [0, MAX_SIGMA]."""
     if isinstance(value, Sequence | np.ndarray) and not isinstance(value, str):
-        items = list(value)
-        if len(items) != size:
-            raise ValueError(f"{name} must be one number or {size} numbers, got {value!r}")
-        return np.array([check_param(f"{name}[{i}]", v) for i, v in enumerate(items)])
-    return np.full(size, check_param(name, value))
+        if len(value) != size:
+            raise ValueError(f"{name} must be one number or {size} numbers, got {describe(value)}")
+        return np.array(check_reals(name, value, size, low=0.0, high=MAX_SIGMA))
+    return np.full(size, check_non_negative(name, value, high=MAX_SIGMA))
 
 
 @dataclass
@@ -241,7 +234,7 @@ class GaussMarkov:
     def __post_init__(self) -> None:
         self.size = _check_size(self.size)
         self._sigma = _per_element("sigma", self.sigma, self.size)
-        self.tau = check_param("tau", self.tau, positive=True)
+        self.tau = check_real("tau", self.tau, "s", low=TAU_BOUNDS[0], high=TAU_BOUNDS[1])
         self.bias = np.zeros(self.size)
 
     def reset(self, rng: np.random.Generator) -> None:

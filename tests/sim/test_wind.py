@@ -114,7 +114,7 @@ def test_force_from_relative_air_velocity() -> None:
         ({"mean_speed_max": "5"}, TypeError, "mean_speed_max"),
         ({"turbulence": -0.1}, ValueError, "turbulence"),
         ({"height": 0.0}, ValueError, "height"),
-        ({"sample_dt": math.nan}, TypeError, "sample_dt"),
+        ({"sample_dt": math.nan}, ValueError, "sample_dt"),  # a number out of range, not a wrong kind
         ({"drag": 0.1}, TypeError, "drag"),
     ],
 )

@@ -19,13 +19,13 @@ period), ``n ~ N(0, 1)`` fresh each time:
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ihrcf_env.core.checks import check_fields, check_real, check_reals, set_field
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.sim.noise import (
     Chain,
@@ -34,7 +34,6 @@ from ihrcf_env.sim.noise import (
     NoiseModel,
     NoNoise,
     WhiteNoise,
-    check_param,
 )
 from ihrcf_env.sim.sensors.base import BodyState
 
@@ -45,6 +44,38 @@ IMU_NOISE_PRESETS: tuple[str, ...] = ("ideal", "realistic")
 
 _MG = 1e-3 * GRAVITY  # m/s^2 per milli-g
 _DEG = math.pi / 180.0
+
+
+_TAU = (1e-3, 1e4)  # s, correlation times
+
+#: Physical bounds (inclusive) of :class:`IMUNoise`'s fields: generous for any MEMS or tactical IMU
+#: and attitude filter.
+IMU_NOISE_BOUNDS: dict[str, tuple[float, float]] = {
+    "gyro_noise_density": (0.0, 0.1),
+    "gyro_bias_instability": (0.0, 1.0),
+    "gyro_bias_time_constant": _TAU,
+    "gyro_turn_on_bias": (0.0, 1.0),
+    "accel_noise_density": (0.0, 1.0),
+    "accel_bias_instability": (0.0, 10.0),
+    "accel_bias_time_constant": _TAU,
+    "accel_turn_on_bias": (0.0, 10.0),
+    "tilt_sigma": (0.0, 0.5),
+    "tilt_time_constant": _TAU,
+    "yaw_drift_rate": (0.0, 0.1),
+}
+IMU_NOISE_UNITS = {
+    "gyro_noise_density": "rad/s/sqrt(Hz)",
+    "gyro_bias_instability": "rad/s",
+    "gyro_bias_time_constant": "s",
+    "gyro_turn_on_bias": "rad/s",
+    "accel_noise_density": "m/s^2/sqrt(Hz)",
+    "accel_bias_instability": "m/s^2",
+    "accel_bias_time_constant": "s",
+    "accel_turn_on_bias": "m/s^2",
+    "tilt_sigma": "rad",
+    "tilt_time_constant": "s",
+    "yaw_drift_rate": "rad/s",
+}
 
 
 @dataclass(frozen=True)
@@ -91,18 +122,22 @@ class IMUNoise:
     yaw_drift_rate: float = 1.0 * _DEG / 60.0
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            positive = f.name.endswith("time_constant")
-            if f.name == "accel_noise_density" and isinstance(value, tuple | list | np.ndarray):
-                if len(value) != 3:
-                    raise ValueError(f"accel_noise_density must be one number or 3 (x, y, z), got {value!r}")
-                checked: object = tuple(
-                    check_param(f"accel_noise_density[{i}]", v) for i, v in enumerate(value)
+        density = self.accel_noise_density
+        if isinstance(density, tuple | list | np.ndarray):
+            if len(density) != 3:
+                raise ValueError(
+                    f"IMUNoise.accel_noise_density must be one number or 3 (x, y, z), got {density!r}"
                 )
-            else:
-                checked = check_param(f.name, value, positive=positive)
-            object.__setattr__(self, f.name, checked)
+            lo, hi = IMU_NOISE_BOUNDS["accel_noise_density"]
+            set_field(
+                self,
+                "accel_noise_density",
+                check_reals("IMUNoise.accel_noise_density", density, 3, "m/s^2/sqrt(Hz)", low=lo, high=hi),
+            )
+            bounds = {k: v for k, v in IMU_NOISE_BOUNDS.items() if k != "accel_noise_density"}
+        else:
+            bounds = IMU_NOISE_BOUNDS
+        check_fields(self, lambda f: f"IMUNoise.{f}", bounds, IMU_NOISE_UNITS)
 
 
 @dataclass(frozen=True)
@@ -155,8 +190,12 @@ class AttitudeError:
     ``r ~ N(0, yaw_drift_rate^2)`` (rad/s) drawn at reset, ``t`` the time since reset."""
 
     def __init__(self, tilt_sigma: float, tilt_time_constant: float, yaw_drift_rate: float) -> None:
-        self._tilt = GaussMarkov(tilt_sigma, tilt_time_constant, size=2)
-        self._rate_sigma = check_param("yaw_drift_rate", yaw_drift_rate)
+        lo, hi = IMU_NOISE_BOUNDS["tilt_sigma"]
+        self._tilt = GaussMarkov(
+            check_real("tilt_sigma", tilt_sigma, "rad", low=lo, high=hi), tilt_time_constant, size=2
+        )
+        lo, hi = IMU_NOISE_BOUNDS["yaw_drift_rate"]
+        self._rate_sigma = check_real("yaw_drift_rate", yaw_drift_rate, "rad/s", low=lo, high=hi)
         self.yaw_rate = 0.0
         self.yaw = 0.0
 

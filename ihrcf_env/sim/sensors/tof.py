@@ -36,7 +36,6 @@ Two models (:class:`ToFConfig` ``noise``):
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -45,13 +44,39 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
+from ihrcf_env.core.checks import check_fields, check_int, check_real, set_field
 from ihrcf_env.core.rig import SensorRig
-from ihrcf_env.sim.noise import NoiseModel, NoNoise, check_param
+from ihrcf_env.sim.noise import NoiseModel, NoNoise
 from ihrcf_env.sim.sensors.base import BodyState
 
 #: Ranges of ST's long distance mode used to calibrate :class:`VL53L1X`'s SNR model: an 88 %
 #: (white) target, 33 ms timing budget, full 16x16 SPAD region of interest.
 REFERENCE_REFLECTANCE = 0.88
+
+#: Physical bounds (inclusive) of :class:`VL53L1X`'s real-valued fields: any real ToF sensor fits.
+VL53L1X_BOUNDS: dict[str, tuple[float, float]] = {
+    "fov": (math.radians(1.0), math.radians(90.0)),
+    "reflectance": (0.01, 1.0),
+    "ambient": (0.0, 1.0),
+    "dark_range": (0.05, 50.0),
+    "ambient_range": (0.01, 20.0),
+    "sigma_at_limit": (1e-4, 1.0),
+    "sigma_floor": (0.0, 1.0),
+    "offset_sigma": (0.0, 1.0),
+    "min_range": (0.0, 10.0),
+    "dropout": (0.0, 1.0),
+}
+VL53L1X_UNITS = {
+    "fov": "rad",
+    "dark_range": "m",
+    "ambient_range": "m",
+    "sigma_at_limit": "m",
+    "sigma_floor": "m",
+    "offset_sigma": "m",
+    "min_range": "m",
+}
+#: Bounds (m) of :class:`ToFConfig` ``max_range``.
+MAX_RANGE_BOUNDS = (0.1, 100.0)
 
 
 @dataclass(frozen=True)
@@ -72,19 +97,8 @@ class VL53L1X:
     dropout: float = 0.01
 
     def __post_init__(self) -> None:
-        if isinstance(self.rays, bool) or not isinstance(self.rays, int | np.integer):
-            raise TypeError(f"rays must be an integer, got {type(self.rays).__name__} {self.rays!r}")
-        if not 1 <= self.rays <= 256:
-            raise ValueError(f"rays must be in [1, 256] per sensor, got {self.rays!r}")
-        object.__setattr__(self, "rays", int(self.rays))
-        limits = {"fov": math.radians(90.0), "reflectance": 1.0, "ambient": 1.0, "dropout": 1.0}
-        positive = {"fov", "reflectance", "dark_range", "ambient_range", "sigma_at_limit"}
-        for f in dataclasses.fields(self):
-            if f.name != "rays":
-                v = check_param(
-                    f.name, getattr(self, f.name), positive=f.name in positive, upper=limits.get(f.name)
-                )
-                object.__setattr__(self, f.name, v)
+        set_field(self, "rays", check_int("VL53L1X.rays", self.rays, low=1, high=256))
+        check_fields(self, lambda f: f"VL53L1X.{f}", VL53L1X_BOUNDS, VL53L1X_UNITS)
         if not self.ambient_range < self.dark_range:
             raise ValueError(
                 f"ambient_range ({self.ambient_range:g} m) must be shorter than dark_range "
@@ -146,8 +160,8 @@ class ToFConfig:
     noise: str | VL53L1X = "ideal"
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.max_range) and self.max_range > 0):
-            raise ValueError(f"tof max_range must be positive (m), got {self.max_range!r}")
+        lo, hi = MAX_RANGE_BOUNDS
+        set_field(self, "max_range", check_real("tof max_range", self.max_range, "m", low=lo, high=hi))
         if not isinstance(self.noise, VL53L1X) and self.noise not in TOF_PRESETS:
             raise ValueError(
                 f"tof_noise must be one of {sorted(TOF_PRESETS)} or a VL53L1X, got {self.noise!r}"
