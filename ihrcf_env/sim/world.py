@@ -26,7 +26,7 @@ from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.core.seeding import SeedStreams
 from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.sim.deck import Deck, DeckConfig, DeckTrajectory, rigid_point_velocity
-from ihrcf_env.sim.disturbances import Disturbance
+from ihrcf_env.sim.disturbances import Disturbance, disturbance_force
 from ihrcf_env.sim.drone import QuadParams, Quadrotor, VelocityController, VelocityGains
 from ihrcf_env.sim.navigation import Navigation, NavigationConfig, make_navigation
 from ihrcf_env.sim.sensors import IMU, BodyState, CameraConfig, DownCamera, Sensor, ToFArray, ToFConfig
@@ -397,7 +397,7 @@ class World:
                 t = self.tick * dt
                 fx = fy = fz = 0.0
                 for d in disturbances:
-                    f = d(t, pos, vel)
+                    f = disturbance_force(d, t, pos, vel)
                     fx, fy, fz = fx + f[0], fy + f[1], fz + f[2]
                 p.applyExternalForce(quad.body, -1, (fx, fy, fz), pos, p.WORLD_FRAME, physicsClientId=cid)
             prev_vel = vel
