@@ -73,7 +73,7 @@ from ihrcf_env.sim.sensors.tof import VL53L1X
 from ihrcf_env.sim.world import ACTION_MODES, CAMERA_MODELS, CAMERA_OUTPUTS, WorldConfig
 
 if TYPE_CHECKING:
-    from ihrcf_env.core.estimators.detector_model import DetectorModel
+    from ihrcf_env.core.detector_model import DetectorModel
 
 #: Seconds of deck motion checked against the legs' stroke at reset when ``horizon_s`` is None.
 DEFAULT_HORIZON_S = 600.0
@@ -508,7 +508,7 @@ def _camera_options(
         return model, model_default, None, None
     if detector_model is None and model != "projected":
         return model, output, hz, None
-    from ihrcf_env.core.estimators.detector_model import DetectorModel, default_detector_model_path
+    from ihrcf_env.core.detector_model import DetectorModel, default_detector_model_path
 
     detector: DetectorModel | None = None
     if detector_model is not None:

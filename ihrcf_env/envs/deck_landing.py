@@ -81,7 +81,7 @@ from ihrcf_env.sim.sensors.tof import VL53L1X
 from ihrcf_env.sim.world import Snapshot, Touchdown, World, WorldConfig
 
 if TYPE_CHECKING:
-    from ihrcf_env.core.estimators.detector_model import DetectorModel
+    from ihrcf_env.core.detector_model import DetectorModel
 
 RESET_OPTIONS = ("altitude", "offset", "yaw", "deck_time")
 

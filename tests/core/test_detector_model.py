@@ -1,4 +1,4 @@
-"""Tests for ihrcf_env.core.estimators.detector_model (pure: no simulator)."""
+"""Tests for ihrcf_env.core.detector_model (pure: no simulator)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ import cv2
 import numpy as np
 import pytest
 
-from ihrcf_env.core.estimators import (
+from ihrcf_env.core import detector_model as dm
+from ihrcf_env.core.detector_model import (
     FIT_COMMAND,
     CornerTrack,
     DetectorModel,
@@ -23,7 +24,6 @@ from ihrcf_env.core.estimators import (
     project_points,
     tag_features,
 )
-from ihrcf_env.core.estimators import detector_model as dm
 
 W = H = 512
 
