@@ -138,9 +138,9 @@ class Calibration:
         self.lens_distortion = (float(k[0]), float(k[1]))
         if not isinstance(self.tables, RangePixelTable):
             raise TypeError(f"tables must be a RangePixelTable, got {describe(self.tables)}")
-        check_table_pixels(self.tables, self.image_width, self.image_height)
         self.K = check_camera_matrix(self.K, self.image_width, self.image_height)
         self.dist = check_distortion(self.dist, self.K, self.image_width, self.image_height)
+        check_table_pixels(self.tables, self.image_width, self.image_height)
         if self.chessboard_rms is not None:
             self.chessboard_rms = check_non_negative(
                 "chessboard_rms", self.chessboard_rms, "px", high=MAX_CHESSBOARD_RMS
