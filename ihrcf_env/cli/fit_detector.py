@@ -4,8 +4,8 @@
 :class:`~ihrcf_env.sim.world.World` (512x512, 60 deg, the default camera) for both camera qualities,
 runs :class:`~ihrcf_env.core.estimators.TagDetector` (``refine="subpix"``) on each, pairs them with
 the exact projection of the same state (:class:`~ihrcf_env.sim.sensors.tag_camera.ProjectedTagCamera`
-features) and fits :class:`~ihrcf_env.core.estimators.detector_model.QualityParams` per quality
-(:func:`~ihrcf_env.core.estimators.detector_model.fit_quality`). Written to
+features) and fits :class:`~ihrcf_env.core.detector_model.QualityParams` per quality
+(:func:`~ihrcf_env.core.detector_model.fit_quality`). Written to
 ``assets/detector_model.json`` by default (a few kB). Seeded and re-runnable; ~2-3 min on one core
 with the default 1200 frames per quality.
 
@@ -39,8 +39,7 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
-from ihrcf_env.core.estimators.detector import TagDetector
-from ihrcf_env.core.estimators.detector_model import (
+from ihrcf_env.core.detector_model import (
     FIT_COMMAND,
     N_BASIS,
     QUALITIES,
@@ -50,6 +49,7 @@ from ihrcf_env.core.estimators.detector_model import (
     default_detector_model_path,
     fit_detector_params,
 )
+from ihrcf_env.core.estimators.detector import TagDetector
 from ihrcf_env.core.frames import R_BODY_CAM, matrix_from_euler, quat_from_matrix
 
 FRAMES_PER_TRACK = 6

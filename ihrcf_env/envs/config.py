@@ -84,7 +84,7 @@ from ihrcf_env.sim.sensors.tof import VL53L1X
 from ihrcf_env.sim.world import ACTION_MODES, CAMERA_MODELS, CAMERA_OUTPUTS, WorldConfig
 
 if TYPE_CHECKING:
-    from ihrcf_env.core.estimators.detector_model import DetectorModel
+    from ihrcf_env.core.detector_model import DetectorModel
 
 __all__ = [
     "ARENA_MARGIN",
@@ -402,7 +402,7 @@ def _camera_options(
         return model, model_default, None, None
     if detector_model is None and model != "projected":
         return model, output, hz, None
-    from ihrcf_env.core.estimators.detector_model import DetectorModel, default_detector_model_path
+    from ihrcf_env.core.detector_model import DetectorModel, default_detector_model_path
 
     detector: DetectorModel | None = None
     if detector_model is not None:

@@ -53,8 +53,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ihrcf_env.core.calibration import Calibration, default_calibration_path
+from ihrcf_env.core.detector_model import DetectorModel
 from ihrcf_env.core.estimators import DeckPoseEstimator, ImuSample, SensorFrame
-from ihrcf_env.core.estimators.detector_model import DetectorModel
 from ihrcf_env.core.frames import euler_from_matrix
 from ihrcf_env.core.metrics import POSE_AXES, pose_errors
 from ihrcf_env.core.profiles import (

@@ -34,7 +34,7 @@ from ihrcf_env.sim.sensors.base import TAG_CAMERA
 from ihrcf_env.sim.sensors.imu import IMUConfig
 
 if TYPE_CHECKING:
-    from ihrcf_env.core.estimators.detector_model import DetectorModel
+    from ihrcf_env.core.detector_model import DetectorModel
 
 ACTION_MODES: tuple[str, ...] = ("velocity", "motors")
 #: How the camera is simulated: ``"rendered"`` (TinyRenderer + the tag detector) or ``"projected"``
@@ -245,7 +245,7 @@ class World:
             from ihrcf_env.sim.sensors.tag_window import WindowedTagCamera
 
             return {TAG_CAMERA: WindowedTagCamera(self.camera, self.deck, tag_size, tag_id)}
-        from ihrcf_env.core.estimators.detector_model import DetectorModel
+        from ihrcf_env.core.detector_model import DetectorModel
         from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
 
         model = cfg.detector_model if cfg.detector_model is not None else DetectorModel.load()

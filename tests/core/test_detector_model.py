@@ -1,4 +1,4 @@
-"""Tests for ihrcf_env.core.estimators.detector_model (pure: no simulator)."""
+"""Tests for ihrcf_env.core.detector_model (pure: no simulator)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ import cv2
 import numpy as np
 import pytest
 
-from ihrcf_env.core.estimators import (
+from ihrcf_env.core import detector_model as dm
+from ihrcf_env.core.detector_model import (
     FIT_COMMAND,
     CornerTrack,
     DetectorModel,
@@ -23,7 +24,6 @@ from ihrcf_env.core.estimators import (
     project_points,
     tag_features,
 )
-from ihrcf_env.core.estimators import detector_model as dm
 
 W = H = 512
 
@@ -321,3 +321,58 @@ def test_fit_recovers_a_known_model() -> None:
     assert prm.size50_px == pytest.approx(11.0, abs=1.5)
     assert prm.miss_prob == pytest.approx(0.01, abs=0.01)
     assert report["detection_rate_model"] == pytest.approx(report["detection_rate_rendered"], abs=0.02)
+
+
+@pytest.mark.parametrize(
+    "field",
+    [
+        "noise_gain",
+        "blur_gain",
+        "corr_max",
+        "corr_length_px",
+        "min_margin_px",
+        "band_low_px",
+        "band_high_px",
+        "band_fail_prob",
+        "size50_px",
+        "size_width_px",
+        "min_cos_view",
+        "miss_prob",
+        "mean_radial",
+        "log_sd_tangential",
+    ],
+)
+def test_a_400_digit_integer_in_the_file_names_the_field(tmp_path: Path, field: str) -> None:
+    # Before: OverflowError (float(int)) escaped from DetectorModel.load, naming nothing.
+    d = model().to_dict()
+    huge = -(10**400)
+    if field.startswith(("mean_", "log_sd_")):
+        d["qualities"]["realistic"][field][3] = huge
+        name = rf"{field}\[3\]"
+    else:
+        d["qualities"]["realistic"][field] = huge
+        name = field
+    path = tmp_path / "huge.json"
+    path.write_text(json.dumps(d))
+    with pytest.raises(DetectorModelError, match=rf"realistic.*{name}") as e:
+        DetectorModel.load(path)
+    assert str(path) in str(e.value) and FIT_COMMAND in str(e.value)
+
+
+def test_a_huge_format_version_is_a_file_error(tmp_path: Path) -> None:
+    d = model().to_dict()
+    d["format_version"] = 10**400
+    path = tmp_path / "v.json"
+    path.write_text(json.dumps(d))
+    with pytest.raises(DetectorModelError, match="format_version"):
+        DetectorModel.load(path)
+
+
+def test_json_nested_too_deeply_is_a_file_error(tmp_path: Path) -> None:
+    # Before: RecursionError from json.loads.
+    depth = 200_000
+    path = tmp_path / "deep.json"
+    path.write_text('{"fit": ' + "[" * depth + "]" * depth + "}")
+    with pytest.raises(DetectorModelError, match="nested too deeply") as e:
+        DetectorModel.load(path)
+    assert str(path) in str(e.value) and FIT_COMMAND in str(e.value)

@@ -673,7 +673,7 @@ def test_motion_gives_the_deck_velocity_and_normal_rate() -> None:
 def _textbook_imm_update(kf, z, lo, hi, R):
     """Reference: gate on the fully moment-matched combined estimate, then each model's Joseph-form
     Kalman update and Bayes on the model probabilities (the formulas, no shortcuts)."""
-    from ihrcf_env.core.estimators.fused import _wrap
+    from ihrcf_env.core.estimators.imm import wrap_angles as _wrap
 
     n = len(kf.mu)
     ref = kf.X[int(np.argmax(kf.mu))]
@@ -706,7 +706,8 @@ def _textbook_imm_update(kf, z, lo, hi, R):
 def test_imm_update_is_the_textbook_update(angles: bool, rows: tuple[int, int]) -> None:
     # The filter's update is written for tiny matrices (gate on the measured block only, P - K S K^T);
     # it must equal the full formulas to rounding.
-    from ihrcf_env.core.estimators.fused import _Imm, _largest_eigenvalue
+    from ihrcf_env.core.estimators.imm import Imm as _Imm
+    from ihrcf_env.core.estimators.imm import largest_eigenvalue as _largest_eigenvalue
 
     rng = np.random.default_rng(11)
     kf = _Imm(
@@ -739,7 +740,7 @@ def test_imm_update_is_the_textbook_update(angles: bool, rows: tuple[int, int]) 
 def test_imm_constant_value_noise_equals_per_step_noise() -> None:
     # A constant q_value given to the constructor is folded into the cached process noise; it must
     # equal giving it to every predict (to rounding).
-    from ihrcf_env.core.estimators.fused import _Imm
+    from ihrcf_env.core.estimators.imm import Imm as _Imm
 
     q = np.diag([1e-4, 2e-4, 0.0])
     drifts = [np.full(3, d) for d in (0.001, 0.01, 0.1)]

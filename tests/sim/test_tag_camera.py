@@ -11,8 +11,9 @@ import numpy as np
 import pybullet as p
 import pytest
 
-from ihrcf_env.core.estimators import DetectorModel, TagDetector
-from ihrcf_env.core.estimators import detector_model as dm
+from ihrcf_env.core import detector_model as dm
+from ihrcf_env.core.detector_model import DetectorModel
+from ihrcf_env.core.estimators import TagDetector
 from ihrcf_env.core.frames import matrix_from_euler, quat_from_matrix
 from ihrcf_env.core.profiles import StaticProfile, paper_profile
 from ihrcf_env.sim.sensors import BodyState, CameraConfig, Sensor

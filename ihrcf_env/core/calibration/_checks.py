@@ -1,85 +1,25 @@
-"""Strict type checks of calibration fields (JSON values or their numpy equivalents).
+"""Checks of calibration fields that :mod:`ihrcf_env.core.checks` lacks: shaped arrays of numbers
+(:func:`check_real_array`) and JSON objects with known keys (:func:`check_keys`).
 
-Each check names the field (e.g. ``"rig.camera_position"``) and raises TypeError for a value of the
-wrong kind (a string, null, a bool, a float where an int belongs) and ValueError for a value of the
-right kind but out of range (wrong shape, NaN/inf, a non-positive size).
+Name first, as in :mod:`ihrcf_env.core.checks` (whose scalar checks they use): TypeError for a
+value of the wrong kind (a string, null, a bool where a number belongs), ValueError for a value of
+the right kind out of range (wrong shape, NaN/inf, beyond the bounds, an integer too large for a
+float), both naming the field (e.g. ``"rig.camera_position"``).
 """
 
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Iterable, Mapping
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ihrcf_env.core.checks import check_real, describe, is_real
 
-def describe(value: Any) -> str:
-    """A JSON-flavoured description of ``value`` for error messages."""
-    if value is None:
-        return "null"
-    if isinstance(value, bool | np.bool_):
-        return f"a boolean ({bool(value)!r})"
-    if isinstance(value, str):
-        text = value if len(value) <= 40 else value[:37] + "..."
-        return f"a string ({text!r})"
-    if isinstance(value, numbers.Integral):
-        return f"an integer ({int(value)})"
-    if isinstance(value, numbers.Real):
-        return f"a number ({float(value)!r})"
-    if isinstance(value, Mapping):
-        return "an object"
-    if isinstance(value, list | tuple):
-        return f"an array of length {len(value)}"
-    if isinstance(value, np.ndarray):
-        return f"an array of {value.dtype} with shape {value.shape}"
-    return f"a {type(value).__name__}"
-
-
-def is_int(value: Any) -> bool:
-    """An integer, not a bool (``True`` is an int in Python, not in a calibration file)."""
-    return isinstance(value, numbers.Integral) and not isinstance(value, bool | np.bool_)
-
-
-def is_real(value: Any) -> bool:
-    """A real number (int or float), not a bool."""
-    return isinstance(value, numbers.Real) and not isinstance(value, bool | np.bool_)
-
-
-def check_int(value: Any, field: str, minimum: int | None = None) -> int:
-    """``value`` as an int; it must be an integer (not a float such as 512.0 or 512.7, not a bool)."""
-    if not is_int(value):
-        raise TypeError(f"{field} must be an integer, got {describe(value)}")
-    out = int(value)
-    if minimum is not None and out < minimum:
-        raise ValueError(f"{field} must be >= {minimum}, got {out}")
-    return out
-
-
-def check_real(value: Any, field: str, unit: str = "") -> float:
-    """``value`` as a finite float; it must be a number (int or float), not a bool, null or string."""
-    suffix = f" ({unit})" if unit else ""
-    if not is_real(value):
-        raise TypeError(f"{field} must be a finite number{suffix}, got {describe(value)}")
-    out = float(value)
-    if not math.isfinite(out):
-        raise ValueError(f"{field} must be finite{suffix}, got {out!r}")
-    return out
-
-
-def _first_non_number(value: Any) -> tuple[bool, Any]:
-    """(True, offending element) for the first element of a nested list that is not a number."""
-    if isinstance(value, list | tuple):
-        for v in value:
-            bad, what = _first_non_number(v)
-            if bad:
-                return True, what
-        return False, None
-    if isinstance(value, np.ndarray):
-        return (value.dtype.kind not in "iuf", value)
-    return (not is_real(value), value)
+#: Deepest nesting of an array field: a calibration array has at most this many dimensions.
+MAX_ARRAY_DEPTH = 8
 
 
 def _shape_text(shape: tuple[int | None, ...]) -> str:
@@ -87,45 +27,85 @@ def _shape_text(shape: tuple[int | None, ...]) -> str:
     return "(" + ", ".join(dims) + ("," if len(dims) == 1 else "") + ")"
 
 
+def _index_text(index: tuple[int, ...]) -> str:
+    return "[" + ", ".join(str(i) for i in index) + "]"
+
+
+def _leaves(name: str, value: list[Any] | tuple[Any, ...], want: str) -> list[tuple[tuple[int, ...], Any]]:
+    """The non-sequence elements of nested lists / tuples with their indices (breadth first, no
+    recursion); ValueError beyond :data:`MAX_ARRAY_DEPTH` levels."""
+    leaves: list[tuple[tuple[int, ...], Any]] = []
+    level: list[tuple[tuple[int, ...], Any]] = [((), value)]
+    depth = 0
+    while level:
+        if depth > MAX_ARRAY_DEPTH:
+            raise ValueError(f"{name} must be an array with shape {want}, got one nested too deeply")
+        nxt: list[tuple[tuple[int, ...], Any]] = []
+        for index, v in level:
+            if isinstance(v, list | tuple):
+                nxt.extend(((*index, i), x) for i, x in enumerate(v))
+            else:
+                leaves.append((index, v))
+        level = nxt
+        depth += 1
+    return leaves
+
+
 def check_real_array(
-    value: Any, shape: tuple[int | None, ...], field: str, finite: bool = True
+    name: str,
+    value: Any,
+    shape: tuple[int | None, ...],
+    unit: str = "",
+    *,
+    low: float = -math.inf,
+    high: float = math.inf,
 ) -> NDArray[np.float64]:
     """``value`` (nested lists / tuples of numbers, or a numeric ndarray) as a float64 array of
-    ``shape`` (``None`` = any length); every element a number (no bool, null or string) and, with
-    ``finite``, finite."""
+    ``shape`` (``None`` = any length); every element a number (no bool, null or string), finite and
+    in [low, high] (an element out of range is named by its index, e.g. ``K[0, 0]``)."""
     want = _shape_text(shape)
     if isinstance(value, np.ndarray):
         if value.dtype.kind not in "iuf":
-            raise TypeError(f"{field} must be an array of numbers with shape {want}, got {describe(value)}")
-    elif isinstance(value, list | tuple):
-        bad, what = _first_non_number(value)
-        if bad:
-            raise TypeError(f"{field} must contain only numbers (shape {want}), found {describe(what)}")
-    else:
-        raise TypeError(f"{field} must be an array of numbers with shape {want}, got {describe(value)}")
-    try:
+            raise TypeError(f"{name} must be an array of numbers with shape {want}, got {describe(value)}")
         a = np.array(value, dtype=np.float64)
-    except ValueError:
-        raise ValueError(f"{field} must be an array with shape {want}, got a ragged nested array") from None
+    elif isinstance(value, list | tuple):
+        for index, v in _leaves(name, value, want):
+            if not is_real(v):
+                raise TypeError(f"{name} must contain only numbers (shape {want}), found {describe(v)}")
+            if not -1e300 < v < 1e300:  # an int too large for a float, or a huge float: named here
+                check_real(f"{name}{_index_text(index)}", v, unit, low=low, high=high)
+        try:
+            a = np.array(value, dtype=np.float64)
+        except ValueError:
+            raise ValueError(
+                f"{name} must be an array with shape {want}, got a ragged nested array"
+            ) from None
+    else:
+        raise TypeError(f"{name} must be an array of numbers with shape {want}, got {describe(value)}")
     if a.ndim != len(shape) or any(n is not None and n != m for n, m in zip(shape, a.shape, strict=True)):
-        raise ValueError(f"{field} must have shape {want}, got {a.shape}")
-    if finite and not np.isfinite(a).all():
-        raise ValueError(f"{field} must be finite, got NaN or inf")
+        raise ValueError(f"{name} must have shape {want}, got {a.shape}")
+    if not np.isfinite(a).all():
+        raise ValueError(f"{name} must be finite, got NaN or inf")
+    bad = np.argwhere((a < low) | (a > high))
+    if bad.size:
+        index = tuple(int(i) for i in bad[0])
+        check_real(f"{name}{_index_text(index)}", float(a[index]), unit, low=low, high=high)
     return a
 
 
 def check_keys(
-    d: Any, field: str, required: Iterable[str], optional: Iterable[str] = ()
+    name: str, value: Any, required: Iterable[str], optional: Iterable[str] = ()
 ) -> Mapping[str, Any]:
-    """``d`` as a mapping with all ``required`` keys and no keys other than ``required``/``optional``."""
-    if not isinstance(d, Mapping):
-        raise TypeError(f"{field} must be an object, got {describe(d)}")
+    """``value`` as a mapping with all ``required`` keys and no keys other than ``required`` /
+    ``optional``."""
+    if not isinstance(value, Mapping):
+        raise TypeError(f"{name} must be an object, got {describe(value)}")
     req = tuple(required)
-    missing = [k for k in req if k not in d]
+    missing = [k for k in req if k not in value]
     if missing:
-        raise ValueError(f"{field}: missing key(s) {missing}")
+        raise ValueError(f"{name}: missing key(s) {missing}")
     known = set(req) | set(optional)
-    unknown = sorted(str(k) for k in d if k not in known)
+    unknown = sorted(str(k) for k in value if k not in known)
     if unknown:
-        raise ValueError(f"{field}: unknown key(s) {unknown}; known: {sorted(known)}")
-    return d
+        raise ValueError(f"{name}: unknown key(s) {unknown}; known: {sorted(known)}")
+    return value

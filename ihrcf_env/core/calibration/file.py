@@ -20,15 +20,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ihrcf_env import __version__
-from ihrcf_env.core.calibration._checks import (
-    check_int,
-    check_keys,
-    check_real,
-    check_real_array,
-    describe,
-    is_int,
+from ihrcf_env.core.calibration._checks import check_real_array
+from ihrcf_env.core.calibration.bounds import (
+    LENS_DISTORTION_LIMIT,
+    MAX_CHESSBOARD_RMS,
+    MAX_IMAGE_SIZE,
+    MAX_SEED,
+    check_camera_matrix,
+    check_distortion,
+    check_fov,
+    check_rig,
+    check_table_pixels,
 )
 from ihrcf_env.core.calibration.tables import RangePixelTable
+from ihrcf_env.core.checks import check_int, check_non_negative, describe, is_int
 from ihrcf_env.core.paths import assets_dir
 from ihrcf_env.core.rig import SensorRig
 
@@ -77,19 +82,31 @@ _OPTIONAL_KEYS = ("format_version", "lens_distortion")
 class Calibration:
     """Versioned calibration file of one camera configuration and rig.
 
+    Every field is type- and range-checked on construction (TypeError for the wrong kind,
+    ValueError out of its physical bounds, both naming the field); the bounds are those of
+    :mod:`ihrcf_env.core.calibration.bounds`, in brief:
+
     Attributes:
-        image_width, image_height: image size (px) the file was made for.
-        fov: vertical field of view (rad) the file was made for.
-        rig: :meth:`ihrcf_env.core.rig.SensorRig.to_dict` of the rig (a ``SensorRig`` is converted).
-        tables: the range -> pixel tables ps1..ps4.
-        K: (3, 3) intrinsics from the chessboard stage (section 2.1; used by ATDA).
-        dist: (5,) distortion (k1, k2, p1, p2, k3).
-        chessboard_rms: reprojection RMS (px) of the chessboard calibration, None if skipped.
-        seed: RNG seed of the calibration run (None if unseeded).
+        image_width, image_height: image size (px) the file was made for, 1 .. 32768.
+        fov: vertical field of view (rad) the file was made for, in (0, pi).
+        rig: :meth:`ihrcf_env.core.rig.SensorRig.to_dict` of the rig (a ``SensorRig`` is converted):
+            ``a`` in (0, 1] m, ``theta`` in (0, pi/2) rad, ``camera_position`` within +-1 m.
+        tables: the range -> pixel tables ps1..ps4 (ranges in (0, 100] m, touch pixels within one
+            image size around the image).
+        K: (3, 3) intrinsics from the chessboard stage (section 2.1; used by ATDA): ``fx``, ``fy``
+            in [0.01, 100] x the larger image side, ``|skew| <= 0.1 fx``, the principal point inside
+            the image, last row ``0 0 1``.
+        dist: (5,) distortion (k1, k2, p1, p2, k3), within +-(2, 10, 0.2, 0.2, 50), and its radial
+            part must not fold the image (``r (1 + k1 r^2 + k2 r^4 + k3 r^6)`` increasing out to
+            the image corners).
+        chessboard_rms: reprojection RMS (px) of the chessboard calibration, in [0, 100]; None if
+            skipped.
+        seed: RNG seed of the calibration run, in [0, 2^128] (None if unseeded).
         created_with: producer string, e.g. ``"ihrcf_env 0.1.0"``.
         report: free JSON-serialisable dict (stages used/skipped, measurements).
-        lens_distortion: (k1, k2) radial distortion of the simulated camera the file was made for
-            (the camera's property, like ``fov``; ``dist`` is what the chessboard estimated).
+        lens_distortion: (k1, k2) radial distortion of the simulated camera the file was made for,
+            each in [-1, 1] (the camera's property, like ``fov``; ``dist`` is what the chessboard
+            estimated).
         format_version: file format version (:data:`FORMAT_VERSION`).
         source: file this was loaded from (not serialised).
     """
@@ -113,45 +130,32 @@ class Calibration:
         """Type- and value-check every field (see the class docstring for units): TypeError for a
         value of the wrong kind (ints must be ints, not floats or bools; numbers not null, bool or
         strings; arrays of numbers), ValueError for a bad value, both naming the field."""
-        self.image_width = check_int(self.image_width, "image_width", minimum=1)
-        self.image_height = check_int(self.image_height, "image_height", minimum=1)
-        self.fov = check_real(self.fov, "fov", "rad")
-        if not (0.0 < self.fov < math.pi):
-            raise ValueError(f"fov must be in (0, pi) rad, got {self.fov!r}")
-        k = check_real_array(self.lens_distortion, (2,), "lens_distortion")
+        self.image_width = check_int("image_width", self.image_width, low=1, high=MAX_IMAGE_SIZE)
+        self.image_height = check_int("image_height", self.image_height, low=1, high=MAX_IMAGE_SIZE)
+        self.fov = check_fov(self.fov)
+        lim = LENS_DISTORTION_LIMIT
+        k = check_real_array("lens_distortion", self.lens_distortion, (2,), low=-lim, high=lim)
         self.lens_distortion = (float(k[0]), float(k[1]))
         if not isinstance(self.tables, RangePixelTable):
             raise TypeError(f"tables must be a RangePixelTable, got {describe(self.tables)}")
-        self.K = check_real_array(self.K, (3, 3), "K")
-        if not (self.K[0, 0] > 0 and self.K[1, 1] > 0 and np.array_equal(self.K[2], [0.0, 0.0, 1.0])):
-            raise ValueError(f"K must be a camera matrix (fx, fy > 0, last row 0 0 1), got {self.K.tolist()}")
-        self.dist = check_real_array(self.dist, (5,), "dist")
+        self.K = check_camera_matrix(self.K, self.image_width, self.image_height)
+        self.dist = check_distortion(self.dist, self.K, self.image_width, self.image_height)
+        check_table_pixels(self.tables, self.image_width, self.image_height)
         if self.chessboard_rms is not None:
-            self.chessboard_rms = check_real(self.chessboard_rms, "chessboard_rms", "px")
-            if self.chessboard_rms < 0:
-                raise ValueError(f"chessboard_rms must be >= 0 (px), got {self.chessboard_rms!r}")
+            self.chessboard_rms = check_non_negative(
+                "chessboard_rms", self.chessboard_rms, "px", high=MAX_CHESSBOARD_RMS
+            )
         if self.seed is not None:
-            self.seed = check_int(self.seed, "seed", minimum=0)
+            self.seed = check_int("seed", self.seed, low=0, high=MAX_SEED)
         if not isinstance(self.created_with, str):
             raise TypeError(f"created_with must be a string, got {describe(self.created_with)}")
         if not isinstance(self.report, Mapping):
             raise TypeError(f"report must be an object, got {describe(self.report)}")
         self.report = dict(self.report)
-        self.format_version = check_int(self.format_version, "format_version")
-        rig = check_keys(
-            self.rig.to_dict() if isinstance(self.rig, SensorRig) else self.rig,
-            "rig",
-            ("a", "theta", "camera_position"),
+        self.format_version = check_int(
+            "format_version", self.format_version, low=FORMAT_VERSION, high=FORMAT_VERSION
         )
-        self.rig = {
-            "a": check_real(rig["a"], "rig.a", "m"),
-            "theta": check_real(rig["theta"], "rig.theta", "rad"),
-            "camera_position": check_real_array(rig["camera_position"], (3,), "rig.camera_position").tolist(),
-        }
-        try:
-            SensorRig(self.rig["a"], self.rig["theta"], tuple(self.rig["camera_position"]))
-        except ValueError as e:
-            raise ValueError(f"rig: {e}") from e
+        self.rig = check_rig(self.rig)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -212,7 +216,7 @@ class Calibration:
         version = d["format_version"]
         if not is_int(version) or version != FORMAT_VERSION:
             raise CalibrationError(
-                f"{source}: unsupported format_version {version!r} (this ihrcf_env reads "
+                f"{source}: unsupported format_version {describe(version)} (this ihrcf_env reads "
                 f"{FORMAT_VERSION}); re-create it with python -m ihrcf_env.calibrate"
             )
         missing = [k for k in _REQUIRED_KEYS if k not in d]
@@ -225,7 +229,7 @@ class Calibration:
             )
         try:
             tables = RangePixelTable.from_dict(d["tables"])
-        except (ValueError, TypeError) as e:
+        except (ValueError, TypeError, OverflowError) as e:
             raise CalibrationError(f"{source}: bad 'tables': {e}") from e
         try:
             return cls(
@@ -244,7 +248,7 @@ class Calibration:
                 format_version=version,
                 source=source,
             )
-        except (ValueError, TypeError) as e:
+        except (ValueError, TypeError, OverflowError) as e:
             raise CalibrationError(f"{source}: {e}") from e
 
     @classmethod
@@ -264,6 +268,8 @@ class Calibration:
             raise CalibrationError(f"{name}: cannot read calibration file: {e}") from e
         try:
             data = json.loads(text, parse_constant=_reject_constant)
+        except RecursionError:  # json.loads recurses once per nesting level
+            raise CalibrationError(f"{name}: not a valid calibration JSON file: nested too deeply") from None
         except ValueError as e:
             raise CalibrationError(f"{name}: not a valid calibration JSON file: {e}") from e
         return cls.from_dict(data, source=name)

@@ -17,8 +17,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import PchipInterpolator
 
-from ihrcf_env.core.calibration._checks import check_keys, check_real_array, describe
+from ihrcf_env.core.calibration._checks import check_keys, check_real_array
+from ihrcf_env.core.checks import describe
 
+#: Longest range of a table sample in a calibration file (m): far beyond any ToF sensor's reach.
+MAX_TABLE_RANGE = 100.0
+#: Largest magnitude of a table pixel coordinate in a calibration file (px); the file also bounds
+#: them by its image size (:class:`~ihrcf_env.core.calibration.file.Calibration`).
+MAX_PIXEL = 1e6
 #: Range-sensor names in rig order; sensor i is centred on pad ``PAD_COLOURS[i]``.
 SENSOR_NAMES: tuple[str, str, str, str] = ("ps1", "ps2", "ps3", "ps4")
 
@@ -108,15 +114,18 @@ class SensorTable:
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any], field: str = "table", name: str | None = None) -> SensorTable:
-        """From :meth:`to_dict`'s JSON object, type-checked: ``ranges`` (N,) and ``pixels`` (N, 2)
-        numbers (no null: a missing sample is simply left out), optional ``name`` string (``name``
+        """From :meth:`to_dict`'s JSON object, type-checked: ``ranges`` (N,) numbers in
+        (0, :data:`MAX_TABLE_RANGE`] m and ``pixels`` (N, 2) numbers within +-:data:`MAX_PIXEL` px
+        (no null: a missing sample is simply left out), optional ``name`` string (``name``
         overrides it). TypeError / ValueError naming ``field`` and the key otherwise."""
-        check_keys(d, field, ("ranges", "pixels"), ("name",))
+        check_keys(field, d, ("ranges", "pixels"), ("name",))
         stored = d.get("name", "sensor")
         if not isinstance(stored, str):
             raise TypeError(f"{field}.name must be a string, got {describe(stored)}")
-        ranges = check_real_array(d["ranges"], (None,), f"{field}.ranges")
-        pixels = check_real_array(d["pixels"], (None, 2), f"{field}.pixels")
+        ranges = check_real_array(f"{field}.ranges", d["ranges"], (None,), "m", high=MAX_TABLE_RANGE)
+        pixels = check_real_array(
+            f"{field}.pixels", d["pixels"], (None, 2), "px", low=-MAX_PIXEL, high=MAX_PIXEL
+        )
         if np.any(ranges <= 0):
             raise ValueError(f"{field}.ranges must be positive distances (m), got min {ranges.min()!r}")
         return cls(ranges, pixels, name=stored if name is None else name)
@@ -176,7 +185,7 @@ class RangePixelTable:
         missing = [name for name in SENSOR_NAMES if name not in d]
         if missing:
             raise ValueError(f"tables: missing sensor(s) {missing}")
-        check_keys(d, "tables", SENSOR_NAMES)
+        check_keys("tables", d, SENSOR_NAMES)
         return cls(
             [SensorTable.from_dict(d[name], field=f"tables.{name}", name=name) for name in SENSOR_NAMES]
         )

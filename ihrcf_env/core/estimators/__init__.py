@@ -4,7 +4,8 @@ Every estimator reports the pose of the **deck** frame in the drone **body** fra
 :class:`PoseEstimate`, and implements :class:`DeckPoseSource` (``name``, ``reset()``,
 ``update(SensorFrame) -> PoseEstimate``). ``base`` (the shared records and the protocol), ``ihrcf``
 (the paper's method), ``atda`` (AprilTag + PnP baseline), ``fused`` (IHRCF + ATDA's attitude + the
-IMU in a causal Kalman filter), ``detector`` (tag corners), ``registry`` (name -> estimator: the one
+IMU in a causal Kalman filter; with ``fused_params``, ``fused_measurements`` and ``imm``, the
+interacting-multiple-model Kalman bank), ``detector`` (tag corners), ``registry`` (name -> estimator: the one
 place to add one), ``pipeline`` (one frame through all of them).
 """
 
@@ -25,21 +26,6 @@ from ihrcf_env.core.estimators.base import (
     SensorFrame,
 )
 from ihrcf_env.core.estimators.detector import APRILTAG_CORNER_OFFSET_PX, TagDetector
-from ihrcf_env.core.estimators.detector_model import (
-    FIT_COMMAND,
-    CornerTrack,
-    DetectorModel,
-    DetectorModelError,
-    DetectorSamples,
-    QualityParams,
-    TagFeatures,
-    corner_basis,
-    default_detector_model_path,
-    fit_quality,
-    noise_to_contrast,
-    project_points,
-    tag_features,
-)
 from ihrcf_env.core.estimators.fused import FusedEstimator, FusedParams
 from ihrcf_env.core.estimators.ihrcf import (
     IHRCFCorners,
@@ -65,16 +51,11 @@ __all__ = [
     "DEFAULT_ESTIMATORS",
     "DEGENERATE_REL_TOL",
     "ESTIMATORS",
-    "FIT_COMMAND",
     "R_DECK_MARKER",
     "TAG_NOT_FOUND",
     "ATDAEstimator",
-    "CornerTrack",
     "DeckPoseEstimator",
     "DeckPoseSource",
-    "DetectorModel",
-    "DetectorModelError",
-    "DetectorSamples",
     "EstimatorConfig",
     "FusedEstimator",
     "FusedParams",
@@ -82,24 +63,16 @@ __all__ = [
     "IHRCFEstimator",
     "ImuSample",
     "PoseEstimate",
-    "QualityParams",
     "SensorFrame",
     "TagDetector",
-    "TagFeatures",
     "TouchPixels",
     "atda_candidates",
     "atda_choose",
     "atda_estimate",
     "build_estimators",
     "check_estimator_names",
-    "corner_basis",
-    "default_detector_model_path",
-    "fit_quality",
     "ihrcf_corners",
     "ihrcf_estimate",
     "ihrcf_fit",
     "ihrcf_measure",
-    "noise_to_contrast",
-    "project_points",
-    "tag_features",
 ]

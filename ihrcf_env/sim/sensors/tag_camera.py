@@ -5,7 +5,7 @@ Every read projects the tag's corners (and the outer corners of its white quiet 
 through the true camera -- ``CameraConfig.intrinsics`` (principal point (W/2, H/2 - 1),
 TinyRenderer's), its radial distortion (k1, k2) and the drone's pose through the rig, as
 :meth:`~ihrcf_env.sim.sensors.camera.DownCamera.pose` --
-and hands them to the fitted :class:`~ihrcf_env.core.estimators.detector_model.DetectorModel`,
+and hands them to the fitted :class:`~ihrcf_env.core.detector_model.DetectorModel`,
 which adds the corner error of the render + ``TagDetector`` (``refine="subpix"``) pipeline, its
 frame-to-frame correlation, and its failures (tag at or over the image border, its quiet zone cut
 by the border, too small, too oblique). What only the simulator knows is decided here: the tag
@@ -29,7 +29,7 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
-from ihrcf_env.core.estimators.detector_model import (
+from ihrcf_env.core.detector_model import (
     QUIET_ZONE_SCALE,
     CornerTrack,
     DetectorModel,
@@ -65,7 +65,7 @@ class ProjectedTagCamera:
         model: the fitted detector model (:meth:`DetectorModel.load`).
 
     ``read`` returns :func:`~ihrcf_env.sim.sensors.base.tag_reading`; :attr:`last_features` keeps
-    the last frame's :class:`~ihrcf_env.core.estimators.detector_model.TagFeatures` (None when the
+    the last frame's :class:`~ihrcf_env.core.detector_model.TagFeatures` (None when the
     tag was outside the depth range).
     """
 
@@ -116,7 +116,7 @@ class ProjectedTagCamera:
         (:func:`~ihrcf_env.sim.sensors.imaging.draw_episode`), unless ``episode`` gives them (e.g.
         a rendered camera's :attr:`~ihrcf_env.sim.sensors.camera.DownCamera.episode`); then both
         qualities draw the episode's correlated-error field
-        (:class:`~ihrcf_env.core.estimators.detector_model.CornerTrack`, 768 numbers)."""
+        (:class:`~ihrcf_env.core.detector_model.CornerTrack`, 768 numbers)."""
         if self.quality == "realistic":
             self.episode = episode if episode is not None else draw_episode(self.camera.imaging, rng)
             self._e_per_dn = self.camera.imaging.electrons_per_dn(self.episode.gain)
