@@ -4,8 +4,8 @@ Every command is installed as a console script (``ihrcf-<name>``, pointing at
 ``ihrcf_env.cli.<name>:main``) and runs as ``python -m ihrcf_env.<name>``; its ``--help`` is plain
 text that states every default. Arguments are checked before any simulation starts: seeds,
 counts and output files (the folder exists and is writable, the path is not a folder), so a bad
-argument fails in a second with a message naming it (argparse's exit status 2), not after a
-long run.
+argument fails at once with a message naming it (argparse's exit status 2), not after a long
+run.
 """
 
 from __future__ import annotations
@@ -69,13 +69,16 @@ seed_type = int_in(0, MAX_SEED)
 
 def check_output(ap: argparse.ArgumentParser, option: str, path: str | Path) -> Path:
     """``path`` as a file the command may write, or ``ap.error`` naming ``option``: not a folder,
-    its folder exists and a file can be created in it (tried, then removed)."""
+    and a file can be created (tried, then removed) in its folder or, where that folder does not
+    exist yet, in its nearest existing ancestor (the missing folders are made when writing)."""
     out = Path(path)
     if out.is_dir():
         ap.error(f"argument {option}: {str(out)!r} is a folder; give a file name")
     parent = out.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
     if not parent.is_dir():
-        ap.error(f"argument {option}: the folder {str(parent)!r} does not exist")
+        ap.error(f"argument {option}: cannot write {str(out)!r}: {str(parent)!r} is not a folder")
     try:
         with tempfile.NamedTemporaryFile(dir=parent, prefix=f".{out.name}.", suffix=".probe"):
             pass
@@ -86,8 +89,10 @@ def check_output(ap: argparse.ArgumentParser, option: str, path: str | Path) -> 
 
 def write_whole(path: str | Path, text: str) -> Path:
     """Write ``text`` (UTF-8) to ``path`` whole or not at all: through a temporary file beside it,
-    renamed onto ``path``; the temporary file is removed if anything fails. Returns the path."""
+    renamed onto ``path`` (missing folders are made); the temporary file is removed if anything
+    fails. Returns the path."""
     out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as f:
