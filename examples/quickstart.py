@@ -25,23 +25,25 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
 
     env = gym.make("ihrcf_env/DeckHover-v0", render_mode="rgb_array", raw=True, chase_size=(640, 480))
-    obs, info = env.reset(seed=args.seed)
-    hz = env.unwrapped.config.world.control_hz
-    n = int(round(args.seconds * hz))
-    cols = ("t (s)", "deck x", "deck y", "deck z", "roll", "pitch", "yaw")
-    print(" ".join(f"{c:>8}" for c in cols), " ranges (m)")
-    for k in range(n):
-        obs, reward, terminated, truncated, info = env.step(np.zeros(4, dtype=np.float32))
-        if k % hz == 0 or k == n - 1:
-            x, y, z = info["deck_position_body"]
-            r, p, yw = np.degrees(info["deck_euler_body"])
-            vals = (info["time"], x, y, z, r, p, yw)
-            print(" ".join(f"{v:8.3f}" for v in vals), "", obs["ranges"].round(3))
-        if terminated or truncated:
-            break
-    cv2.imwrite(str(args.out / "camera.png"), cv2.cvtColor(obs["image"], cv2.COLOR_RGB2BGR))
-    cv2.imwrite(str(args.out / "chase.png"), cv2.cvtColor(env.render(), cv2.COLOR_RGB2BGR))
-    env.close()
+    try:
+        obs, info = env.reset(seed=args.seed)
+        hz = env.unwrapped.config.world.control_hz
+        n = int(round(args.seconds * hz))
+        cols = ("t (s)", "deck x", "deck y", "deck z", "roll", "pitch", "yaw")
+        print(" ".join(f"{c:>8}" for c in cols), " ranges (m)")
+        for k in range(n):
+            obs, reward, terminated, truncated, info = env.step(np.zeros(4, dtype=np.float32))
+            if k % hz == 0 or k == n - 1:
+                x, y, z = info["deck_position_body"]
+                r, p, yw = np.degrees(info["deck_euler_body"])
+                vals = (info["time"], x, y, z, r, p, yw)
+                print(" ".join(f"{v:8.3f}" for v in vals), "", obs["ranges"].round(3))
+            if terminated or truncated:
+                break
+        cv2.imwrite(str(args.out / "camera.png"), cv2.cvtColor(obs["image"], cv2.COLOR_RGB2BGR))
+        cv2.imwrite(str(args.out / "chase.png"), cv2.cvtColor(env.render(), cv2.COLOR_RGB2BGR))
+    finally:
+        env.close()
     print(f"saved {args.out / 'camera.png'} and {args.out / 'chase.png'}")
     return 0
 

@@ -5,10 +5,8 @@ Trains on the projected camera (evaluate on the rendered one with the evaluate C
 
     python examples/train_ppo.py --out out/ppo --total-steps 400000 --deck-motion --drop-inputs ihrcf \
         atda --dagger-rounds 6 --dagger-episodes 24 --log-std-init -2.3 --learning-rate 3e-5 --gamma 0.998
-
 Writes to ``--out``: ``final.zip``, ``best.zip`` (best evaluation), CSV logs, ``curves.png``,
 ``checkpoints/`` (``steps_N.zip`` every ``--checkpoint-every`` steps, ``latest.zip`` for ``--resume``).
-
 Seeds: training env k starts from ``reset(seed=10_000 + 100 SEED + k)``, DAgger round r from
 30_000 + 100 SEED + 1000 r (+ k), evaluations from 20_000; seeds below 10_000 are never trained on.
 """
@@ -68,15 +66,17 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"{flag} must be >= {least}")
     if args.max_wall_min is not None and not args.max_wall_min > 0:
         ap.error("--max-wall-min must be > 0 (minutes)")
+    try:
+        import torch as th
+        from stable_baselines3 import PPO
+        from stable_baselines3.common.callbacks import CallbackList
+        from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 
-    import torch as th
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import CallbackList
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
-
-    from ihrcf_env.rl import sb3
-    from ihrcf_env.rl.imitation import warm_start
-
+        from ihrcf_env.rl import sb3
+        from ihrcf_env.rl.imitation import warm_start
+    except ModuleNotFoundError as e:
+        print(f'{e.name} is not installed: this example needs the [rl] extra (pip install ".[rl]")')
+        return 2
     th.set_num_threads(1)  # the env processes need the cores; a 64x64 MLP gains nothing from threads
     env_id = args.env_id or default_env_id()
     env_kw: dict[str, object] = {"deck_motion": True} if args.deck_motion else {}

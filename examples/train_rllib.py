@@ -61,12 +61,16 @@ def main(argv: list[str] | None = None) -> int:
     if args.num_env_runners < 0:
         ap.error("--num-env-runners must be >= 0 (0: sample in this process)")
 
-    import ray
-    from ray.rllib.algorithms.ppo import PPOConfig
-    from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
+    try:
+        import ray
+        from ray.rllib.algorithms.ppo import PPOConfig
+        from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
 
-    from ihrcf_env.rl import rllib
-    from ihrcf_env.rl.curves import CsvLog
+        from ihrcf_env.rl import rllib
+        from ihrcf_env.rl.curves import CsvLog
+    except ModuleNotFoundError as e:
+        print(f'{e.name} is not installed: this example needs the [rl] extra (pip install ".[rl]")')
+        return 2
 
     if args.address is None:
         ray.init(num_cpus=args.num_cpus or os.cpu_count(), include_dashboard=False)

@@ -1,4 +1,5 @@
-"""``python -m ihrcf_env.benchmark``: see :mod:`ihrcf_env.cli.benchmark`."""
+"""``python -m ihrcf_env.benchmark`` (the same command as ``ihrcf-benchmark``):
+see :mod:`ihrcf_env.cli.benchmark`."""
 
 from ihrcf_env.cli.benchmark import main
 

@@ -1,4 +1,5 @@
-"""``python -m ihrcf_env.calibrate``: see :mod:`ihrcf_env.cli.calibrate`."""
+"""``python -m ihrcf_env.calibrate`` (the same command as ``ihrcf-calibrate``):
+see :mod:`ihrcf_env.cli.calibrate`."""
 
 from ihrcf_env.cli.calibrate import main
 

@@ -1,4 +1,5 @@
-"""``python -m ihrcf_env.evaluate``: see :mod:`ihrcf_env.cli.evaluate`."""
+"""``python -m ihrcf_env.evaluate`` (the same command as ``ihrcf-evaluate``):
+see :mod:`ihrcf_env.cli.evaluate`."""
 
 from ihrcf_env.cli.evaluate import main
 

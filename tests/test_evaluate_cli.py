@@ -9,8 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ihrcf_env.cli.evaluate import Episode, main, summary
+import ihrcf_env.cli.evaluate as evaluate_cli
+from ihrcf_env.cli.evaluate import main, summary
 from ihrcf_env.control.policies import BlindDescent, level_from_up
+from ihrcf_env.experiments.episode import EpisodeResult
 
 
 def _error(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
@@ -91,21 +93,50 @@ def test_scripted_lands_through_the_module_command() -> None:
 
 
 def test_summary_lines() -> None:
+    """The failure line groups alike crashes and shows their real figures (no "N" placeholders)."""
+    far = "touched down {} m from the tag centre (> 0.15 m)"
     eps = [
-        Episode(0, "success", "", 9.0, 180, 110.0, 0.3, 0.05, 0.02),
-        Episode(
-            1, "crash", "touched down 0.23 m from the tag centre (> 0.15 m)", 12.0, 240, -90.0, 0.2, 0.1, 0.23
-        ),
-        Episode(
-            2, "crash", "touched down 0.31 m from the tag centre (> 0.15 m)", 12.0, 240, -90.0, 0.2, 0.1, 0.31
-        ),
-        Episode(3, "timeout", "", 30.0, 600, -12.0),
+        EpisodeResult(0, "success", "", 9.0, 180, 110.0, speed=0.3, tilt=0.05, offset=0.02),
+        EpisodeResult(1, "crash", far.format(0.23), 12.0, 240, -90.0, speed=0.2, tilt=0.1, offset=0.23),
+        EpisodeResult(2, "crash", far.format(0.31), 12.0, 240, -90.0, speed=0.2, tilt=0.1, offset=0.31),
+        EpisodeResult(3, "crash", "vertical speed 0.62 m/s at touchdown", 5.0, 100, -50.0, speed=0.62),
+        EpisodeResult(4, "timeout", "", 30.0, 600, -12.0),
     ]
     lines = summary(eps)
-    assert lines[-1] == "success 1/4"
-    assert "success rate 25.0%" in lines[0]
+    assert lines[-1] == "success 1/5"
+    assert "success rate 20.0%" in lines[0]
     assert "offset from the tag centre 0.187 / 0.310 m" in lines[1]
-    assert "touched down N m from the tag centre (> N m) x2" in lines[-2] and "timeout x1" in lines[-2]
+    failures = lines[-2]
+    assert failures.startswith("failures: touched down 0.23..0.31 m from the tag centre (> 0.15 m) x2; ")
+    assert "vertical speed 0.62 m/s at touchdown x1" in failures and "timeout x1" in failures
+    assert "N m" not in failures
+
+
+def test_episode_results_are_frozen() -> None:
+    r = EpisodeResult(0, "timeout")
+    with pytest.raises(AttributeError):
+        r.seed = 1  # type: ignore[misc]
+
+
+@pytest.mark.parametrize(
+    ("argv", "names"),
+    [
+        (["--policy", "blind:0.3", "--seed", "-1"], "--seed"),
+        (["--policy", "blind:0.3", "--seed", "4294967295", "--episodes", "2"], "--seed"),
+        (["--policy", "blind:0.3", "--env-id", "CartPole-v1"], "--env-id"),
+        (["--policy", "scripted", "--env-id", "ihrcf_env/DeckHover-v0"], "--policy"),
+        (["--policy", "blind:0.3", "--max-steps", "0"], "--max-steps"),
+    ],
+)
+def test_bad_input_is_refused_before_any_env_is_built(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], argv: list[str], names: str
+) -> None:
+    def no_env(*args: object, **kwargs: object) -> None:
+        raise AssertionError("an env was built before the arguments were checked")
+
+    monkeypatch.setattr(evaluate_cli.gym, "make", no_env)
+    err = _error(capsys, argv)
+    assert names in err and "Traceback" not in err, err
 
 
 def test_policies_are_pure_and_checked() -> None:

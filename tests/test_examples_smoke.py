@@ -7,8 +7,10 @@ tests/envs/test_vector.py.
 
 from __future__ import annotations
 
+import gc
 import importlib.util
 import re
+import warnings
 from pathlib import Path
 from types import ModuleType
 
@@ -30,7 +32,10 @@ def test_hover_and_track_prints_table2_and_saves(tmp_path: Path, capsys: pytest.
     out = tmp_path / "quick"
     argv = ["--seconds", "1", "--profile", "static", "--no-plots", "--out", str(out)]
     assert _example("hover_and_track").main(argv) == 0
-    text = capsys.readouterr().out
+    captured = capsys.readouterr()
+    text = captured.out
+    # not a terminal: plain progress lines, not nothing and not a carriage-return bar
+    assert "rollout: 20/20 (100 %)" in captured.err and "\r" not in captured.err, captured.err
     for needle in ("Translations (m)", "Angles (degree)", "ATDA", "IHRCF", "Paper Table 2", "Invalid frames"):
         assert needle in text, needle
     for row in ("X", "Y", "Z", "roll", "pitch", "yaw"):
@@ -55,7 +60,11 @@ def test_land_prints_the_report(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_quickstart_saves_frames(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert _example("quickstart").main(["--seconds", "0.1", "--out", str(tmp_path)]) == 0
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ResourceWarning)
+        assert _example("quickstart").main(["--seconds", "0.1", "--out", str(tmp_path)]) == 0
+        gc.collect()
+    assert not [w for w in caught if issubclass(w.category, ResourceWarning)]
     assert "deck x" in capsys.readouterr().out
     assert (tmp_path / "camera.png").stat().st_size > 0 and (tmp_path / "chase.png").stat().st_size > 0
 
@@ -63,3 +72,14 @@ def test_quickstart_saves_frames(tmp_path: Path, capsys: pytest.CaptureFixture[s
 def test_examples_are_thin() -> None:
     for path in EXAMPLES.glob("*.py"):
         assert len(path.read_text().splitlines()) <= 150, path.name
+
+
+@pytest.mark.parametrize(("name", "module"), [("train_ppo", "stable_baselines3"), ("train_rllib", "ray")])
+def test_training_without_the_rl_extra_says_how_to_install_it(
+    capsys: pytest.CaptureFixture[str], name: str, module: str
+) -> None:
+    if importlib.util.find_spec(module) is not None:
+        pytest.skip(f"{module} is installed")
+    assert _example(name).main([]) == 2
+    out = capsys.readouterr().out.strip()
+    assert len(out.splitlines()) == 1 and 'pip install ".[rl]"' in out, out

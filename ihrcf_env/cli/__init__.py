@@ -1,1 +1,17 @@
-"""Command-line tools: ``python -m ihrcf_env.calibrate``, ``python -m ihrcf_env.benchmark``."""
+"""Command lines, one module each, installed as console scripts and runnable with ``python -m``:
+
+* ``ihrcf-benchmark`` / ``python -m ihrcf_env.benchmark``: :mod:`ihrcf_env.cli.benchmark`;
+* ``ihrcf-calibrate`` / ``python -m ihrcf_env.calibrate``: :mod:`ihrcf_env.cli.calibrate`;
+* ``ihrcf-evaluate`` / ``python -m ihrcf_env.evaluate``: :mod:`ihrcf_env.cli.evaluate`;
+* ``ihrcf-fit-detector`` / ``python -m ihrcf_env.fit_detector``: :mod:`ihrcf_env.cli.fit_detector`.
+
+What they share (parser, argument types, output checks): :mod:`ihrcf_env.cli.common`.
+"""
+
+#: Command name -> module under ihrcf_env.cli (the console script is ``ihrcf-<name>``).
+COMMANDS = {
+    "benchmark": "benchmark",
+    "calibrate": "calibrate",
+    "evaluate": "evaluate",
+    "fit-detector": "fit_detector",
+}

@@ -1,102 +1,36 @@
-"""Benchmarks that print figures: simulation speed, per-frame estimation cost, estimator accuracy.
+"""``ihrcf-benchmark`` (``python -m ihrcf_env.benchmark``): print the speed and accuracy figures.
 
-    python -m ihrcf_env.benchmark                 # speed + accuracy tables (pinned to one core)
-    python -m ihrcf_env.benchmark --steps 400 --sizes 0 128 256 512 --no-accuracy
-    python -m ihrcf_env.benchmark --accuracy-frames 600 --markdown out/benchmark.md
-
-Speed: env steps per second and real-time factor (simulated seconds per wall-clock second) of the
-raw env with zero velocity actions over the "paper" deck profile, without a camera and with the
-camera at each size (rendered once per control step); then the wrapped env (IHRCF + ATDA + fused)
-at the 1 m hover per camera model (image kept, tag window, projected: ratios from one run), the cost
-of each component per control step (:func:`ihrcf_env.experiments.speed.component_costs`, timed
-between full renders), the parts of the projected wrapped step timed inside it
-(:func:`~ihrcf_env.experiments.speed.projected_step_costs`) and, with
-``--vector``, ``AsyncVectorEnv`` scaling with 2 workers. Estimation: tag detection + IHRCF + ATDA +
-fused per 512x512 frame with the shipped calibration.
-
-Accuracy: the paper's experiment. A hovering drone 1 m (and 2 m) above the deck on the "paper"
-profile (ideal preset: zero velocity commands, the autopilot holds position; realistic preset: the
-autopilot's navigation estimate drifts, so the drone is kept horizontally over the tag on the fused
-estimate, altitude still on the autopilot; the deck moves beneath it), mean absolute error of the ATDA,
-IHRCF and fused deck poses (body frame) against ground truth over valid frames, for the ideal and
-the realistic sensor preset. ``--distortion`` adds the tables with a mild radial lens distortion
-(k1 = -0.05); for the distorted camera both calibrations are first re-run for it
-(``python -m ihrcf_env.calibrate --k1 -0.05``), so ATDA's chessboard K/dist model the lens while
-IHRCF's homography (a pinhole model) does not.
+The measurements are in :mod:`ihrcf_env.experiments.speed` (env and component speed),
+:mod:`ihrcf_env.experiments.camera_realism` (the realistic camera's cost) and
+:mod:`ihrcf_env.experiments.accuracy` (the paper's hover); this module runs them and prints (and
+with ``--markdown`` writes) the tables.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import os
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
-import gymnasium as gym
-import numpy as np
-
 import ihrcf_env  # noqa: F401  (registers the envs)
+from ihrcf_env.cli.common import check_output, int_in, make_parser, write_whole
 from ihrcf_env.core.metrics import table2_markdown
 from ihrcf_env.experiments.accuracy import accuracy
+from ihrcf_env.experiments.camera_realism import realism_cost_ms
 from ihrcf_env.experiments.speed import (
     component_costs,
+    estimation_ms,
     mode_speeds,
     projected_step_costs,
-    steps_per_second,
+    raw_speed,
     vector_scaling,
 )
-from ihrcf_env.sim.sensors.camera import realism_cost_ms
-
-
-def speed(size: int, steps: int, control_hz: int = 20) -> tuple[float, float]:
-    """(env steps per second, real-time factor) for camera ``size`` (0 = no camera)."""
-    kw = {"camera": False} if size == 0 else {"camera_width": size, "camera_height": size}
-    env = gym.make("ihrcf_env/DeckHoverRaw-v0", control_hz=control_hz, max_episode_steps=steps + 10, **kw)
-    try:
-        sps = steps_per_second(env, steps)
-    finally:
-        env.close()
-    return sps, sps / control_hz
-
-
-def estimation_ms(frames: int) -> float | None:
-    """Mean wall time (ms) of one frame through detection + IHRCF + ATDA + fused (a separate
-    estimator fed the same rendered 512x512 frames, ranges and IMU as the env's), or None without a
-    shipped calibration."""
-    from ihrcf_env.core.calibration import Calibration, default_calibration_path
-    from ihrcf_env.core.estimators import ImuSample
-    from ihrcf_env.wrappers import estimator_from_calibration
-
-    if not default_calibration_path().is_file():
-        return None
-    env = gym.make("ihrcf_env/DeckHoverRaw-v0", max_episode_steps=frames + 10)
-    try:
-        deck = env.unwrapped.config.world.deck  # type: ignore[attr-defined]
-        est = estimator_from_calibration(
-            Calibration.load(default_calibration_path()), deck.tag_size, deck.tag_id
-        )
-        raw, info = env.reset(seed=0)
-        samples = []
-        for _ in range(frames):
-            imu = raw["imu"]
-            t0 = time.perf_counter()
-            frame = est.frame(
-                raw["image"],
-                raw["ranges"],
-                raw["ranges_valid"].astype(bool),
-                time=float(info["time"]),
-                imu=ImuSample(imu["quaternion"], imu["angular_velocity"], imu["linear_acceleration"]),
-            )
-            est.update(frame)
-            samples.append(time.perf_counter() - t0)
-            raw, _, _, _, info = env.step(np.zeros(4, dtype=np.float32))
-    finally:
-        env.close()
-    return 1e3 * float(np.mean(samples))
-
 
 MILD_DISTORTION = (-0.05, 0.0)
 
@@ -152,17 +86,43 @@ def calibration_for(distortion: tuple[float, float]) -> str | None:
     return path
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--steps", type=int, default=300, help="timed env steps per configuration")
+DESCRIPTION = """\
+Benchmarks that print figures: simulation speed, per-frame estimation cost, estimator accuracy.
+
+Speed: env steps per second and real-time factor (simulated seconds per wall-clock second) of the
+raw env with zero velocity actions over the "paper" deck profile, without a camera and with the
+camera at each size (rendered once per control step); then the wrapped env (IHRCF + ATDA + fused)
+at the 1 m hover per camera model (image kept, tag window, projected), the cost of each component
+per control step, the parts of the projected wrapped step and, with --vector, AsyncVectorEnv
+scaling with 2 workers. Estimation: tag detection + IHRCF + ATDA + fused per 512x512 frame with
+the shipped calibration; the realistic camera's added cost per frame.
+
+Accuracy: the paper's experiment. A drone hovering 1 m (and 2 m) above the deck on the "paper"
+profile (ideal preset: zero velocity commands, the autopilot holds position; realistic preset: the
+autopilot's navigation estimate drifts, so the drone is kept horizontally over the tag on the fused
+estimate), mean absolute error of the ATDA, IHRCF and fused deck poses (body frame) against ground
+truth over valid frames, for the ideal and the realistic sensor preset. --distortion adds the
+tables with a mild radial lens distortion (k1 = -0.05), both calibrations first re-run for it.
+
+examples:
+  ihrcf-benchmark                 # speed + accuracy tables (pinned to one core)
+  ihrcf-benchmark --steps 400 --sizes 0 128 256 512 --no-accuracy
+  python -m ihrcf_env.benchmark --accuracy-frames 600 --markdown out/benchmark.md
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command's argument parser."""
+    ap = make_parser("benchmark", DESCRIPTION)
+    ap.add_argument("--steps", type=int_in(1), default=300, help="timed env steps per configuration")
     ap.add_argument(
-        "--sizes", type=int, nargs="+", default=[0, 128, 256, 512], help="camera sizes (0 = none)"
+        "--sizes", type=int_in(0), nargs="+", default=[0, 128, 256, 512], help="camera sizes in px (0 = none)"
     )
-    ap.add_argument("--frames", type=int, default=100, help="frames for the estimation timing")
+    ap.add_argument("--frames", type=int_in(1), default=100, help="frames for the estimation timing")
     ap.add_argument("--all-cores", action="store_true", help="do not pin the process to one core")
     ap.add_argument("--no-speed", action="store_true", help="skip the speed table")
     ap.add_argument("--no-accuracy", action="store_true", help="skip the accuracy tables")
-    ap.add_argument("--accuracy-frames", type=int, default=600, help="frames per accuracy run (20 Hz)")
+    ap.add_argument("--accuracy-frames", type=int_in(1), default=600, help="frames per accuracy run (20 Hz)")
     ap.add_argument(
         "--altitudes", type=float, nargs="+", default=[1.0, 2.0], help="hover heights above the deck (m)"
     )
@@ -170,8 +130,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--vector", action="store_true", help="also AsyncVectorEnv scaling with 2 workers (uses 2 cores)"
     )
-    ap.add_argument("--markdown", type=str, default=None, help="also write the tables to this file")
+    ap.add_argument(
+        "--markdown", default=None, help="also write the tables to this file (default: not written)"
+    )
+    return ap
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``ihrcf-benchmark``; returns the process exit code."""
+    ap = build_parser()
     args = ap.parse_args(argv)
+    markdown = None if args.markdown is None else check_output(ap, "--markdown", args.markdown)
+    if any(not (math.isfinite(a) and 0.3 <= a <= 10.0) for a in args.altitudes):
+        ap.error(f"argument --altitudes: heights must be in [0.3, 10] m, got {args.altitudes}")
     report: list[str] = []
     if not args.all_cores and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
@@ -182,7 +153,7 @@ def main(argv: list[str] | None = None) -> int:
         report += ["| camera | env steps/s | real-time factor |", "|---|---|---|"]
         print(f"{'camera':>10} {'steps/s':>10} {'real-time factor':>18}")
         for size in args.sizes:
-            sps, rtf = speed(size, args.steps)
+            sps, rtf = raw_speed(size, args.steps)
             label = "none" if size == 0 else f"{size}x{size}"
             print(f"{label:>10} {sps:10.1f} {rtf:17.2f}x", flush=True)
             report.append(f"| {label} | {sps:.1f} | {rtf:.2f}x |")
@@ -224,11 +195,9 @@ def main(argv: list[str] | None = None) -> int:
             print(text)
             print(f"({time.perf_counter() - t0:.0f} s)", flush=True)
             report += ["", text]
-    if args.markdown:
-        path = Path(args.markdown)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text("\n".join(report) + "\n")
-        print(f"wrote {path}")
+    if markdown is not None:
+        write_whole(markdown, "\n".join(report) + "\n")
+        print(f"wrote {markdown}")
     return 0
 
 

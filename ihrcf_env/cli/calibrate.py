@@ -1,12 +1,11 @@
-"""Command line: run the simulated calibration and write a calibration file.
+"""``ihrcf-calibrate`` (``python -m ihrcf_env.calibrate``): run the simulated calibration and
+write a calibration file.
 
-``python -m ihrcf_env.calibrate`` (console script ``ihrcf-calibrate``) runs the chessboard
-intrinsics calibration (paper section 2.1) and the camera-range calibration ascent (section 2.2) in
-a fresh simulated world, writes the versioned calibration file with
-:meth:`ihrcf_env.core.calibration.Calibration.save` and prints a summary. The file shipped as
-``assets/calibration_default.json`` is produced by running it with the defaults::
-
-    python -m ihrcf_env.calibrate --output assets/calibration_default.json
+It runs the chessboard intrinsics calibration (paper section 2.1) and the camera-range calibration
+ascent (section 2.2) in a fresh simulated world, writes the versioned calibration file
+(:meth:`ihrcf_env.core.calibration.Calibration.to_json`) and prints a summary. The file shipped as
+``assets/calibration_default.json`` is produced by running it with the defaults. The output is
+checked before the run (a file name, in a folder that can be written) and written whole.
 """
 
 from __future__ import annotations
@@ -18,9 +17,9 @@ import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, TextIO
 
-from tqdm import tqdm
-
+from ihrcf_env.cli.common import check_output, int_in, make_parser, seed_type, write_whole
 from ihrcf_env.core.rig import SensorRig
+from ihrcf_env.experiments.progress import Progress
 
 if TYPE_CHECKING:
     from ihrcf_env.sim.calibration_procedure import CalibrationRun
@@ -28,28 +27,22 @@ if TYPE_CHECKING:
 
 class PhaseProgress:
     """The ``progress(phase, done, total)`` callback of
-    :func:`ihrcf_env.sim.calibration_procedure.run_calibration`, drawn with tqdm on ``stream``:
-    one bar per phase (``chessboard`` views, then ``ascent`` stages)."""
+    :func:`ihrcf_env.sim.calibration_procedure.run_calibration`: one
+    :class:`~ihrcf_env.experiments.progress.Progress` per phase (``chessboard`` views, then
+    ``ascent`` stages) on ``stream``: a bar on a terminal, plain lines otherwise."""
 
     def __init__(self, stream: TextIO) -> None:
         self.stream = stream
         self._phase: str | None = None
-        self._bar: tqdm | None = None
+        self._bar: Progress | None = None
 
     def __call__(self, phase: str, done: int, total: int) -> None:
         """Show ``done`` of ``total`` steps of ``phase``; a new phase starts a new bar."""
         if self._bar is None or phase != self._phase or total != self._bar.total:
             self.close()
             self._phase = phase
-            self._bar = tqdm(
-                total=max(total, 0),
-                desc=f"{phase:<10}",
-                file=self.stream,
-                ascii=" #",
-                bar_format="{desc} [{bar:30}] {n_fmt}/{total_fmt} {elapsed}<{remaining}",
-                dynamic_ncols=False,
-            )
-        self._bar.update(min(done, total) - self._bar.n)
+            self._bar = Progress(max(total, 0), phase, stream=self.stream)
+        self._bar.update(done)
 
     def close(self) -> None:
         """Finish the current bar, if any."""
@@ -58,35 +51,50 @@ class PhaseProgress:
             self._bar, self._phase = None, None
 
 
+DESCRIPTION = """\
+Simulated IHRCF calibration: chessboard intrinsics and the range -> pixel tables.
+
+Runs the chessboard intrinsics calibration (paper section 2.1) and the camera-range calibration
+ascent (section 2.2) in a fresh simulated world, writes the versioned calibration file and prints
+a summary. The package's shipped calibration is what the defaults produce.
+
+examples:
+  ihrcf-calibrate --output calibration.json
+  python -m ihrcf_env.calibrate --k1 -0.05 --output calibration_k1.json
+"""
+
+
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
-        prog="python -m ihrcf_env.calibrate",
-        description="Simulated IHRCF calibration: chessboard intrinsics and the range -> pixel tables.",
-    )
-    ap.add_argument("--width", type=int, default=512, help="image width (px), default 512")
-    ap.add_argument("--height", type=int, default=512, help="image height (px), default 512")
-    ap.add_argument("--fov-deg", type=float, default=60.0, help="vertical field of view (deg), default 60")
-    ap.add_argument("--k1", type=float, default=0.0, help="camera radial distortion k1, default 0")
-    ap.add_argument("--k2", type=float, default=0.0, help="camera radial distortion k2, default 0")
+    """The command's argument parser."""
+    ap = make_parser("calibrate", DESCRIPTION)
+    ap.add_argument("--width", type=int_in(1), default=512, help="image width (px)")
+    ap.add_argument("--height", type=int_in(1), default=512, help="image height (px)")
+    ap.add_argument("--fov-deg", type=float, default=60.0, help="vertical field of view (deg)")
+    ap.add_argument("--k1", type=float, default=0.0, help="camera radial distortion k1")
+    ap.add_argument("--k2", type=float, default=0.0, help="camera radial distortion k2")
     ap.add_argument(
         "--output",
         default=None,
-        help="calibration file to write (default calibration_<W>x<H>_fov<F>.json)",
+        help="calibration file to write (default: calibration_<W>x<H>_fov<F>.json in the working directory)",
     )
-    ap.add_argument("--stages", type=int, default=120, help="ascent stages (paper: 120)")
+    ap.add_argument("--stages", type=int_in(1), default=120, help="ascent stages (the paper's: 120)")
     ap.add_argument(
-        "--top", type=float, default=None, help="range of the last stage (m); default the ToF max range"
+        "--top", type=float, default=None, help="range of the last stage (m) (default: the ToF max range)"
     )
-    ap.add_argument("--bottom", type=float, default=0.15, help="range of the first stage (m), default 0.15")
-    ap.add_argument("--seed", type=int, default=0, help="seed of the chessboard poses, default 0")
-    ap.add_argument("--views", type=int, default=30, help="chessboard views (>= 3; >= 15 advised)")
-    ap.add_argument("--quiet", action="store_true", help="no progress bar")
+    ap.add_argument("--bottom", type=float, default=0.15, help="range of the first stage (m)")
+    ap.add_argument("--seed", type=seed_type, default=0, help="seed of the chessboard poses, an integer >= 0")
+    ap.add_argument("--views", type=int_in(3), default=30, help="chessboard views (>= 3; >= 15 advised)")
+    ap.add_argument("--quiet", action="store_true", help="no progress output")
     return ap
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``ihrcf-calibrate``; returns the process exit code."""
-    args = build_parser().parse_args(argv)
+    ap = build_parser()
+    args = ap.parse_args(argv)
+    out = check_output(
+        ap, "--output", args.output or f"calibration_{args.width}x{args.height}_fov{args.fov_deg:g}.json"
+    )
     # Imported here so that ``--help`` does not start PyBullet.
     from ihrcf_env.core.calibration import CalibrationError
     from ihrcf_env.sim.calibration_procedure import (
@@ -107,9 +115,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         ascent = AscentSettings(stages=args.stages, bottom=args.bottom, top=args.top)
         board = ChessboardSettings(n_views=args.views)
     except ValueError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    out = args.output or f"calibration_{args.width}x{args.height}_fov{args.fov_deg:g}.json"
+        ap.error(str(e))
     bar = PhaseProgress(sys.stderr) if not args.quiet else None
     t0 = time.perf_counter()
     try:
@@ -124,7 +130,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if bar is not None:
         bar.close()
     elapsed = time.perf_counter() - t0
-    path = run.calibration.save(out)
+    path = write_whole(out, run.calibration.to_json())
     _print_summary(run, str(path), elapsed)
     return 0
 
@@ -160,4 +166,4 @@ def _print_summary(run: CalibrationRun, path: str, elapsed: float) -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(main())

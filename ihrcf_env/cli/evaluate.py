@@ -1,20 +1,10 @@
-"""``python -m ihrcf_env.evaluate``: run a landing policy over seeded episodes and report.
+"""``ihrcf-evaluate`` (``python -m ihrcf_env.evaluate``): run a landing policy over seeded episodes
+and report.
 
-POLICY is one of
-
-* ``scripted``: :class:`~ihrcf_env.control.policies.ScriptedLanding` (the package's landing
-  controller on the v1 observation: own sensing only, never ground truth);
-* ``blind:VZ``: constant descent at VZ m/s (> 0), no lateral command;
-* a saved stable-baselines3 policy (``.zip``; ``--algo`` names its class, default PPO), run
-  deterministically; stable-baselines3 is imported only then.
-
-Prints one line per episode (unless ``--quiet``), then the success rate, touchdown relative
-vertical speed / relative tilt / horizontal offset from the tag centre (mean, max), time to land,
-the failure reasons, and as the last line ``success K/N``.
-
-    python -m ihrcf_env.evaluate --policy blind:0.3 --episodes 50 --camera-model projected
-    python -m ihrcf_env.evaluate --policy scripted --episodes 10 --seed 100
-    python -m ihrcf_env.evaluate --policy ppo_landing.zip --episodes 50 --camera-model rendered
+The episodes run through the one episode loop, :func:`ihrcf_env.experiments.episode.run_episodes`
+(results: :class:`~ihrcf_env.experiments.episode.EpisodeResult`); this module turns the POLICY
+argument into a policy (:func:`make_policy`), checks the arguments before any env is built and
+formats the report (:func:`format_episode`, :func:`summary`).
 """
 
 from __future__ import annotations
@@ -25,33 +15,18 @@ import math
 import os
 import re
 import time
-from collections import Counter
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
 from ihrcf_env import LANDING_V1_ID
+from ihrcf_env.cli.common import MAX_SEED, int_in, make_parser, seed_type
 from ihrcf_env.control.policies import BlindDescent, Policy, ScriptedLanding
+from ihrcf_env.experiments.episode import EpisodeResult, run_episodes
 
 SB3_ALGOS = ("PPO", "SAC", "TD3", "A2C", "DDPG")
-
-
-@dataclass
-class Episode:
-    """How one episode ended (from ``info`` after the fact; the policy never reads it)."""
-
-    seed: int
-    outcome: str  # "success", "crash" or "timeout"
-    reason: str
-    time: float  # simulated s at the end
-    steps: int
-    ret: float  # undiscounted return
-    speed: float | None = None  # |relative vertical speed| at touchdown (m/s)
-    tilt: float | None = None  # relative tilt at touchdown (rad)
-    offset: float | None = None  # drone centre to tag centre, horizontal, at touchdown (m)
 
 
 class PolicyError(ValueError):
@@ -136,7 +111,7 @@ def _with_deck_motion(
 
 
 def make_policy(spec: str, env: gym.Env, algo: str = "PPO") -> Policy:
-    """The policy of a POLICY argument (module docstring) for ``env``; PolicyError naming
+    """The policy of a POLICY argument (see DESCRIPTION) for ``env``; PolicyError naming
     ``--policy`` if it cannot be."""
     base: Any = env.unwrapped
     max_velocity = tuple(float(v) for v in getattr(base, "max_velocity", np.ones(4)))
@@ -169,53 +144,8 @@ def make_policy(spec: str, env: gym.Env, algo: str = "PPO") -> Policy:
     )
 
 
-def run_episode(env: gym.Env, policy: Policy, seed: int) -> Episode:
-    """One episode of ``policy`` on ``env`` from ``seed``; its outcome read from ``info``."""
-    obs, info = env.reset(seed=seed)
-    policy.reset()
-    ret, steps = 0.0, 0
-    while True:
-        obs, reward, terminated, truncated, info = env.step(policy.act(obs))
-        ret += float(reward)
-        steps += 1
-        if terminated or truncated:
-            break
-    outcome = info.get("outcome", "flying")
-    ep = Episode(
-        seed=seed,
-        outcome="timeout" if outcome == "flying" else outcome,
-        reason=str(info.get("crash_reason", "")) if outcome == "crash" else "",
-        time=float(info.get("time", math.nan)),
-        steps=steps,
-        ret=ret,
-    )
-    td = info.get("touchdown")
-    if td is not None:
-        ep.speed = abs(float(td["relative_vertical_speed"]))
-        ep.tilt = float(td["relative_tilt"])
-        d = np.asarray(info["drone_position_world"])[:2] - np.asarray(info["deck_position_world"])[:2]
-        ep.offset = float(info.get("tag_offset", np.hypot(*d)))
-    return ep
-
-
-def evaluate(
-    env: gym.Env,
-    policy: Policy,
-    episodes: int,
-    seed: int,
-    on_episode: Callable[[Episode], None] | None = None,
-) -> list[Episode]:
-    """``episodes`` episodes from seeds ``seed, seed + 1, ...``."""
-    out = []
-    for i in range(episodes):
-        ep = run_episode(env, policy, seed + i)
-        out.append(ep)
-        if on_episode is not None:
-            on_episode(ep)
-    return out
-
-
-def format_episode(ep: Episode) -> str:
+def format_episode(ep: EpisodeResult) -> str:
+    """One line per episode: seed, outcome, end time, return, touchdown figures, crash reason."""
     td = (
         f"speed {ep.speed:.3f} m/s  tilt {math.degrees(ep.tilt):5.2f} deg  offset {ep.offset:.3f} m"
         if ep.speed is not None and ep.tilt is not None and ep.offset is not None
@@ -231,11 +161,37 @@ def _stat(values: Sequence[float], unit: str, fmt: str = ".3f") -> str:
     return f"{np.mean(values):{fmt}} / {np.max(values):{fmt}} {unit}"
 
 
-def summary(episodes: Sequence[Episode]) -> list[str]:
+_NUMBER = re.compile(r"-?\d+(?:\.\d+)?")
+
+
+def _failure_lines(episodes: Sequence[EpisodeResult]) -> list[tuple[str, int]]:
+    """The failures grouped by kind (crash reasons alike but for their numbers, or the outcome),
+    most frequent first; each shown with its real figures: a number that differs between the
+    episodes of a group reads ``lowest..highest``."""
+    groups: dict[str, list[str]] = {}
+    for e in episodes:
+        if e.outcome == "success":
+            continue
+        text = e.reason if e.outcome == "crash" and e.reason else e.outcome
+        groups.setdefault(_NUMBER.sub("\0", text), []).append(text)
+    out = []
+    for key, texts in groups.items():
+        numbers = [_NUMBER.findall(t) for t in texts]
+        parts = iter(key.split("\0"))
+        shown = next(parts)
+        for i, rest in enumerate(parts):
+            column = [row[i] for row in numbers]
+            lo, hi = min(column, key=float), max(column, key=float)
+            shown += (lo if float(lo) == float(hi) else f"{lo}..{hi}") + rest
+        out.append((shown, len(texts)))
+    return sorted(out, key=lambda item: -item[1])
+
+
+def summary(episodes: Sequence[EpisodeResult]) -> list[str]:
     """The report's lines; the last one is ``success K/N``."""
     n = len(episodes)
     ok = [e for e in episodes if e.outcome == "success"]
-    touched = [e for e in episodes if e.speed is not None]
+    touched = [e for e in episodes if e.touched_down]
     speeds = [e.speed for e in touched if e.speed is not None]
     tilts = [math.degrees(e.tilt) for e in touched if e.tilt is not None]
     offsets = [e.offset for e in touched if e.offset is not None]
@@ -246,37 +202,61 @@ def summary(episodes: Sequence[Episode]) -> list[str]:
         f"centre {_stat(offsets, 'm')}",
         f"time to land (successes, mean / max): {_stat([e.time for e in ok], 's', '.1f')}",
     ]
-    reasons = Counter(
-        re.sub(r"-?\d+(\.\d+)?", "N", e.reason) if e.outcome == "crash" else e.outcome
-        for e in episodes
-        if e.outcome != "success"
-    )
-    if reasons:
-        lines.append("failures: " + "; ".join(f"{k} x{v}" for k, v in reasons.most_common()))
+    failures = _failure_lines(episodes)
+    if failures:
+        lines.append("failures: " + "; ".join(f"{k} x{v}" for k, v in failures))
     lines.append(f"success {len(ok)}/{n}")
     return lines
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(
-        prog="python -m ihrcf_env.evaluate",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    ap.add_argument("--env-id", default=LANDING_V1_ID, help=f"registered env id (default {LANDING_V1_ID})")
-    ap.add_argument("--policy", required=True, help="scripted | blind:VZ | a stable-baselines3 .zip")
-    ap.add_argument("--episodes", type=int, default=10, help="episodes (seeds), default 10")
-    ap.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
+DESCRIPTION = f"""\
+Run a landing policy over seeded episodes and report.
+
+POLICY is one of
+  scripted   the package's landing controller on the v1 observation (own sensing only, never
+             ground truth); needs --env-id {LANDING_V1_ID}
+  blind:VZ   constant descent at VZ m/s (> 0), no lateral command
+  FILE.zip   a saved stable-baselines3 policy (--algo names its class), run deterministically;
+             needs stable-baselines3 (pip install ".[rl]")
+
+Prints one line per episode (unless --quiet), then the success rate, the touchdown relative
+vertical speed / relative tilt / horizontal offset from the tag centre (mean, max), the time to
+land, the failures with their figures and, as the last line, "success K/N".
+
+examples:
+  ihrcf-evaluate --policy blind:0.3 --episodes 50 --camera-model projected
+  ihrcf-evaluate --policy scripted --episodes 10 --seed 100
+  python -m ihrcf_env.evaluate --policy ppo_landing.zip --episodes 50 --camera-model rendered
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command's argument parser."""
+    ap = make_parser("evaluate", DESCRIPTION)
+    ap.add_argument("--env-id", default=LANDING_V1_ID, help="registered ihrcf_env env id")
     ap.add_argument(
-        "--camera-model", choices=("rendered", "projected"), default=None, help="default: the env's"
+        "--policy", required=True, help="scripted | blind:VZ | a stable-baselines3 .zip (required)"
+    )
+    ap.add_argument("--episodes", type=int_in(1), default=10, help="episodes, one seed each (>= 1)")
+    ap.add_argument("--seed", type=seed_type, default=0, help="first seed, an integer >= 0")
+    ap.add_argument(
+        "--camera-model",
+        choices=("rendered", "projected"),
+        default=None,
+        help="camera model (default: the env's)",
     )
     ap.add_argument(
-        "--sensor-preset", choices=("ideal", "realistic"), default=None, help="default: the env's"
+        "--sensor-preset",
+        choices=("ideal", "realistic"),
+        default=None,
+        help="sensor preset (default: the env's)",
     )
     ap.add_argument(
         "--algo", choices=SB3_ALGOS, default="PPO", help="stable-baselines3 class of a .zip policy"
     )
-    ap.add_argument("--max-steps", type=int, default=None, help="episode limit in steps (default: the env's)")
+    ap.add_argument(
+        "--max-steps", type=int_in(1), default=None, help="episode limit in steps (default: the env's)"
+    )
     ap.add_argument(
         "--deck-motion",
         action="store_true",
@@ -284,18 +264,27 @@ def main(argv: Sequence[str] | None = None) -> int:
         "trained so is detected without it",
     )
     ap.add_argument("--quiet", action="store_true", help="only the summary")
-    args = ap.parse_args(argv)
-    if args.episodes < 1:
-        ap.error(f"argument --episodes: must be >= 1, got {args.episodes}")
-    if args.max_steps is not None and args.max_steps < 1:
-        ap.error(f"argument --max-steps: must be >= 1, got {args.max_steps}")
-    if args.env_id not in gym.registry:
+    return ap
+
+
+def _check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Every check that needs no env: ``ap.error`` (exit status 2) naming the argument."""
+    last = args.seed + args.episodes - 1
+    if last > MAX_SEED:
+        ap.error(f"argument --seed: the seeds {args.seed}..{last} go beyond {MAX_SEED}")
+    spec_env = gym.registry.get(args.env_id)
+    if spec_env is None:
         ap.error(f"argument --env-id: unknown env id {args.env_id!r}")
+    if spec_env.namespace != "ihrcf_env":
+        ours = ", ".join(k for k, v in gym.registry.items() if v.namespace == "ihrcf_env")
+        ap.error(f"argument --env-id: {args.env_id!r} is not an ihrcf_env landing env (one of {ours})")
     spec = args.policy
     if not (spec == "scripted" or spec.startswith("blind:") or spec.endswith(".zip") or os.path.exists(spec)):
         ap.error(
             f"argument --policy: {spec!r} is not 'scripted', 'blind:VZ' or a saved stable-baselines3 .zip"
         )
+    if spec == "scripted" and args.env_id != LANDING_V1_ID:
+        ap.error(f"argument --policy: scripted needs the v1 observation: use --env-id {LANDING_V1_ID}")
     if spec.startswith("blind:"):
         try:
             vz = float(spec.removeprefix("blind:"))
@@ -305,6 +294,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             ap.error(f"argument --policy: {spec!r}: VZ must be a positive descent speed (m/s)")
     if spec.endswith(".zip") and not os.path.isfile(spec):
         ap.error(f"argument --policy: no such file {spec!r}")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``ihrcf-evaluate``; returns the process exit code."""
+    ap = build_parser()
+    args = ap.parse_args(argv)
+    _check_args(ap, args)
+    spec = args.policy
     kwargs: dict[str, Any] = {}
     if args.camera_model is not None:
         kwargs["camera_model"] = args.camera_model
@@ -334,7 +331,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             kwargs["deck_motion"] = True
             print(f"{spec}: trained with deck_motion=True, evaluated so (as with --deck-motion)", flush=True)
         t0 = time.perf_counter()
-        results = evaluate(
+        results = run_episodes(
             env,
             policy,
             args.episodes,

@@ -197,12 +197,13 @@ def from_fields(name: str, cls: type[T], value: Any, default: T | None = None) -
         if key not in known:
             raise ValueError(f"{name} has no parameter {key!r}; known: {', '.join(known)}")
     base = default if default is not None else cls()
-    for key, v in value.items():  # each alone first, so the error names the right key
+    try:
+        return dataclasses.replace(base, **value)  # type: ignore[type-var]
+    except (TypeError, ValueError) as e:
+        error = e
+    for key, v in value.items():  # pin the error on the key that fails alone, if one does
         try:
             dataclasses.replace(base, **{key: v})  # type: ignore[type-var]
         except (TypeError, ValueError) as e:
             raise type(e)(f"{name}[{key!r}]: {e}") from None
-    try:
-        return dataclasses.replace(base, **value)  # type: ignore[type-var]
-    except (TypeError, ValueError) as e:
-        raise type(e)(f"{name}: {e}") from None
+    raise type(error)(f"{name}: {error}") from None

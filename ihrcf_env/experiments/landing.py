@@ -1,7 +1,8 @@
 """Landing evaluation: run :class:`~ihrcf_env.control.landing.LandingController` over seeded episodes.
 
 The controller flies from its own sensing; ``info`` is read only after each episode, to report how
-it ended (:class:`~ihrcf_env.core.metrics.EpisodeResult`, summarised by
+it ended (:class:`~ihrcf_env.experiments.episode.EpisodeResult`, from the one episode loop
+:func:`~ihrcf_env.experiments.episode.run_episodes`; summarised by
 :func:`ihrcf_env.core.metrics.summarize_landings`).
 """
 
@@ -13,34 +14,10 @@ from typing import Any
 import gymnasium as gym
 
 from ihrcf_env.control.landing import LandingController
-from ihrcf_env.core.metrics import EpisodeResult
+from ihrcf_env.experiments.episode import EpisodeResult, run_episodes
 
 #: Deck motion profiles of the env.
 PROFILES = ("paper", "sea_state", "static")
-
-
-def run_episode(env: gym.Env, controller: LandingController, seed: int, profile: str = "") -> EpisodeResult:
-    """Run one episode of ``env`` (velocity actions) with ``controller``; its outcome from ``info``."""
-    obs, info = env.reset(seed=seed)
-    controller.reset()
-    while True:
-        obs, _, terminated, truncated, info = env.step(controller.act(obs))
-        if terminated or truncated:
-            break
-    td = info.get("touchdown")
-    outcome = info.get("outcome", "flying")
-    res = EpisodeResult(
-        profile=profile,
-        seed=seed,
-        outcome="timeout" if outcome == "flying" else outcome,
-        reason=info.get("crash_reason", "") if outcome == "crash" else "",
-        time=float(info["time"]),
-        commit_time=controller.commit_time,
-    )
-    if td is not None:
-        res.speed = abs(float(td["relative_vertical_speed"]))
-        res.tilt = float(td["relative_tilt"])
-    return res
 
 
 def evaluate(
@@ -84,13 +61,7 @@ def evaluate(
         rig=base.rig,  # type: ignore[attr-defined]
         estimator=estimator,
     )
-    results = []
     try:
-        for i in range(episodes):
-            r = run_episode(env, ctrl, seed + i, profile)
-            results.append(r)
-            if on_episode is not None:
-                on_episode(r)
+        return run_episodes(env, ctrl, episodes, seed, on_episode, profile)
     finally:
         env.close()
-    return results

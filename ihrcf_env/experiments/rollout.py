@@ -15,10 +15,10 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from tqdm import tqdm
 
 from ihrcf_env.core.frames import euler_from_matrix, matrix_from_quat, wrap_angle
 from ihrcf_env.core.metrics import ErrorStats, error_stats, pose_errors
+from ihrcf_env.experiments.progress import Progress
 
 #: A policy: the env's observation -> normalised action in [-1, 1]^4.
 Policy = Callable[[Mapping[str, Any]], ArrayLike]
@@ -92,7 +92,8 @@ def rollout(
         steps: control steps to run.
         policy: observation -> normalised action; ``None`` sends zeros (the autopilot holds its pose).
         seed, options: passed to ``env.reset``.
-        progress: draw a progress bar (tqdm) on stderr.
+        progress: report progress on stderr (:class:`~ihrcf_env.experiments.progress.Progress`: a
+            bar on a terminal, a plain line every few seconds otherwise).
     """
     if steps < 1:
         raise ValueError(f"steps must be >= 1, got {steps!r}")
@@ -117,9 +118,9 @@ def rollout(
     heading = np.zeros(n)
     ended_early = ""
     k = 0
-    # disable=None: no bar when stderr is not a terminal (logs, CI), where it would print every update
-    with tqdm(total=n, disable=None if progress else True, unit="step", dynamic_ncols=True) as bar:
-        t0 = time.perf_counter()
+    bar = Progress(n, "rollout", unit="step") if progress else None
+    t0 = time.perf_counter()
+    try:
         for k in range(n):
             action = np.zeros(4) if policy is None else np.asarray(policy(obs), dtype=np.float64)
             obs, _, terminated, truncated, info = env.step(action.astype(np.float32))
@@ -135,11 +136,10 @@ def rollout(
             offset[k] = np.asarray(info["drone_position_world"]) - np.asarray(info["deck_position_world"])
             yaw_error = _yaw(info["drone_quaternion_world"]) - _yaw(info["deck_quaternion_world"])
             heading[k] = float(wrap_angle(yaw_error))
-            if progress:
+            if bar is not None:
                 wall = time.perf_counter() - t0
                 rtf = t[k] / wall if wall > 0 else math.nan
-                bar.set_postfix_str(f"sim {t[k]:6.1f}/{n / hz:.1f} s  {rtf:4.2f}x real time", refresh=False)
-                bar.update(1)
+                bar.update(k + 1, f"sim {t[k]:.1f}/{n / hz:.1f} s, {rtf:.2f}x real time")
             if terminated or truncated:
                 if k + 1 < n:
                     ended_early = (
@@ -147,6 +147,9 @@ def rollout(
                     )
                 break
         wall_time = time.perf_counter() - t0
+    finally:
+        if bar is not None:
+            bar.close()
     m = k + 1
     return Recording(
         time=t[:m],

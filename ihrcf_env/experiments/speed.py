@@ -269,3 +269,51 @@ def component_costs(frames: int = 100, sensor_preset: str = "ideal") -> dict[str
         for w in worlds:
             w.close()
     return {name: 1e3 * float(np.mean(t[3:])) for name, t in spent.items() if not math.isnan(t[0])}
+
+
+def raw_speed(size: int, steps: int, control_hz: int = 20) -> tuple[float, float]:
+    """(env steps per second, real-time factor) of the raw env with zero velocity actions, camera
+    ``size`` x ``size`` px rendered every control step (0: no camera)."""
+    kw = {"camera": False} if size == 0 else {"camera_width": size, "camera_height": size}
+    env = gym.make("ihrcf_env/DeckHoverRaw-v0", control_hz=control_hz, max_episode_steps=steps + 10, **kw)
+    try:
+        sps = steps_per_second(env, steps)
+    finally:
+        env.close()
+    return sps, sps / control_hz
+
+
+def estimation_ms(frames: int) -> float | None:
+    """Mean wall time (ms) of one frame through detection + IHRCF + ATDA + fused (a separate
+    estimator fed the same rendered 512x512 frames, ranges and IMU as the env's), or None without a
+    shipped calibration."""
+    from ihrcf_env.core.calibration import Calibration, default_calibration_path
+    from ihrcf_env.core.estimators import ImuSample
+    from ihrcf_env.wrappers import estimator_from_calibration
+
+    if not default_calibration_path().is_file():
+        return None
+    env = gym.make("ihrcf_env/DeckHoverRaw-v0", max_episode_steps=frames + 10)
+    try:
+        deck = env.unwrapped.config.world.deck  # type: ignore[attr-defined]
+        est = estimator_from_calibration(
+            Calibration.load(default_calibration_path()), deck.tag_size, deck.tag_id
+        )
+        raw, info = env.reset(seed=0)
+        samples = []
+        for _ in range(frames):
+            imu = raw["imu"]
+            t0 = time.perf_counter()
+            frame = est.frame(
+                raw["image"],
+                raw["ranges"],
+                raw["ranges_valid"].astype(bool),
+                time=float(info["time"]),
+                imu=ImuSample(imu["quaternion"], imu["angular_velocity"], imu["linear_acceleration"]),
+            )
+            est.update(frame)
+            samples.append(time.perf_counter() - t0)
+            raw, _, _, _, info = env.step(np.zeros(4, dtype=np.float32))
+    finally:
+        env.close()
+    return 1e3 * float(np.mean(samples))

@@ -23,7 +23,7 @@ from ihrcf_env.core.detector_model.params import QualityParams
 from ihrcf_env.core.paths import assets_dir
 
 #: The command that (re)makes the detector model file.
-FIT_COMMAND = "python -m ihrcf_env.fit_detector"
+FIT_COMMAND = "ihrcf-fit-detector"
 #: File format tag and version of :func:`save_model`.
 FORMAT_NAME = "ihrcf_env detector model"
 FORMAT_VERSION = 1

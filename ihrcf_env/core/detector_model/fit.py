@@ -3,7 +3,7 @@ with their projected features), :func:`fit_quality` (one camera quality),
 :func:`merge_samples` and :func:`fit_detector_params` (every quality; the corner error pooled).
 
 The model is described in ``docs/detector_model.md``; the frames come from
-``python -m ihrcf_env.fit_detector`` (:mod:`ihrcf_env.cli.fit_detector`). Pure numpy / scipy.
+``ihrcf-fit-detector`` (:mod:`ihrcf_env.experiments.detector_fit`). Pure numpy / scipy.
 """
 
 from __future__ import annotations
@@ -129,7 +129,7 @@ def _best_threshold(values: NDArray[np.float64], ok: NDArray[np.bool_], grid: ND
 
 def fit_quality(samples: DetectorSamples, with_extra: bool) -> tuple[QualityParams, dict[str, Any]]:
     """Fit :class:`QualityParams` to rendered frames (see the module docstring for the model and
-    :func:`ihrcf_env.cli.fit_detector` for the frames); ``with_extra`` fits the noise and blur gains
+    :mod:`ihrcf_env.experiments.detector_fit` for the frames); ``with_extra`` fits the noise and blur gains
     (the realistic camera). Returns the parameters and a small report (counts and checks)."""
     from scipy.optimize import minimize
 

@@ -3,17 +3,15 @@
 Two qualities (:attr:`CameraConfig.quality`): ``"ideal"`` (a clean render on a blank background,
 fixed light, no noise or blur) and ``"realistic"`` (a textured sea/ground background, per-episode
 light and exposure, motion blur, vignetting, read and shot noise of a real global-shutter sensor:
-:mod:`ihrcf_env.sim.sensors.imaging`). :func:`realism_cost_ms` measures what the realistic model
-adds per frame; :func:`save_realistic_example` writes the README's example frame.
+:mod:`ihrcf_env.sim.sensors.imaging`). What the realistic model costs per frame and the README's
+example frame: :mod:`ihrcf_env.experiments.camera_realism`.
 """
 
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, Protocol
 
 import cv2
@@ -90,8 +88,9 @@ class CameraConfig:
     drawn in ``reset``; motion blur from the drone's velocity and angular velocity over the
     exposure; vignetting; read and shot noise; 8-bit quantisation.
 
-    Cost (:func:`realism_cost_ms`, paper's 1 m hover, 512x512, 100 frames, the 2-core development
-    machine with another job running): ideal 45.5 ms per frame, realistic 48.6 ms, **+3.1 ms**
+    Cost (:func:`~ihrcf_env.experiments.camera_realism.realism_cost_ms`, paper's 1 m hover,
+    512x512, 100 frames, the 2-core development machine with another job running): ideal 45.5 ms
+    per frame, realistic 48.6 ms, **+3.1 ms**
     (+3.3 ms median; the post-processing alone 2.1 ms on a quiet core, 3.3 ms between renders; the
     segmentation mask is free in TinyRenderer: 41.3 vs 41.9 ms without it).
 
@@ -663,111 +662,3 @@ def tiny_render(
 def render_rgb(client: int, config: CameraConfig, view: object, proj: object) -> NDArray[np.uint8]:
     """One TinyRenderer frame as an (H, W, 3) uint8 array, with the config's light."""
     return tiny_render(client, config, view, proj)[0]
-
-
-def _hover_world(width: int, height: int, frames: int, camera: CameraConfig | None = None) -> Any:
-    """A world at the paper's experiment: drone 1 m above the deck on the "paper" profile, 20 Hz."""
-    from ihrcf_env.core.profiles import paper_profile
-    from ihrcf_env.sim.world import World, WorldConfig
-
-    world = World(
-        WorldConfig(camera=camera if camera is not None else CameraConfig(width=width, height=height))
-    )
-    try:
-        world.reset(paper_profile(), horizon_s=frames / world.config.control_hz + 2.0, altitude=1.0)
-    except BaseException:
-        world.close()
-        raise
-    return world
-
-
-def realism_cost_ms(frames: int = 60, width: int = 512, height: int = 512, seed: int = 0) -> dict[str, float]:
-    """What the realistic camera adds per frame over the ideal one, at the paper's 1 m hover.
-
-    One world at the hover (``"paper"`` profile, 20 Hz, velocity hold); every control step both an
-    ideal and a realistic camera (same client, same pose) read a frame, in alternating order, timed
-    with ``time.perf_counter`` (3 warm-up frames not counted). Returns mean and median ms per frame
-    of each (``ideal_ms``, ``realistic_ms``, ``*_median_ms``), their difference ``added_ms`` /
-    ``added_median_ms``, the realistic post-processing alone (``processing_ms``: background, blur,
-    vignetting, noise) and ``frames``. Measured (512x512, 100 frames, 2 cores, another job
-    running): ideal 45.5 ms, realistic 48.6 ms, added 3.1 ms (median 3.3 ms), processing 3.3 ms.
-    The figure depends on the machine's load: OpenCV's two threads compete with other processes.
-    """
-    if frames < 1:
-        raise ValueError(f"frames must be >= 1, got {frames!r}")
-    world = _hover_world(width, height, frames + 5)
-    try:
-        rng = np.random.default_rng(seed)
-        ideal = DownCamera(world.client, CameraConfig(width=width, height=height), world.config.rig)
-        real = DownCamera(
-            world.client, CameraConfig(width=width, height=height, quality="realistic"), world.config.rig
-        )
-        real.reset(rng)
-        imager = real.imager
-        assert imager is not None
-        process = imager.process
-        spent = [0.0]
-
-        def timed_process(*args: Any) -> NDArray[np.uint8]:
-            t = time.perf_counter()
-            out = process(*args)
-            spent[0] += time.perf_counter() - t
-            return out
-
-        setattr(imager, "process", timed_process)  # noqa: B010 (time the post-processing alone)
-        t_ideal: list[float] = []
-        t_real: list[float] = []
-        for k in range(frames + 3):
-            world.step()
-            world.deck.update_visuals()
-            state = world.body_state()
-            order = (ideal, real) if k % 2 == 0 else (real, ideal)
-            for cam in order:
-                t0 = time.perf_counter()
-                cam.read(state, 0.05, rng)
-                dt = time.perf_counter() - t0
-                if k >= 3:  # warm-up frames are not counted
-                    (t_ideal if cam is ideal else t_real).append(dt)
-            if k == 2:
-                spent[0] = 0.0
-    finally:
-        world.close()
-    ti, tr = np.array(t_ideal) * 1e3, np.array(t_real) * 1e3
-    return {
-        "frames": float(frames),
-        "ideal_ms": float(ti.mean()),
-        "realistic_ms": float(tr.mean()),
-        "added_ms": float(tr.mean() - ti.mean()),
-        "ideal_median_ms": float(np.median(ti)),
-        "realistic_median_ms": float(np.median(tr)),
-        "added_median_ms": float(np.median(tr) - np.median(ti)),
-        "processing_ms": spent[0] * 1e3 / frames,
-    }
-
-
-def save_realistic_example(
-    path: str | Path = "examples/figures/camera_realistic.png",
-    seed: int = 0,
-    steps: int = 40,
-    size: int = 384,
-) -> Path:
-    """Write one realistic 512x512 frame of the paper's 1 m hover (after ``steps`` control steps of
-    an episode seeded with ``seed``) as a PNG at ``path``, resized to ``size`` px (``INTER_AREA``;
-    sensor noise does not compress: 512 px would be ~370 KB); returns the path. Regenerates the
-    README figure ``examples/figures/camera_realistic.png``."""
-    world = _hover_world(512, 512, steps + 5, CameraConfig(quality="realistic"))
-    try:
-        rng = np.random.default_rng(seed)
-        world.reset_random(rng)
-        for _ in range(steps):
-            world.step()
-        image = world.read_sensors(rng, ("camera",))["image"]
-    finally:
-        world.close()
-    if size != image.shape[1]:
-        image = cv2.resize(image, (size, size), interpolation=cv2.INTER_AREA)
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(out), cv2.cvtColor(image, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 9]):
-        raise OSError(f"could not write {out}")
-    return out

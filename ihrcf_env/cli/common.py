@@ -1,0 +1,105 @@
+"""What the command lines share: the parser, argument types, output checks, writing a file whole.
+
+Every command is installed as a console script (``ihrcf-<name>``, pointing at
+``ihrcf_env.cli.<name>:main``) and runs as ``python -m ihrcf_env.<name>``; its ``--help`` is plain
+text that states every default. Arguments are checked before any simulation starts: seeds,
+counts and output files (the folder exists and is writable, the path is not a folder), so a bad
+argument fails at once with a message naming it (argparse's exit status 2), not after a long
+run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+#: Largest seed NumPy's and Gymnasium's seeding accept (2**32 - 1 for a reset seed).
+MAX_SEED = 2**32 - 1
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """The description and epilog as written; each option's help ends with its default
+    (``(default: X)``) unless the help already states it or there is nothing to state."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if "default" in text.lower() or action.default is argparse.SUPPRESS:
+            return text
+        if isinstance(action, argparse._StoreTrueAction | argparse._StoreFalseAction):
+            return f"{text} (default: off)" if action.default is False else f"{text} (default: on)"
+        if action.option_strings and action.default is not None and not action.required:
+            return f"{text} (default: %(default)s)"
+        return text
+
+
+def make_parser(name: str, description: str, epilog: str | None = None) -> argparse.ArgumentParser:
+    """The parser of the command ``ihrcf-<name>`` (also ``python -m ihrcf_env.<name>``)."""
+    return argparse.ArgumentParser(
+        prog=f"ihrcf-{name}",
+        description=description,
+        epilog=epilog,
+        formatter_class=HelpFormatter,
+    )
+
+
+def int_in(low: int, high: int | None = None) -> Callable[[str], int]:
+    """An argparse ``type``: an integer in [low, high] (high None: no upper bound)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if value < low or (high is not None and value > high):
+            span = f">= {low}" if high is None else f"in [{low}, {high}]"
+            raise argparse.ArgumentTypeError(f"must be an integer {span}, got {value}")
+        return value
+
+    parse.__name__ = "integer"
+    return parse
+
+
+#: An argparse ``type`` for seeds: an integer in [0, MAX_SEED].
+seed_type = int_in(0, MAX_SEED)
+
+
+def check_output(ap: argparse.ArgumentParser, option: str, path: str | Path) -> Path:
+    """``path`` as a file the command may write, or ``ap.error`` naming ``option``: not a folder,
+    and a file can be created (tried, then removed) in its folder or, where that folder does not
+    exist yet, in its nearest existing ancestor (the missing folders are made when writing)."""
+    out = Path(path)
+    if out.is_dir():
+        ap.error(f"argument {option}: {str(out)!r} is a folder; give a file name")
+    parent = out.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        ap.error(f"argument {option}: cannot write {str(out)!r}: {str(parent)!r} is not a folder")
+    try:
+        with tempfile.NamedTemporaryFile(dir=parent, prefix=f".{out.name}.", suffix=".probe"):
+            pass
+    except OSError as e:
+        ap.error(f"argument {option}: cannot write in {str(parent)!r} ({e.strerror or e})")
+    return out
+
+
+def write_whole(path: str | Path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` whole or not at all: through a temporary file beside it,
+    renamed onto ``path`` (missing folders are made); the temporary file is removed if anything
+    fails. Returns the path."""
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, out)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    return out
