@@ -72,3 +72,18 @@ def register_estimator(name: str, factory: Any, *, replace: bool = False) -> Non
     from ihrcf_env.core.estimators.registry import register_estimator as _register
 
     _register(name, factory, replace=replace)
+
+
+def register_sensor(name: str, factory: Any, outputs: Any, *, replace: bool = False) -> None:
+    """Register a sensor from user code (see :func:`ihrcf_env.sim.registry.register_sensor`)."""
+    from ihrcf_env.sim.registry import register_sensor as _register
+
+    _register(name, factory, outputs, replace=replace)
+
+
+def register_noise_model(name: str, factory: Any, *, replace: bool = False) -> None:
+    """Register a measurement-noise model from user code (see
+    :func:`ihrcf_env.sim.registry.register_noise_model`)."""
+    from ihrcf_env.sim.registry import register_noise_model as _register
+
+    _register(name, factory, replace=replace)

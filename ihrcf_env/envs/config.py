@@ -77,6 +77,7 @@ from ihrcf_env.envs.task_config import (
 from ihrcf_env.sim.deck import DeckConfig
 from ihrcf_env.sim.disturbances import Disturbance, WindParams
 from ihrcf_env.sim.navigation import FEEDBACK_MODES, NavigationConfig, NavigationErrors
+from ihrcf_env.sim.registry import check_measurement_noise, check_sensor_names
 from ihrcf_env.sim.sensors import TOF_PRESETS, CameraConfig, ToFConfig
 from ihrcf_env.sim.sensors.camera import CAMERA_QUALITIES
 from ihrcf_env.sim.sensors.imu import IMU_NOISE_PRESETS, IMUConfig, IMUNoise
@@ -467,6 +468,8 @@ def make_config(
     chase_size: tuple[int, int] = (640, 480),
     wind: bool | WindParams | Mapping[str, Any] | None = None,
     disturbances: Sequence[Disturbance] = (),
+    sensors: Sequence[str] = (),
+    measurement_noise: Mapping[str, str] | None = None,
     success_radius: float | None = None,
     start_in_view: bool | None = None,
     view_margin: float | None = None,
@@ -583,6 +586,7 @@ def make_config(
         tag_id=check_int("tag_id", tag_id, low=0, high=apriltag_ids() - 1),
         tag_size=check_positive("tag_size", tag_size, "m", high=10.0),
     )
+    extra = check_sensor_names(sensors)
     world = WorldConfig(
         control_hz=rate,
         action_mode=check_str("action_mode", action_mode, ACTION_MODES),
@@ -595,6 +599,8 @@ def make_config(
         camera_output=cam_output,
         camera_hz=cam_hz,
         detector_model=detector,
+        extra_sensors=extra,
+        measurement_noise=check_measurement_noise(measurement_noise, extra),
     )
     goal = None
     if landing:

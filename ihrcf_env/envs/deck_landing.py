@@ -71,6 +71,7 @@ from ihrcf_env.core.seeding import SeedStreams
 from ihrcf_env.envs.config import ARENA_MARGIN, MIN_START_ALTITUDE, DeckLandingConfig, make_config
 from ihrcf_env.envs.display import require_gui_display
 from ihrcf_env.sim.disturbances import Wind
+from ihrcf_env.sim.registry import SENSORS
 from ihrcf_env.sim.sensors import CameraConfig
 from ihrcf_env.sim.sensors.base import TAG_STATUS
 from ihrcf_env.sim.world import CAMERA_SENSORS, Snapshot, Touchdown, World, WorldConfig
@@ -327,6 +328,10 @@ class DeckLandingEnv(gym.Env):
         }
         v = w.nav_velocity()
         obs["nav_velocity"] = clip(v, -MAX_NAV_VELOCITY, MAX_NAV_VELOCITY).astype(np.float32)
+        for name in self.config.world.extra_sensors:
+            for key, out in SENSORS[name].outputs.items():
+                value = np.nan_to_num(np.asarray(r[key], np.float64), nan=out.low)
+                obs[key] = clip(value, out.low, out.high).astype(np.float32).reshape(out.shape)
         return obs
 
     def _outcome(self, touchdown: Touchdown | None, s: Snapshot) -> tuple[str, str]:
@@ -470,4 +475,7 @@ def _observation_space(world: WorldConfig) -> spaces.Dict:
         }
     )
     obs["nav_velocity"] = spaces.Box(-MAX_NAV_VELOCITY, MAX_NAV_VELOCITY, (3,), np.float32)
+    for name in world.extra_sensors:
+        for key, out in SENSORS[name].outputs.items():
+            obs[key] = spaces.Box(np.float32(out.low), np.float32(out.high), out.shape, np.float32)
     return spaces.Dict(obs)

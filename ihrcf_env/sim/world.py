@@ -11,6 +11,7 @@ import math
 import struct
 import tempfile
 import weakref
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -77,6 +78,10 @@ class WorldConfig:
     camera_output: str = "image"
     camera_hz: int | None = None  # None: every control step
     detector_model: DetectorModel | None = None  # "projected": the fitted model (None: the shipped one)
+    #: registered sensors (:mod:`ihrcf_env.sim.registry`) read after the built-in ones
+    extra_sensors: tuple[str, ...] = ()
+    #: (measurement, registered noise model) pairs applied to the readings
+    measurement_noise: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self) -> None:
         if not (isinstance(self.physics_hz, int | np.integer) and self.physics_hz > 0):
@@ -216,6 +221,13 @@ class World:
             self.sensors.update(self._camera_sensor(cfg.camera))
         self.sensors["tof"] = self.tof
         self.sensors["imu"] = self.imu_sensor
+        from ihrcf_env.sim.registry import NOISE_MODELS, SENSORS, measurement_sizes
+
+        for name in cfg.extra_sensors:
+            self.sensors[name] = SENSORS[name].factory(self)
+        sizes = measurement_sizes(cfg.extra_sensors)
+        #: measurement -> the noise model corrupting it (``measurement_noise``)
+        self.corruptors = {key: NOISE_MODELS[model](sizes[key]) for key, model in cfg.measurement_noise}
         for name in CAMERA_SENSORS:
             if name in self.sensors:
                 self.sensors[name].update_interval = cfg.camera_every  # type: ignore[attr-defined]
@@ -297,6 +309,9 @@ class World:
         for name, sensor in self.sensors.items():
             rng = self._rngs[name] = streams.generator(f"sensor.{name}")
             sensor.reset(rng)
+        for key, model in self.corruptors.items():
+            rng = self._rngs[f"noise.{key}"] = streams.generator(f"noise.{key}")
+            model.reset(rng)
         names = self.disturbance_streams
         for i, d in enumerate(self.disturbances):
             d.reset(streams.generator(names[i] if i < len(names) else f"disturbance.{i}"))
@@ -502,10 +517,37 @@ class World:
             if gen is None:  # before the first reset_random: a fixed stream
                 gen = self._rngs[name] = SeedStreams(0).generator(f"sensor.{name}")
             reading = sensor.read(state, control_dt * every, gen)
+            if self.corruptors:
+                reading = self._corrupt(reading, control_dt * every, rng)
             out.update(reading)
             if held:
                 self._held[name] = dict(reading)
                 self.sample_times[name] = state.time
+        return out
+
+    def _corrupt(
+        self, reading: Mapping[str, NDArray], dt: float, rng: np.random.Generator | None
+    ) -> dict[str, NDArray]:
+        """``reading`` with the configured noise models applied (a ``<name>_valid`` mask, when the
+        reading has one, travels with the values)."""
+        out = dict(reading)
+        for key, model in self.corruptors.items():
+            if key not in out:
+                continue
+            value = np.asarray(out[key], dtype=np.float64)
+            mask_key = f"{key}_valid"
+            valid = (
+                np.asarray(out[mask_key]).astype(bool).ravel()
+                if mask_key in out
+                else np.ones(value.size, bool)
+            )
+            gen = rng if rng is not None else self._rngs.get(f"noise.{key}")
+            if gen is None:  # before the first reset_random: a fixed stream
+                gen = self._rngs[f"noise.{key}"] = SeedStreams(0).generator(f"noise.{key}")
+            noisy, ok = model.apply(value.ravel(), valid, dt, gen)
+            out[key] = np.asarray(noisy, dtype=np.float64).reshape(value.shape)
+            if mask_key in out:
+                out[mask_key] = np.asarray(ok).astype(np.asarray(out[mask_key]).dtype)
         return out
 
     @property
