@@ -146,18 +146,33 @@ def table2_markdown(stats: Mapping[str, ErrorStats], title: str) -> str:
 
 
 # -- landing outcomes ---------------------------------------------------------------------------
-@dataclass
-class EpisodeResult:
-    """How one landing episode ended (read from the env's ``info`` after the fact)."""
+#: How an episode can end.
+OUTCOMES = ("success", "crash", "timeout")
 
-    profile: str
+
+@dataclass(frozen=True)
+class EpisodeResult:
+    """How one landing episode ended (read from the env's ``info`` after the fact).
+
+    ``speed``, ``tilt`` and ``offset`` are None when the drone never touched down.
+    """
+
     seed: int
-    outcome: str  # "success", "crash" or "timeout"
-    reason: str = ""
+    outcome: str  # "success", "crash" or "timeout" (one of OUTCOMES)
+    reason: str = ""  # the crash reason ("" unless outcome == "crash")
     time: float = 0.0  # simulated s at the end
+    steps: int = 0  # control steps flown
+    ret: float = 0.0  # undiscounted return
     speed: float | None = None  # |relative vertical speed| at touchdown (m/s)
     tilt: float | None = None  # relative tilt at touchdown (rad)
-    commit_time: float | None = None  # simulated s when the controller committed to the drop
+    offset: float | None = None  # drone centre to tag centre, horizontal, at touchdown (m)
+    commit_time: float | None = None  # simulated s when the policy committed to the drop, if it says
+    profile: str = ""  # deck motion profile, when the caller names it
+
+    @property
+    def touched_down(self) -> bool:
+        """Whether the episode has touchdown figures."""
+        return self.speed is not None
 
 
 @dataclass(frozen=True)

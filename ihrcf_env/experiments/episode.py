@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any, Protocol
 
 import gymnasium as gym
 import numpy as np
+
+from ihrcf_env.core.metrics import EpisodeResult
 
 
 class EpisodePolicy(Protocol):
@@ -27,35 +28,6 @@ class EpisodePolicy(Protocol):
     def act(self, obs: Any) -> Any:
         """Normalised action in [-1, 1]^4 for one observation."""
         ...
-
-
-#: How an episode can end.
-OUTCOMES = ("success", "crash", "timeout")
-
-
-@dataclass(frozen=True)
-class EpisodeResult:
-    """How one landing episode ended (read from the env's ``info`` after the fact).
-
-    ``speed``, ``tilt`` and ``offset`` are None when the drone never touched down.
-    """
-
-    seed: int
-    outcome: str  # "success", "crash" or "timeout" (one of OUTCOMES)
-    reason: str = ""  # the crash reason ("" unless outcome == "crash")
-    time: float = 0.0  # simulated s at the end
-    steps: int = 0  # control steps flown
-    ret: float = 0.0  # undiscounted return
-    speed: float | None = None  # |relative vertical speed| at touchdown (m/s)
-    tilt: float | None = None  # relative tilt at touchdown (rad)
-    offset: float | None = None  # drone centre to tag centre, horizontal, at touchdown (m)
-    commit_time: float | None = None  # simulated s when the policy committed to the drop, if it says
-    profile: str = ""  # deck motion profile, when the caller names it
-
-    @property
-    def touched_down(self) -> bool:
-        """Whether the episode has touchdown figures."""
-        return self.speed is not None
 
 
 def run_episode(env: gym.Env, policy: EpisodePolicy, seed: int, profile: str = "") -> EpisodeResult:

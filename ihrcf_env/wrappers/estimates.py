@@ -336,7 +336,7 @@ def make_deck_hover(**options: Any) -> gym.Env:
             flatten=obs.flatten,
             max_residual=obs.max_residual,
             estimators=obs.estimators,
-            fused_params=options.get("fused_params"),
+            fused_params=obs.fused_params,  # resolved from the ToF model when not given
         )
     except BaseException:
         env.close()

@@ -299,7 +299,7 @@ def make_deck_landing_v1(**options: Any) -> gym.Env:
             calibration=options.get("calibration"),  # as given: the spec records it
             max_residual=obs.max_residual,
             estimators=obs.estimators,
-            fused_params=options.get("fused_params"),
+            fused_params=obs.fused_params,  # resolved from the ToF model when not given
             privileged=obs.privileged,
             deck_motion=obs.deck_motion,
         )

@@ -83,11 +83,17 @@ def test_table2_layouts_carry_the_papers_values() -> None:
 
 def test_landing_summary_groups_failures_and_formats() -> None:
     results = [
-        EpisodeResult("paper", 0, "success", time=5.0, speed=0.25, tilt=math.radians(4.0), commit_time=2.0),
-        EpisodeResult("paper", 1, "success", time=7.0, speed=0.29, tilt=math.radians(6.0)),
-        EpisodeResult("paper", 2, "crash", "vertical speed 0.63 m/s at touchdown", 3.0, 0.63, 0.0),
-        EpisodeResult("paper", 3, "crash", "tilt 11.2 deg at touchdown", 4.0, 0.3, math.radians(11.2)),
-        EpisodeResult("paper", 4, "timeout", time=30.0),
+        EpisodeResult(
+            0, "success", time=5.0, speed=0.25, tilt=math.radians(4.0), commit_time=2.0, profile="paper"
+        ),
+        EpisodeResult(1, "success", time=7.0, speed=0.29, tilt=math.radians(6.0), profile="paper"),
+        EpisodeResult(
+            2, "crash", "vertical speed 0.63 m/s at touchdown", 3.0, speed=0.63, tilt=0.0, profile="paper"
+        ),
+        EpisodeResult(
+            3, "crash", "tilt 11.2 deg at touchdown", 4.0, speed=0.3, tilt=math.radians(11.2), profile="paper"
+        ),
+        EpisodeResult(4, "timeout", time=30.0, profile="paper"),
     ]
     s = summarize_landings(results)
     assert (s.episodes, s.successes, s.success_rate) == (5, 2, 0.4)
