@@ -129,7 +129,7 @@ def test_no_words_about_how_the_project_was_developed(page):
     assert not hits, f"{page.name}: {hits[:3]}"
 
 
-@pytest.mark.parametrize("page", [README, *sorted(DOCS.glob("*.md"))], ids=lambda p: p.name)
+@pytest.mark.parametrize("page", _pages(), ids=lambda p: p.name)
 def test_relative_links_point_to_existing_files(page):
     missing = []
     for target in LINK.findall(page.read_text()):
