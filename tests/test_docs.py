@@ -141,6 +141,14 @@ def test_relative_links_point_to_existing_files(page):
     assert not missing, f"{page.name}: broken links {missing}"
 
 
+def test_results_page_is_generated_and_stamped():
+    text = (DOCS / "results.md").read_text()
+    assert "do not edit by hand" in text
+    assert re.search(r"- ihrcf_env \d+\.\d+\.\d+, generated \d{4}-\d\d-\d\d", text)
+    assert "- command: `python -m ihrcf_env.experiments.results" in text
+    assert "- machine: " in text and "CPUs" in text
+
+
 def test_the_docs_pages_exist():
     for name in (
         "tasks",
@@ -162,7 +170,8 @@ def test_the_docs_pages_exist():
     reason="ihrcf_env.register_estimator is not in this version of the package",
 )
 def test_custom_estimator_example_runs():
-    env = {**os.environ, "PYTHONWARNINGS": "error::ResourceWarning"}
+    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
+    env = {**os.environ, "PYTHONWARNINGS": "error::ResourceWarning", "PYTHONPATH": path}
     out = subprocess.run(
         [sys.executable, str(ROOT / "examples" / "custom_estimator.py"), "--steps", "20"],
         capture_output=True,
