@@ -275,7 +275,8 @@ def replace_block(text: str, block: str, begin: str = HEADLINE_BEGIN, end: str =
 
 
 def machine() -> str:
-    """Platform, Python, CPU count and the load average at the time of the call."""
+    """Platform, Python, CPU count and the load average at the time of the call (speed figures
+    depend on what else runs on the machine)."""
     load = ""
     if hasattr(os, "getloadavg"):
         load = f", load average {os.getloadavg()[0]:.2f} at start"
@@ -404,6 +405,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     date = datetime.date.today().isoformat()
     mach = machine() + pinned
     results = run(plan)
+    if hasattr(os, "getloadavg"):
+        mach += f", {os.getloadavg()[0]:.2f} at the end"
     stamp = Stamp(ihrcf_env.__version__, date, command, mach, plan.describe(), time.perf_counter() - started)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
