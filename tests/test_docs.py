@@ -1,0 +1,187 @@
+"""The user-facing docs: README shape and wording, links, the generated results page's writer, and
+the custom-estimator example (run in a subprocess)."""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import ihrcf_env
+from ihrcf_env.core.metrics import ErrorStats
+from ihrcf_env.experiments.results import (
+    HEADLINE_BEGIN,
+    HEADLINE_END,
+    LandingRow,
+    Results,
+    SpeedRow,
+    Stamp,
+    headline_markdown,
+    replace_block,
+    results_markdown,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+DOCS = ROOT / "docs"
+#: Words about how the project was developed, which user-facing text must not contain.
+WORK_LOG = re.compile(r"session \d|target (met|missed)|design card|\d asked\)", re.IGNORECASE)
+NAN = math.nan
+LINK = re.compile(r"\[[^\]]*\]\(([^)\s]+)\)")
+
+
+def _pages() -> list[Path]:
+    return [README, ROOT / "CHANGELOG.md", *sorted(DOCS.glob("*.md"))]
+
+
+def _stats(scale: float, invalid: int = 0, frames: int = 10) -> ErrorStats:
+    mae = scale * np.array([0.001, 0.002, 0.003, 0.1, 0.2, 0.3])
+    return ErrorStats(mae=mae, peak=2 * mae, invalid=invalid, frames=frames)
+
+
+def _results() -> tuple[Results, Stamp]:
+    res = Results(
+        accuracy={
+            ("ideal", 1.0): {"ihrcf": _stats(1.0), "atda": _stats(2.0), "fused": _stats(0.5, invalid=2)},
+            ("realistic", 1.0): {"ihrcf": _stats(3.0, invalid=4), "atda": _stats(2.0)},
+        },
+        raw_speed=[SpeedRow("none", 2000.0, 100.0), SpeedRow("512x512", 20.0, 1.0)],
+        wrapped_speed=[SpeedRow("rendered 512, image kept", 18.0, 0.9), SpeedRow("projected", 450.0, 22.5)],
+        landing=[
+            LandingRow("projected", 4, 3, (0.3, 0.4), (4.0, 6.0), (0.05, 0.1), (9.0, 12.0), {"timeout": 1}),
+            LandingRow("rendered", 1, 0, (NAN, NAN), (NAN, NAN), (1.0, 1.0), (NAN, NAN)),
+        ],
+    )
+    command = "python -m ihrcf_env.experiments.results --quick"
+    stamp = Stamp("9.9.9", "2001-02-03", command, "box, 2 CPUs", "quick", wall_s=90.0, cpu_share=0.5)
+    return res, stamp
+
+
+# -- the results writer --------------------------------------------------------------------------
+def test_results_page_has_stamp_and_every_table():
+    res, stamp = _results()
+    md = results_markdown(res, stamp)
+    for text in ("9.9.9", "2001-02-03", "--quick", "box, 2 CPUs", "quick", "wall time: 1.5 min"):
+        assert text in md
+    assert "this process ran 50 %" in md
+    # Table 2 rows per axis, MAE (peak) in the estimators' order ATDA, IHRCF, fused
+    assert "| X (m) | 0.0020 (0.0040) | 0.0010 (0.0020) | 0.0005 (0.0010) | 0.0162 | 0.0035 |" in md
+    assert "| invalid frames | 0 | 0 | 2 | | |" in md
+    assert "| 512x512 | 20.0 | 1.00x |" in md
+    assert "| projected | 450.0 | 22.50x | 25.0x |" in md
+    assert "| projected | 3/4 | 0.300 / 0.400 | 4.00 / 6.00 | 0.050 / 0.100 | 9.0 / 12.0 | timeout x1 |" in md
+    assert "| rendered | 0/1 | - / - |" in md
+    assert "nan" not in md.lower()
+
+
+def test_headline_table_in_mm_and_deg_with_the_paper():
+    res, stamp = _results()
+    md = headline_markdown(res, stamp)
+    assert "| IHRCF | paper (real flight) | 3.50 | 3.90 | 4.10 | 0.980 | 1.373 | 1.180 | |" in md
+    assert "| IHRCF | simulated, realistic | 3.00 | 6.00 | 9.00 | 0.300 | 0.600 | 0.900 | 6/10 |" in md
+    assert "| fused | simulated, ideal | 0.50 | 1.00 | 1.50 | 0.050 | 0.100 | 0.150 | 8/10 |" in md
+    assert "Scripted landing on the landing task: 3/4 (projected camera), 0/1 (rendered camera)." in md
+    assert "real time" not in md  # speed depends on the machine: on the results page only
+    assert "9.9.9" in md and "2001-02-03" in md
+    assert all(line.startswith("|") for line in md.splitlines()[:2])
+
+
+def test_replace_block_rewrites_only_between_the_markers():
+    text = f"intro\n{HEADLINE_BEGIN}\nold\ntable\n{HEADLINE_END}\noutro\n"
+    out = replace_block(text, "new table\n")
+    assert out == f"intro\n{HEADLINE_BEGIN}\nnew table\n{HEADLINE_END}\noutro\n"
+    assert replace_block(out, "new table") == out  # idempotent
+    with pytest.raises(ValueError, match="markers"):
+        replace_block("no markers here", "x")
+    with pytest.raises(ValueError, match="markers"):
+        replace_block(f"{HEADLINE_END}\n{HEADLINE_BEGIN}", "x")
+
+
+# -- the README and the pages --------------------------------------------------------------------
+def test_readme_is_short_and_starts_with_the_two_commands():
+    lines = README.read_text().splitlines()
+    assert len(lines) <= 220
+    commands = [ln.strip() for ln in lines if ln.strip().startswith("python3 -m venv")]
+    assert len(commands) >= 2
+    setup = 'python3 -m venv .venv && .venv/bin/pip install ".[test]"'
+    assert commands[0] == setup + " && .venv/bin/python examples/hover_and_track.py"
+    assert commands[1] == setup + " && .venv/bin/pytest"
+    first_code = next(i for i, ln in enumerate(lines) if ln.startswith("```"))
+    first_command = next(i for i, ln in enumerate(lines) if ln.strip() == commands[0])
+    assert first_command == first_code + 1 or first_command == first_code + 2  # the first code block
+    assert not any(ln.startswith("```python") for ln in lines[:first_code])
+
+
+def test_readme_has_the_generated_headline_block():
+    text = README.read_text()
+    i, j = text.find(HEADLINE_BEGIN), text.find(HEADLINE_END)
+    assert 0 <= i < j
+    assert "python -m ihrcf_env.experiments.results" in text[i:j]
+
+
+@pytest.mark.parametrize("page", _pages(), ids=lambda p: p.name)
+def test_no_words_about_how_the_project_was_developed(page):
+    hits = [ln for ln in page.read_text().splitlines() if WORK_LOG.search(ln)]
+    assert not hits, f"{page.name}: {hits[:3]}"
+
+
+@pytest.mark.parametrize("page", _pages(), ids=lambda p: p.name)
+def test_relative_links_point_to_existing_files(page):
+    missing = []
+    for target in LINK.findall(page.read_text()):
+        if re.match(r"[a-z]+:", target) or target.startswith("#"):
+            continue  # absolute URL or an anchor in the same page
+        path = (page.parent / target.split("#")[0]).resolve()
+        if not path.exists():
+            missing.append(target)
+    assert not missing, f"{page.name}: broken links {missing}"
+
+
+def test_results_page_is_generated_and_stamped():
+    text = (DOCS / "results.md").read_text()
+    assert "do not edit by hand" in text
+    assert re.search(r"- ihrcf_env \d+\.\d+\.\d+, generated \d{4}-\d\d-\d\d", text)
+    assert "- command: `python -m ihrcf_env.experiments.results" in text
+    assert "- machine: " in text and "CPUs" in text
+
+
+def test_the_docs_pages_exist():
+    for name in (
+        "tasks",
+        "observations",
+        "sensors",
+        "estimators",
+        "camera-models",
+        "learning",
+        "architecture",
+        "results",
+        "extending",
+    ):
+        assert (DOCS / f"{name}.md").is_file(), name
+
+
+# -- the custom estimator example ----------------------------------------------------------------
+@pytest.mark.skipif(
+    not hasattr(ihrcf_env, "register_estimator"),
+    reason="ihrcf_env.register_estimator is not in this version of the package",
+)
+def test_custom_estimator_example_runs():
+    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
+    env = {**os.environ, "PYTHONWARNINGS": "error::ResourceWarning", "PYTHONPATH": path}
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "examples" / "custom_estimator.py"), "--steps", "20"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=ROOT,
+        env=env,
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "mytoy" in out.stdout
+    assert re.search(r"valid on \d+ of 20 steps", out.stdout)
