@@ -317,7 +317,7 @@ def run_speed(plan: Plan) -> tuple[list[SpeedRow], list[SpeedRow]]:
     raw = []
     for size in plan.sizes:
         kw = {"camera": False} if size == 0 else {"camera_width": size, "camera_height": size}
-        env = gym.make(ihrcf_env.RAW_ENV_ID, max_episode_steps=plan.speed_steps + 10, **kw)
+        env = gym.make(ihrcf_env.HOVER_RAW_ID, max_episode_steps=plan.speed_steps + 10, **kw)
         try:
             sps = steps_per_second(env, plan.speed_steps)
         finally:
@@ -339,7 +339,7 @@ def run_landings(camera_model: str, episodes: int, seed: int = 0) -> LandingRow:
     speeds, tilts, offsets, times = [], [], [], []
     failures: dict[str, int] = {}
     successes = 0
-    env = gym.make(ihrcf_env.ENV_V1_ID, camera_model=camera_model)
+    env = gym.make(ihrcf_env.LANDING_V1_ID, camera_model=camera_model)
     try:
         policy = ScriptedLanding.from_env(env)
         for s in range(seed, seed + episodes):

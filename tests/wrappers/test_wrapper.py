@@ -79,7 +79,7 @@ def test_flat_observation_for_rl_libraries():
     try:
         s = env.get_wrapper_attr("flat_slices")
         assert s == flat_slices()
-        # DeckLanding-v0's layout: 18 sensor values, then ihrcf, atda, fused, ground_truth blocks of 7
+        # DeckHover-v0's layout: 18 sensor values, then ihrcf, atda, fused, ground_truth blocks of 7
         blocks = (s["ihrcf"], s["atda"], s["fused"], s["ground_truth"])
         assert blocks == (slice(18, 25), slice(25, 32), slice(32, 39), slice(39, 46))
         assert s["all"] == slice(0, 46)
