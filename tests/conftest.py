@@ -1,4 +1,5 @@
-"""Shared fixtures: envs that close themselves, and counters of what an env may leak."""
+"""Shared fixtures: envs and worlds that close themselves, counters of what an env may leak, and
+helpers several test files use (import them with ``from tests.conftest import ...``)."""
 
 from __future__ import annotations
 
@@ -8,10 +9,12 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 import pybullet as p
 import pytest
 
 import ihrcf_env  # noqa: F401  (registers the envs)
+from ihrcf_env.sim.world import World, WorldConfig
 
 #: Highest PyBullet client id probed when counting connected clients.
 _MAX_CLIENTS = 256
@@ -49,3 +52,59 @@ def no_leaks() -> Iterator[None]:
     yield
     assert connected_clients() == clients, "a PyBullet client was left connected"
     assert temp_dirs() <= dirs, "an env temporary directory was left behind"
+
+
+@pytest.fixture
+def make_world() -> Iterator[Callable[..., World]]:
+    """``make_world(config=None)``: ``World(config)`` closed when the test ends, pass or fail."""
+    worlds: list[World] = []
+
+    def make(config: WorldConfig | None = None) -> World:
+        world = World(config)
+        worlds.append(world)
+        return world
+
+    yield make
+    for world in worlds:
+        world.close()
+
+
+@pytest.fixture
+def closing() -> Iterator[Callable[[Any], Any]]:
+    """``closing(thing)``: returns ``thing`` and calls its ``close()`` when the test ends, pass or
+    fail (for envs and wrappers built without ``gym.make``)."""
+    things: list[Any] = []
+
+    def register(thing: Any) -> Any:
+        things.append(thing)
+        return thing
+
+    yield register
+    for thing in things:
+        thing.close()
+
+
+def rollout(env: gym.Env, seed: int, steps: int, action_seed: int = 0) -> list[Any]:
+    """Reset with ``seed``, then up to ``steps`` seeded random actions (uniform in [-0.3, 0.3]):
+    every observation, drone position (world frame, m) and reward, until the episode terminates."""
+    rng = np.random.default_rng(action_seed)
+    obs, info = env.reset(seed=seed)
+    seq = [obs, info["drone_position_world"]]
+    for _ in range(steps):
+        obs, reward, terminated, _, info = env.step(rng.uniform(-0.3, 0.3, 4).astype(np.float32))
+        seq += [obs, info["drone_position_world"], reward]
+        if terminated:
+            break
+    return seq
+
+
+def same(a: Any, b: Any) -> bool:
+    """Bitwise equality of two observations (arrays, or dicts of them, nested)."""
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
+    return bool(np.array_equal(a, b))
+
+
+def same_runs(a: list[Any], b: list[Any]) -> bool:
+    """Two :func:`rollout` sequences are equal, step by step (a shorter one is not)."""
+    return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b, strict=True))
