@@ -46,6 +46,13 @@ def make_env() -> Iterator[Callable[..., gym.Env]]:
 
 
 @pytest.fixture
+def make_v1(make_env: Callable[..., gym.Env]) -> Callable[..., gym.Env]:
+    """``make_v1(**options)``: DeckLanding-v1 through ``make_env`` (closed when the test ends), with a
+    60 s horizon unless ``horizon_s`` is given."""
+    return lambda **options: make_env(ihrcf_env.LANDING_V1_ID, **{"horizon_s": 60.0, **options})
+
+
+@pytest.fixture
 def no_leaks() -> Iterator[None]:
     """Fails the test if it leaves a PyBullet client connected or an env temp dir behind."""
     clients, dirs = connected_clients(), temp_dirs()
