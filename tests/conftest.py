@@ -3,9 +3,11 @@ helpers several test files use (import them with ``from tests.conftest import ..
 
 from __future__ import annotations
 
+import importlib.util
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import gymnasium as gym
@@ -19,10 +21,22 @@ from ihrcf_env.sim.world import World, WorldConfig
 #: Highest PyBullet client id probed when counting connected clients.
 _MAX_CLIENTS = 256
 
+#: The example scripts (not a package: :func:`example` imports them by path).
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
 
 def connected_clients() -> int:
     """How many PyBullet clients are connected in this process."""
     return sum(bool(p.isConnected(physicsClientId=i)) for i in range(_MAX_CLIENTS))
+
+
+def example(name: str) -> ModuleType:
+    """Import ``examples/<name>.py`` under a private module name (the examples are scripts)."""
+    spec = importlib.util.spec_from_file_location(f"_example_{name}", EXAMPLES / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def temp_dirs() -> set[str]:
