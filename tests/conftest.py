@@ -16,7 +16,7 @@ import pybullet as p
 import pytest
 
 import ihrcf_env  # noqa: F401  (registers the envs)
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.world import World
 
 #: Highest PyBullet client id probed when counting connected clients.
 _MAX_CLIENTS = 256
@@ -76,21 +76,6 @@ def no_leaks() -> Iterator[None]:
 
 
 @pytest.fixture
-def make_world() -> Iterator[Callable[..., World]]:
-    """``make_world(config=None)``: ``World(config)`` closed when the test ends, pass or fail."""
-    worlds: list[World] = []
-
-    def make(config: WorldConfig | None = None) -> World:
-        world = World(config)
-        worlds.append(world)
-        return world
-
-    yield make
-    for world in worlds:
-        world.close()
-
-
-@pytest.fixture
 def closing() -> Iterator[Callable[[Any], Any]]:
     """``closing(thing)``: returns ``thing`` and calls its ``close()`` when the test ends, pass or
     fail (for envs and wrappers built without ``gym.make``)."""
@@ -105,6 +90,12 @@ def closing() -> Iterator[Callable[[Any], Any]]:
         thing.close()
 
 
+@pytest.fixture
+def make_world(closing: Callable[[Any], Any]) -> Callable[..., World]:
+    """``make_world(config=None)``: ``World(config)`` closed when the test ends, pass or fail."""
+    return lambda config=None: closing(World(config))
+
+
 def rollout(env: gym.Env, seed: int, steps: int, action_seed: int = 0) -> list[Any]:
     """Reset with ``seed``, then up to ``steps`` seeded random actions (uniform in [-0.3, 0.3]):
     every observation, drone position (world frame, m) and reward, until the episode terminates."""
@@ -117,6 +108,19 @@ def rollout(env: gym.Env, seed: int, steps: int, action_seed: int = 0) -> list[A
         if terminated:
             break
     return seq
+
+
+def descend(
+    env: gym.Env, options: dict[str, Any], vz: float = 0.3, steps: int = 400
+) -> tuple[bool, bool, dict]:
+    """Reset (seed 0, ``options``) and command a vertical descent at ``vz`` (m/s, > 0 down) until
+    the episode ends: (terminated, truncated, info) of the last step; fails if it never ends."""
+    env.reset(seed=0, options=options)
+    for _ in range(steps):
+        _, _, terminated, truncated, info = env.step(np.array([0.0, 0.0, -vz, 0.0], np.float32))
+        if terminated or truncated:
+            return terminated, truncated, info
+    raise AssertionError("no touchdown")
 
 
 def same(a: Any, b: Any) -> bool:

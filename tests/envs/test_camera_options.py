@@ -57,10 +57,7 @@ def test_keep_image_false_renders_the_tag_window(make_env):
     obs, _ = env.reset(seed=0)
     assert "image" not in obs and obs["ihrcf"]["valid"] == 1
     kept = make_env(WRAPPED, keep_image=False, camera_output="image", deck_profile="static")
-    try:  # an explicit camera_output wins
-        assert kept.unwrapped.config.world.camera_output == "image"
-    finally:
-        kept.close()
+    assert kept.unwrapped.config.world.camera_output == "image"  # an explicit camera_output wins
 
 
 # -- camera_hz: frames held, ages reported ---------------------------------------------------------

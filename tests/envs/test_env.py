@@ -12,7 +12,7 @@ from gymnasium.utils.env_checker import check_env
 
 import ihrcf_env  # noqa: F401  (registers the env)
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
-from tests.conftest import rollout, same, same_runs
+from tests.conftest import descend, rollout, same, same_runs
 
 HOVER_ID = "ihrcf_env/DeckHoverRaw-v0"  # the raw env; the wrapped id is tested in test_wrapper.py
 SMALL = {"camera_width": 96, "camera_height": 96}
@@ -158,11 +158,7 @@ def test_profile_exceeding_stroke_raises_naming_time_and_leg(raw):
 
 def test_landing_by_descending_slowly_succeeds(raw):
     env = raw(camera=False, deck_profile="static")
-    env.reset(seed=0, options={"altitude": 0.6, "offset": (0.0, 0.0), "yaw": 0.0})
-    for _ in range(400):
-        _, r, term, trunc, info = env.step(np.array([0.0, 0.0, -0.3, 0.0]))
-        if term:
-            break
+    term, _, info = descend(env, {"altitude": 0.6, "offset": (0.0, 0.0), "yaw": 0.0}, 0.3, steps=400)
     assert term and info["outcome"] == "success", info.get("crash_reason")
     assert info["touchdown"]["body"] == "deck"
     assert info["reward_terminal"] == 100.0
@@ -170,12 +166,8 @@ def test_landing_by_descending_slowly_succeeds(raw):
 
 def test_fast_descent_is_a_crash_and_not_a_truncation(raw):
     env = raw(camera=False, deck_profile="static", max_velocity=(1.0, 1.0, 3.0, 1.0))
-    env.reset(seed=0, options={"altitude": 1.5, "offset": (0.0, 0.0), "yaw": 0.0})
-    for _ in range(200):
-        _, r, term, trunc, info = env.step(np.array([0.0, 0.0, -1.0, 0.0]))
-        assert not trunc
-        if term:
-            break
+    term, trunc, info = descend(env, {"altitude": 1.5, "offset": (0.0, 0.0), "yaw": 0.0}, 1.0, steps=200)
+    assert not trunc
     assert term and info["outcome"] == "crash"
     assert "vertical speed" in info["crash_reason"]
     assert info["reward_terminal"] == -100.0
@@ -183,11 +175,7 @@ def test_fast_descent_is_a_crash_and_not_a_truncation(raw):
 
 def test_landing_beside_the_deck_is_a_crash(raw):
     env = raw(camera=False, deck_profile="static")
-    env.reset(seed=0, options={"altitude": 0.5, "offset": (1.5, 0.0), "yaw": 0.0})
-    for _ in range(600):
-        _, r, term, trunc, info = env.step(np.array([0.0, 0.0, -1.0, 0.0]))
-        if term:
-            break
+    term, _, info = descend(env, {"altitude": 0.5, "offset": (1.5, 0.0), "yaw": 0.0}, 1.0, steps=600)
     assert term and info["outcome"] == "crash"
 
 

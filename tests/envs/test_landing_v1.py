@@ -19,6 +19,7 @@ import ihrcf_env
 from ihrcf_env.control.policies import ScriptedLanding
 from ihrcf_env.envs.landing_v1 import DeckLandingV1Env
 from ihrcf_env.sim.disturbances import Wind
+from tests.conftest import descend
 
 FAST = {"raw": True, "camera": False, "horizon_s": 60.0}
 DIVE = np.array([0.0, 0.0, -1.0, 0.0], np.float32)  # full-speed descent
@@ -70,15 +71,6 @@ def test_start_distribution_bounds(make) -> None:
     assert env.unwrapped.start_radius(1.5) == 0.7
 
 
-def _descend(env: gym.Env, options: dict[str, Any], vz: float = 0.3) -> tuple[bool, bool, dict]:
-    env.reset(seed=0, options=options)
-    for _ in range(400):
-        _, _, terminated, truncated, info = env.step(np.array([0.0, 0.0, -vz, 0.0], np.float32))
-        if terminated or truncated:
-            return terminated, truncated, info
-    raise AssertionError("no touchdown")
-
-
 @pytest.mark.parametrize(
     ("offset", "vz", "outcome", "reason"),
     [
@@ -94,7 +86,7 @@ def test_success_needs_the_radius(
 ) -> None:
     """Static deck, no wind, ideal sensors: a vertical descent from a chosen offset."""
     env = make(deck_profile="static", wind=False, sensor_preset="ideal", random_deck_start=False)
-    terminated, truncated, info = _descend(env, {"altitude": 0.5, "offset": offset, "yaw": 0.3}, vz)
+    terminated, truncated, info = descend(env, {"altitude": 0.5, "offset": offset, "yaw": 0.3}, vz)
     assert terminated and not truncated
     assert info["outcome"] == outcome and reason in info["crash_reason"]
     assert info["is_success"] == (outcome == "success")
@@ -115,7 +107,7 @@ def test_success_needs_the_radius(
 
 def test_success_radius_option(make) -> None:
     env = make(deck_profile="static", wind=False, sensor_preset="ideal", success_radius=0.25)
-    _, _, info = _descend(env, {"altitude": 0.5, "offset": (0.2, 0.0), "yaw": 0.0})
+    _, _, info = descend(env, {"altitude": 0.5, "offset": (0.2, 0.0), "yaw": 0.0})
     assert info["outcome"] == "success"
 
 
