@@ -16,6 +16,7 @@ import pybullet as p
 import pytest
 
 import ihrcf_env  # noqa: F401  (registers the envs)
+from ihrcf_env.core.calibration import Calibration
 from ihrcf_env.sim.world import World
 
 #: Highest PyBullet client id probed when counting connected clients.
@@ -121,6 +122,19 @@ def descend(
         if terminated or truncated:
             return terminated, truncated, info
     raise AssertionError("no touchdown")
+
+
+def calibration_fields(cal: Calibration) -> dict[str, Any]:
+    """The constructor arguments that rebuild ``cal`` (to build it again with one of them changed)."""
+    return dict(
+        image_width=cal.image_width,
+        image_height=cal.image_height,
+        fov=cal.fov,
+        rig=cal.rig,
+        tables=cal.tables,
+        K=cal.K,
+        dist=cal.dist,
+    )
 
 
 def same(a: Any, b: Any) -> bool:
