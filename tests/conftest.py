@@ -1,25 +1,43 @@
-"""Shared fixtures: envs that close themselves, and counters of what an env may leak."""
+"""Shared fixtures: envs and worlds that close themselves, counters of what an env may leak, and
+helpers several test files use (import them with ``from tests.conftest import ...``)."""
 
 from __future__ import annotations
 
+import importlib.util
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 import pybullet as p
 import pytest
 
 import ihrcf_env  # noqa: F401  (registers the envs)
+from ihrcf_env.core.calibration import Calibration
+from ihrcf_env.sim.world import World
 
 #: Highest PyBullet client id probed when counting connected clients.
 _MAX_CLIENTS = 256
+
+#: The example scripts (not a package: :func:`example` imports them by path).
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
 def connected_clients() -> int:
     """How many PyBullet clients are connected in this process."""
     return sum(bool(p.isConnected(physicsClientId=i)) for i in range(_MAX_CLIENTS))
+
+
+def example(name: str) -> ModuleType:
+    """Import ``examples/<name>.py`` under a private module name (the examples are scripts)."""
+    spec = importlib.util.spec_from_file_location(f"_example_{name}", EXAMPLES / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def temp_dirs() -> set[str]:
@@ -43,9 +61,89 @@ def make_env() -> Iterator[Callable[..., gym.Env]]:
 
 
 @pytest.fixture
+def make_v1(make_env: Callable[..., gym.Env]) -> Callable[..., gym.Env]:
+    """``make_v1(**options)``: DeckLanding-v1 through ``make_env`` (closed when the test ends), with a
+    60 s horizon unless ``horizon_s`` is given."""
+    return lambda **options: make_env(ihrcf_env.LANDING_V1_ID, **{"horizon_s": 60.0, **options})
+
+
+@pytest.fixture
 def no_leaks() -> Iterator[None]:
     """Fails the test if it leaves a PyBullet client connected or an env temp dir behind."""
     clients, dirs = connected_clients(), temp_dirs()
     yield
     assert connected_clients() == clients, "a PyBullet client was left connected"
     assert temp_dirs() <= dirs, "an env temporary directory was left behind"
+
+
+@pytest.fixture
+def closing() -> Iterator[Callable[[Any], Any]]:
+    """``closing(thing)``: returns ``thing`` and calls its ``close()`` when the test ends, pass or
+    fail (for envs and wrappers built without ``gym.make``)."""
+    things: list[Any] = []
+
+    def register(thing: Any) -> Any:
+        things.append(thing)
+        return thing
+
+    yield register
+    for thing in things:
+        thing.close()
+
+
+@pytest.fixture
+def make_world(closing: Callable[[Any], Any]) -> Callable[..., World]:
+    """``make_world(config=None)``: ``World(config)`` closed when the test ends, pass or fail."""
+    return lambda config=None: closing(World(config))
+
+
+def rollout(env: gym.Env, seed: int, steps: int, action_seed: int = 0) -> list[Any]:
+    """Reset with ``seed``, then up to ``steps`` seeded random actions (uniform in [-0.3, 0.3]):
+    every observation, drone position (world frame, m) and reward, until the episode terminates."""
+    rng = np.random.default_rng(action_seed)
+    obs, info = env.reset(seed=seed)
+    seq = [obs, info["drone_position_world"]]
+    for _ in range(steps):
+        obs, reward, terminated, _, info = env.step(rng.uniform(-0.3, 0.3, 4).astype(np.float32))
+        seq += [obs, info["drone_position_world"], reward]
+        if terminated:
+            break
+    return seq
+
+
+def descend(
+    env: gym.Env, options: dict[str, Any], vz: float = 0.3, steps: int = 400
+) -> tuple[bool, bool, dict]:
+    """Reset (seed 0, ``options``) and command a vertical descent at ``vz`` (m/s, > 0 down) until
+    the episode ends: (terminated, truncated, info) of the last step; fails if it never ends."""
+    env.reset(seed=0, options=options)
+    for _ in range(steps):
+        _, _, terminated, truncated, info = env.step(np.array([0.0, 0.0, -vz, 0.0], np.float32))
+        if terminated or truncated:
+            return terminated, truncated, info
+    raise AssertionError("no touchdown")
+
+
+def calibration_fields(cal: Calibration) -> dict[str, Any]:
+    """The constructor arguments that rebuild ``cal`` (to build it again with one of them changed)."""
+    return dict(
+        image_width=cal.image_width,
+        image_height=cal.image_height,
+        fov=cal.fov,
+        rig=cal.rig,
+        tables=cal.tables,
+        K=cal.K,
+        dist=cal.dist,
+    )
+
+
+def same(a: Any, b: Any) -> bool:
+    """Bitwise equality of two observations (arrays, or dicts of them, nested)."""
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
+    return bool(np.array_equal(a, b))
+
+
+def same_runs(a: list[Any], b: list[Any]) -> bool:
+    """Two :func:`rollout` sequences are equal, step by step (a shorter one is not)."""
+    return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b, strict=True))

@@ -12,26 +12,16 @@ import importlib.util
 import re
 import warnings
 from pathlib import Path
-from types import ModuleType
 
 import pytest
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-
-
-def _example(name: str) -> ModuleType:
-    """Import ``examples/<name>.py`` under a private module name (the examples are scripts)."""
-    spec = importlib.util.spec_from_file_location(f"_example_{name}", EXAMPLES / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from tests.conftest import EXAMPLES, example
 
 
 def test_hover_and_track_prints_table2_and_saves(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "quick"
     argv = ["--seconds", "1", "--profile", "static", "--no-plots", "--out", str(out)]
-    assert _example("hover_and_track").main(argv) == 0
+    assert example("hover_and_track").main(argv) == 0
     captured = capsys.readouterr()
     text = captured.out
     # not a terminal: plain progress lines, not nothing and not a carriage-return bar
@@ -48,7 +38,7 @@ def test_hover_and_track_prints_table2_and_saves(tmp_path: Path, capsys: pytest.
 
 def test_land_prints_the_report(capsys: pytest.CaptureFixture[str]) -> None:
     argv = ["--episodes", "1", "--profiles", "static", "--max-seconds", "0.5"]
-    assert _example("land").main(argv) == 0
+    assert example("land").main(argv) == 0
     out = capsys.readouterr().out
     assert re.search(r"^  static    seed   0: timeout t=  0\.5 s commit=    - s", out, re.M), out
     assert (
@@ -62,7 +52,7 @@ def test_land_prints_the_report(capsys: pytest.CaptureFixture[str]) -> None:
 def test_quickstart_saves_frames(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ResourceWarning)
-        assert _example("quickstart").main(["--seconds", "0.1", "--out", str(tmp_path)]) == 0
+        assert example("quickstart").main(["--seconds", "0.1", "--out", str(tmp_path)]) == 0
         gc.collect()
     assert not [w for w in caught if issubclass(w.category, ResourceWarning)]
     assert "deck x" in capsys.readouterr().out
@@ -80,6 +70,6 @@ def test_training_without_the_rl_extra_says_how_to_install_it(
 ) -> None:
     if importlib.util.find_spec(module) is not None:
         pytest.skip(f"{module} is installed")
-    assert _example(name).main([]) == 2
+    assert example(name).main([]) == 2
     out = capsys.readouterr().out.strip()
     assert len(out.splitlines()) == 1 and 'pip install ".[rl]"' in out, out

@@ -15,6 +15,7 @@ import pytest
 
 from ihrcf_env.core.calibration import Calibration, CalibrationError, default_calibration_path
 from ihrcf_env.core.calibration._checks import check_keys, check_real_array
+from tests.conftest import calibration_fields
 
 HUGE = 10**400  # json.loads reads it as an int; float(HUGE) raises OverflowError
 
@@ -120,15 +121,7 @@ def test_physical_bounds_name_the_field(tmp_path: Path, where: str, value: float
 
 def test_bounds_hold_in_the_constructor_too() -> None:
     cal = Calibration.load(default_calibration_path())
-    kw = dict(
-        image_width=cal.image_width,
-        image_height=cal.image_height,
-        fov=cal.fov,
-        rig=cal.rig,
-        tables=cal.tables,
-        K=cal.K,
-        dist=cal.dist,
-    )
+    kw = calibration_fields(cal)
     dist = cal.dist.copy()
     dist[0] = -1e6
     with pytest.raises(ValueError, match=r"dist\[0\]"):

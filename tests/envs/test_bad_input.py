@@ -155,62 +155,48 @@ def test_accepted_sea_states_stay_in_the_stroke_for_40_seeds():
         assert bad == [], (amplitudes, bad)
 
 
-def test_accepted_sea_state_resets_every_seed():
-    env = gym.make(RAW, deck_profile="sea_state", random_deck_start=True, **NO_CAM)
-    try:
-        for seed in range(40):
-            env.reset(seed=seed)
-    finally:
-        env.close()
+def test_accepted_sea_state_resets_every_seed(make_env):
+    env = make_env(RAW, deck_profile="sea_state", random_deck_start=True, **NO_CAM)
+    for seed in range(40):
+        env.reset(seed=seed)
 
 
 # -- 3. stepping a finished episode ---------------------------------------------------------------
 @pytest.mark.parametrize("descent, outcome", [(-0.3, "success"), (-1.0, "crash")])
-def test_step_after_termination_raises(descent, outcome):
-    env = gym.make(RAW, deck_profile="static", max_velocity=(1.0, 1.0, 3.0, 1.0), **NO_CAM)
-    try:
-        env.reset(
-            seed=0, options={"altitude": 0.6 if outcome == "success" else 1.5, "offset": (0, 0), "yaw": 0}
-        )
-        vz = descent / 3.0
-        for _ in range(400):
-            _, _, terminated, _, info = env.step(np.array([0.0, 0.0, vz, 0.0]))
-            if terminated:
-                break
-        assert terminated and info["outcome"] == outcome
-        for _ in range(2):
-            with pytest.raises(RuntimeError, match=r"episode is over.*reset\(\)"):
-                env.step(np.zeros(4))
-        env.reset(seed=1)  # a new episode steps again
-        _, _, terminated, _, info = env.step(np.zeros(4))
-        assert not terminated and info["outcome"] == "flying"
-    finally:
-        env.close()
+def test_step_after_termination_raises(make_env, descent, outcome):
+    env = make_env(RAW, deck_profile="static", max_velocity=(1.0, 1.0, 3.0, 1.0), **NO_CAM)
+    env.reset(seed=0, options={"altitude": 0.6 if outcome == "success" else 1.5, "offset": (0, 0), "yaw": 0})
+    vz = descent / 3.0
+    for _ in range(400):
+        _, _, terminated, _, info = env.step(np.array([0.0, 0.0, vz, 0.0]))
+        if terminated:
+            break
+    assert terminated and info["outcome"] == outcome
+    for _ in range(2):
+        with pytest.raises(RuntimeError, match=r"episode is over.*reset\(\)"):
+            env.step(np.zeros(4))
+    env.reset(seed=1)  # a new episode steps again
+    _, _, terminated, _, info = env.step(np.zeros(4))
+    assert not terminated and info["outcome"] == "flying"
 
 
-def test_step_before_reset_raises():
-    env = gym.make(RAW, **NO_CAM)
-    try:
-        with pytest.raises(RuntimeError, match="reset"):
-            env.unwrapped.step(np.zeros(4))
-    finally:
-        env.close()
+def test_step_before_reset_raises(make_env):
+    env = make_env(RAW, **NO_CAM)
+    with pytest.raises(RuntimeError, match="reset"):
+        env.unwrapped.step(np.zeros(4))
 
 
 # -- 4. copies and pickles --------------------------------------------------------------------------
 @pytest.mark.parametrize("env_id", [RAW, WRAPPED])
 @pytest.mark.parametrize("how", ["copy", "deepcopy", "pickle"])
-def test_env_cannot_be_copied_or_pickled(env_id, how):
-    env = gym.make(env_id, keep_image=False) if env_id == WRAPPED else gym.make(env_id, **NO_CAM)
+def test_env_cannot_be_copied_or_pickled(make_env, env_id, how):
+    env = make_env(env_id, keep_image=False) if env_id == WRAPPED else make_env(env_id, **NO_CAM)
     # a shallow copy of a gymnasium wrapper shares its inner env by design: only the env refuses it
     targets = (env.unwrapped,) if how == "copy" else (env, env.unwrapped)
-    try:
-        for target in targets:
-            with pytest.raises(TypeError, match="gym.make"):
-                {"copy": copy.copy, "deepcopy": copy.deepcopy, "pickle": pickle.dumps}[how](target)
-        env.reset(seed=0)  # still usable
-    finally:
-        env.close()
+    for target in targets:
+        with pytest.raises(TypeError, match="gym.make"):
+            {"copy": copy.copy, "deepcopy": copy.deepcopy, "pickle": pickle.dumps}[how](target)
+    env.reset(seed=0)  # still usable
 
 
 # -- 5. a failed gym.make leaves no client and no temporary directory ---------------------------
@@ -292,8 +278,8 @@ def test_start_bounds_are_checked(kwargs, names):
         assert name in str(e.value)
 
 
-def test_lowest_allowed_start_does_not_end_at_once():
-    env = gym.make(
+def test_lowest_allowed_start_does_not_end_at_once(make_env):
+    env = make_env(
         RAW,
         start_altitude=MIN_START_ALTITUDE + 0.05,
         start_altitude_jitter=0.05,
@@ -301,15 +287,12 @@ def test_lowest_allowed_start_does_not_end_at_once():
         random_deck_start=True,
         **NO_CAM,
     )
-    try:
-        for seed in range(10):
-            env.reset(seed=seed)
-            for _ in range(5):
-                _, reward, terminated, _, info = env.step(np.zeros(4))
-                assert not terminated, (seed, info["outcome"], info["crash_reason"])
-                assert reward < 0
-    finally:
-        env.close()
+    for seed in range(10):
+        env.reset(seed=seed)
+        for _ in range(5):
+            _, reward, terminated, _, info = env.step(np.zeros(4))
+            assert not terminated, (seed, info["outcome"], info["crash_reason"])
+            assert reward < 0
 
 
 @pytest.mark.parametrize(
@@ -325,13 +308,10 @@ def test_lowest_allowed_start_does_not_end_at_once():
         ({"deck_time": True}, TypeError),
     ],
 )
-def test_bad_reset_options_raise_naming_the_option(options, exc):
-    env = gym.make(RAW, **NO_CAM)
-    try:
-        with pytest.raises(exc, match=f"options\\['{next(iter(options))}'\\]"):
-            env.reset(seed=0, options=options)
-    finally:
-        env.close()
+def test_bad_reset_options_raise_naming_the_option(make_env, options, exc):
+    env = make_env(RAW, **NO_CAM)
+    with pytest.raises(exc, match=f"options\\['{next(iter(options))}'\\]"):
+        env.reset(seed=0, options=options)
 
 
 # -- 7. a callable deck profile that turns unusable beyond the checked horizon ---------------------
@@ -354,32 +334,26 @@ def _raises_after(t_bad: float):
 
 
 @pytest.mark.parametrize("make_profile", [_nan_after, _raises_after])
-def test_deck_stops_where_a_callable_profile_turns_unusable_beyond_the_horizon(make_profile):
-    env = gym.make(RAW, deck_profile=make_profile(6.0), horizon_s=5.0, max_episode_steps=1000, **NO_CAM)
-    try:
-        env.reset(seed=0, options={"offset": (0.0, 0.0)})
-        heights = []
-        for _ in range(200):  # 10 s
-            _, _, terminated, _, info = env.step(np.zeros(4))
-            assert not terminated
-            heights.append(info["deck_position_world"][2])
-        home = env.unwrapped.config.world.stewart.home_height
-        assert heights[100] == pytest.approx(home + 0.05, abs=1e-3)  # moving at 5 s
-        assert heights[-1] == pytest.approx(home + 0.06, abs=1e-3)  # stopped at 6 s
-        assert np.ptp(heights[130:]) < 1e-4
-        assert env.unwrapped.world.deck.trajectory.stalled_at == pytest.approx(6.0, abs=0.01)
-    finally:
-        env.close()
+def test_deck_stops_where_a_callable_profile_turns_unusable_beyond_the_horizon(make_env, make_profile):
+    env = make_env(RAW, deck_profile=make_profile(6.0), horizon_s=5.0, max_episode_steps=1000, **NO_CAM)
+    env.reset(seed=0, options={"offset": (0.0, 0.0)})
+    heights = []
+    for _ in range(200):  # 10 s
+        _, _, terminated, _, info = env.step(np.zeros(4))
+        assert not terminated
+        heights.append(info["deck_position_world"][2])
+    home = env.unwrapped.config.world.stewart.home_height
+    assert heights[100] == pytest.approx(home + 0.05, abs=1e-3)  # moving at 5 s
+    assert heights[-1] == pytest.approx(home + 0.06, abs=1e-3)  # stopped at 6 s
+    assert np.ptp(heights[130:]) < 1e-4
+    assert env.unwrapped.world.deck.trajectory.stalled_at == pytest.approx(6.0, abs=0.01)
 
 
 @pytest.mark.parametrize("make_profile", [_nan_after, _raises_after])
-def test_callable_profile_unusable_within_the_horizon_fails_at_reset(make_profile):
-    env = gym.make(RAW, deck_profile=make_profile(3.0), horizon_s=5.0, **NO_CAM)
-    try:
-        with pytest.raises(ValueError, match=r"deck profile callable .* t = 3\.000 s"):
-            env.reset(seed=0)
-    finally:
-        env.close()
+def test_callable_profile_unusable_within_the_horizon_fails_at_reset(make_env, make_profile):
+    env = make_env(RAW, deck_profile=make_profile(3.0), horizon_s=5.0, **NO_CAM)
+    with pytest.raises(ValueError, match=r"deck profile callable .* t = 3\.000 s"):
+        env.reset(seed=0)
 
 
 # -- 8 and 9. types, bools and values that would be ignored ----------------------------------------
@@ -549,8 +523,8 @@ def test_bad_wrapper_option_raises_naming_it(kwargs, name):
 
 # -- 10. use after close -------------------------------------------------------------------------
 @pytest.mark.parametrize("env_id", [RAW, WRAPPED])
-def test_use_after_close_raises_and_close_is_idempotent(env_id):
-    env = gym.make(env_id, render_mode="rgb_array", chase_size=(64, 48))
+def test_use_after_close_raises_and_close_is_idempotent(make_env, env_id):
+    env = make_env(env_id, render_mode="rgb_array", chase_size=(64, 48))
     env.reset(seed=0)
     env.close()
     env.close()
@@ -561,19 +535,15 @@ def test_use_after_close_raises_and_close_is_idempotent(env_id):
 
 
 # -- disturbances hook -------------------------------------------------------------------------------
-def test_disturbance_pushes_the_drone_and_is_per_env():
+def test_disturbance_pushes_the_drone_and_is_per_env(make_env):
     push = ConstantForce((3.0, 0.0, 0.0))
-    plain = gym.make(RAW, **NO_CAM)
-    pushed = gym.make(RAW, disturbances=[push], **NO_CAM)
-    try:
-        xs = []
-        for env in (plain, pushed):
-            env.reset(seed=0)
-            for _ in range(20):
-                _, _, _, _, info = env.step(np.zeros(4))
-            xs.append(info["drone_position_world"][0])
-        assert xs[1] - xs[0] > 0.02  # the position hold lags behind a steady 3 N push
-        assert pushed.unwrapped.config.disturbances[0] is not push  # each env has its own copy
-    finally:
-        plain.close()
-        pushed.close()
+    plain = make_env(RAW, **NO_CAM)
+    pushed = make_env(RAW, disturbances=[push], **NO_CAM)
+    xs = []
+    for env in (plain, pushed):
+        env.reset(seed=0)
+        for _ in range(20):
+            _, _, _, _, info = env.step(np.zeros(4))
+        xs.append(info["drone_position_world"][0])
+    assert xs[1] - xs[0] > 0.02  # the position hold lags behind a steady 3 N push
+    assert pushed.unwrapped.config.disturbances[0] is not push  # each env has its own copy

@@ -33,73 +33,55 @@ def _rollout(env: gym.Env, steps: int, seed: int = 3) -> tuple[list, list]:
 
 # -- what each mode delivers -----------------------------------------------------------------------
 @pytest.mark.parametrize("model", ["rendered", "projected"])
-def test_corner_output_replaces_the_image(model):
-    env = gym.make(RAW, camera_model=model, camera_output="corners", deck_profile="static")
-    try:
-        assert "image" not in env.observation_space.spaces
-        obs, info = env.reset(seed=0)
-        assert env.observation_space.contains(obs)
-        assert obs["tag_detected"] == 1 and info["tag_reason"] == ""
-        c = obs["tag_corners"]
-        assert c.shape == (4, 2) and np.all((c > 0) & (c < 512))
-    finally:
-        env.close()
+def test_corner_output_replaces_the_image(make_env, model):
+    env = make_env(RAW, camera_model=model, camera_output="corners", deck_profile="static")
+    assert "image" not in env.observation_space.spaces
+    obs, info = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    assert obs["tag_detected"] == 1 and info["tag_reason"] == ""
+    c = obs["tag_corners"]
+    assert c.shape == (4, 2) and np.all((c > 0) & (c < 512))
 
 
-def test_projected_defaults_to_corners_and_the_wrapper_drops_the_image():
-    env = gym.make(WRAPPED, camera_model="projected", deck_profile="static")
-    try:
-        obs, info = env.reset(seed=0)
-        assert "image" not in obs and obs["tag_detected"] == 1
-        assert obs["ihrcf"]["valid"] == 1
-        assert {"ihrcf_age", "atda_age", "fused_age", "camera_time", "camera_age"} <= set(info)
-    finally:
-        env.close()
+def test_projected_defaults_to_corners_and_the_wrapper_drops_the_image(make_env):
+    env = make_env(WRAPPED, camera_model="projected", deck_profile="static")
+    obs, info = env.reset(seed=0)
+    assert "image" not in obs and obs["tag_detected"] == 1
+    assert obs["ihrcf"]["valid"] == 1
+    assert {"ihrcf_age", "atda_age", "fused_age", "camera_time", "camera_age"} <= set(info)
 
 
-def test_keep_image_false_renders_the_tag_window():
-    env = gym.make(WRAPPED, keep_image=False, deck_profile="static")
-    try:
-        assert env.unwrapped.config.world.camera_output == "corners"
-        obs, _ = env.reset(seed=0)
-        assert "image" not in obs and obs["ihrcf"]["valid"] == 1
-    finally:
-        env.close()
-    kept = gym.make(WRAPPED, keep_image=False, camera_output="image", deck_profile="static")
-    try:  # an explicit camera_output wins
-        assert kept.unwrapped.config.world.camera_output == "image"
-    finally:
-        kept.close()
+def test_keep_image_false_renders_the_tag_window(make_env):
+    env = make_env(WRAPPED, keep_image=False, deck_profile="static")
+    assert env.unwrapped.config.world.camera_output == "corners"
+    obs, _ = env.reset(seed=0)
+    assert "image" not in obs and obs["ihrcf"]["valid"] == 1
+    kept = make_env(WRAPPED, keep_image=False, camera_output="image", deck_profile="static")
+    assert kept.unwrapped.config.world.camera_output == "image"  # an explicit camera_output wins
 
 
 # -- camera_hz: frames held, ages reported ---------------------------------------------------------
-def test_camera_hz_holds_frames_and_reports_their_age():
-    env = gym.make(WRAPPED, camera_model="projected", camera_hz=5, deck_profile="paper")
-    try:
-        obs, infos = _rollout(env, 9)
-        for k, info in enumerate(infos):
-            t = info["time"]
-            assert info["camera_time"] == pytest.approx(0.2 * (k // 4))
-            assert info["camera_age"] == pytest.approx(t - info["camera_time"])
-            for name in ("ihrcf", "atda", "fused"):
-                assert info[f"{name}_age"] == pytest.approx(info["camera_age"])
-        # estimates change only on camera frames; the sensors' ranges every step
-        for k in range(1, len(obs)):
-            same = np.array_equal(obs[k]["ihrcf"]["position"], obs[k - 1]["ihrcf"]["position"])
-            assert same == (k % 4 != 0), k
-        assert not np.array_equal(obs[1]["ranges"], obs[2]["ranges"])
-    finally:
-        env.close()
+def test_camera_hz_holds_frames_and_reports_their_age(make_env):
+    env = make_env(WRAPPED, camera_model="projected", camera_hz=5, deck_profile="paper")
+    obs, infos = _rollout(env, 9)
+    for k, info in enumerate(infos):
+        t = info["time"]
+        assert info["camera_time"] == pytest.approx(0.2 * (k // 4))
+        assert info["camera_age"] == pytest.approx(t - info["camera_time"])
+        for name in ("ihrcf", "atda", "fused"):
+            assert info[f"{name}_age"] == pytest.approx(info["camera_age"])
+    # estimates change only on camera frames; the sensors' ranges every step
+    for k in range(1, len(obs)):
+        same = np.array_equal(obs[k]["ihrcf"]["position"], obs[k - 1]["ihrcf"]["position"])
+        assert same == (k % 4 != 0), k
+    assert not np.array_equal(obs[1]["ranges"], obs[2]["ranges"])
 
 
-def test_held_image_is_a_fresh_array_each_step():
-    env = gym.make(RAW, camera_hz=10, deck_profile="static")
-    try:
-        o0, _ = env.reset(seed=0)
-        o1, *_ = env.step(np.zeros(4))
-        assert np.array_equal(o0["image"], o1["image"]) and o0["image"] is not o1["image"]
-    finally:
-        env.close()
+def test_held_image_is_a_fresh_array_each_step(make_env):
+    env = make_env(RAW, camera_hz=10, deck_profile="static")
+    o0, _ = env.reset(seed=0)
+    o1, *_ = env.step(np.zeros(4))
+    assert np.array_equal(o0["image"], o1["image"]) and o0["image"] is not o1["image"]
 
 
 # -- determinism -----------------------------------------------------------------------------------
@@ -112,14 +94,11 @@ def test_held_image_is_a_fresh_array_each_step():
     ],
     ids=["projected", "projected-realistic-10hz", "window-realistic"],
 )
-def test_same_seed_same_actions_bitwise_equal(kwargs):
+def test_same_seed_same_actions_bitwise_equal(make_env, kwargs):
     runs = []
     for _ in range(2):
-        env = gym.make(WRAPPED, flatten=True, **kwargs)
-        try:
-            runs.append(np.stack(_rollout(env, 12)[0]))
-        finally:
-            env.close()
+        env = make_env(WRAPPED, flatten=True, **kwargs)
+        runs.append(np.stack(_rollout(env, 12)[0]))
     assert runs[0].tobytes() == runs[1].tobytes()
 
 

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import math
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -16,6 +15,7 @@ from ihrcf_env.envs.config import SENSOR_PRESETS, make_config
 from ihrcf_env.sim.navigation import NavigationErrors
 from ihrcf_env.sim.sensors.imu import IMUNoise
 from ihrcf_env.sim.sensors.tof import VL53L1X
+from tests.conftest import rollout, same_runs
 
 RAW = "ihrcf_env/DeckHoverRaw-v0"
 SMALL = {"camera_width": 96, "camera_height": 96}
@@ -72,7 +72,7 @@ def test_parameter_dicts_and_dataclasses() -> None:
     assert _models(sensor_preset="ideal", imu_noise={})[2] == IMUNoise()
 
 
-def test_explicit_ideal_is_the_default() -> None:
+def test_explicit_ideal_is_the_default(make_env) -> None:
     explicit = {
         "sensor_preset": "ideal",
         "tof_noise": "ideal",
@@ -81,46 +81,20 @@ def test_explicit_ideal_is_the_default() -> None:
         "camera_quality": "ideal",
     }
     assert make_config(raw=True, **explicit) == make_config(raw=True)
-    envs = [gym.make(RAW, **SMALL), gym.make(RAW, **SMALL, **explicit)]
-    try:
-        runs = [_rollout(e, seed=3, n=20) for e in envs]
-        assert all(_equal(a, b) for a, b in zip(*runs, strict=True))
-    finally:
-        for e in envs:
-            e.close()
+    envs = [make_env(RAW, **SMALL), make_env(RAW, **SMALL, **explicit)]
+    runs = [rollout(e, seed=3, steps=20) for e in envs]
+    assert same_runs(*runs)
 
 
-def _rollout(env, seed: int, n: int, action_seed: int = 0) -> list:
-    rng = np.random.default_rng(action_seed)
-    obs, info = env.reset(seed=seed)
-    seq = [obs, info["drone_position_world"]]
-    for _ in range(n):
-        obs, r, term, trunc, info = env.step(rng.uniform(-0.3, 0.3, 4).astype(np.float32))
-        seq += [obs, info["drone_position_world"], r]
-        if term:
-            break
-    return seq
-
-
-def _equal(a, b) -> bool:
-    if isinstance(a, dict):
-        return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
-    return bool(np.array_equal(a, b))
-
-
-def test_realistic_preset_is_bitwise_deterministic() -> None:
+def test_realistic_preset_is_bitwise_deterministic(make_env) -> None:
     kw = dict(sensor_preset="realistic", deck_profile="sea_state", **SMALL)
-    e1, e2 = gym.make(RAW, **kw), gym.make(RAW, **kw)
-    try:
-        s1, s2 = _rollout(e1, 21, 30), _rollout(e2, 21, 30)
-        assert all(_equal(a, b) for a, b in zip(s1, s2, strict=True))
-        s3 = _rollout(e1, 21, 30)  # the same env, reset with the same seed
-        assert all(_equal(a, b) for a, b in zip(s1, s3, strict=True))
-        s4 = _rollout(e2, 22, 30)
-        assert not all(_equal(a, b) for a, b in zip(s1, s4, strict=True))
-    finally:
-        e1.close()
-        e2.close()
+    e1, e2 = make_env(RAW, **kw), make_env(RAW, **kw)
+    s1, s2 = rollout(e1, 21, 30), rollout(e2, 21, 30)
+    assert same_runs(s1, s2)
+    s3 = rollout(e1, 21, 30)  # the same env, reset with the same seed
+    assert same_runs(s1, s3)
+    s4 = rollout(e2, 22, 30)
+    assert not same_runs(s1, s4)
 
 
 PRESETS = [
@@ -134,82 +108,70 @@ PRESETS = [
 
 
 @pytest.mark.parametrize("kwargs", PRESETS, ids=[str(k) for k in PRESETS])
-def test_observations_are_finite_in_space_and_flagged(kwargs) -> None:
-    env = gym.make(RAW, camera=False, **kwargs)
-    try:
-        obs, _ = env.reset(seed=5)
-        rng = np.random.default_rng(1)
-        max_range = np.float32(env.unwrapped.config.world.tof.max_range)
-        valid_count = steps = 0
-        for _ in range(60):
-            obs, _, term, _, _ = env.step(rng.uniform(-0.5, 0.5, 4))
-            assert env.observation_space.contains(obs)
-            for v in (obs["ranges"], *obs["imu"].values()):
-                assert np.all(np.isfinite(v))
-            ok = obs["ranges_valid"]
-            assert set(np.unique(ok)) <= {0, 1}
-            assert np.all(obs["ranges"][ok == 0] == max_range)
-            assert np.all(obs["ranges"][ok == 1] < max_range)
-            valid_count += int(ok.sum())
-            steps += 1
-            if term:
-                break
-        assert valid_count >= 0.8 * 4 * steps  # hovering ~1 m over the deck: the ranges are seen
-    finally:
-        env.close()
+def test_observations_are_finite_in_space_and_flagged(make_env, kwargs) -> None:
+    env = make_env(RAW, camera=False, **kwargs)
+    obs, _ = env.reset(seed=5)
+    rng = np.random.default_rng(1)
+    max_range = np.float32(env.unwrapped.config.world.tof.max_range)
+    valid_count = steps = 0
+    for _ in range(60):
+        obs, _, term, _, _ = env.step(rng.uniform(-0.5, 0.5, 4))
+        assert env.observation_space.contains(obs)
+        for v in (obs["ranges"], *obs["imu"].values()):
+            assert np.all(np.isfinite(v))
+        ok = obs["ranges_valid"]
+        assert set(np.unique(ok)) <= {0, 1}
+        assert np.all(obs["ranges"][ok == 0] == max_range)
+        assert np.all(obs["ranges"][ok == 1] < max_range)
+        valid_count += int(ok.sum())
+        steps += 1
+        if term:
+            break
+    assert valid_count >= 0.8 * 4 * steps  # hovering ~1 m over the deck: the ranges are seen
 
 
-def test_realistic_camera_observation_is_finite() -> None:
-    env = gym.make(RAW, sensor_preset="realistic", **SMALL)
-    try:
-        obs, _ = env.reset(seed=2)
-        for _ in range(5):
-            obs, *_ = env.step(np.zeros(4))
-            assert env.observation_space.contains(obs)
-            assert obs["image"].dtype == np.uint8
-    finally:
-        env.close()
+def test_realistic_camera_observation_is_finite(make_env) -> None:
+    env = make_env(RAW, sensor_preset="realistic", **SMALL)
+    obs, _ = env.reset(seed=2)
+    for _ in range(5):
+        obs, *_ = env.step(np.zeros(4))
+        assert env.observation_space.contains(obs)
+        assert obs["image"].dtype == np.uint8
 
 
-def test_strong_ambient_light_leaves_no_valid_range_at_1_m() -> None:
-    env = gym.make(RAW, camera=False, tof_noise={"ambient": 1.0})
-    try:
-        obs, _ = env.reset(seed=0)
-        for _ in range(5):
-            assert not obs["ranges_valid"].any()
-            assert np.all(obs["ranges"] == np.float32(4.0))
-            obs, *_ = env.step(np.zeros(4))
-    finally:
-        env.close()
+def test_strong_ambient_light_leaves_no_valid_range_at_1_m(make_env) -> None:
+    env = make_env(RAW, camera=False, tof_noise={"ambient": 1.0})
+    obs, _ = env.reset(seed=0)
+    for _ in range(5):
+        assert not obs["ranges_valid"].any()
+        assert np.all(obs["ranges"] == np.float32(4.0))
+        obs, *_ = env.step(np.zeros(4))
 
 
-def test_estimated_feedback_drifts_and_a_deck_relative_controller_stays_over_the_deck() -> None:
+def test_estimated_feedback_drifts_and_a_deck_relative_controller_stays_over_the_deck(make_env) -> None:
     """Zero command: the drone drifts with its GNSS/INS estimate (tens of cm in 30 s); steering on
     the deck's position in the body frame (here the ground truth, standing in for an onboard deck
     estimate) keeps it over the deck."""
     seeds, steps = (1, 2), 600  # 30 s
-    env = gym.make(
+    env = make_env(
         RAW, camera=False, deck_profile="static", autopilot_feedback="estimated", max_episode_steps=None
     )
-    try:
-        drift, held = [], []
-        for seed in seeds:
-            _, info = env.reset(seed=seed, options={"offset": (0.0, 0.0)})
-            p0 = info["drone_position_world"].copy()
-            for _ in range(steps):
-                _, _, term, _, info = env.step(np.zeros(4))
-                assert not term
-            drift.append(math.hypot(*(info["drone_position_world"] - p0)[:2]))
-            _, info = env.reset(seed=seed, options={"offset": (0.0, 0.0)})
-            errors = []
-            for _ in range(steps):
-                rel = info["deck_position_body"]
-                action = np.array([rel[0], rel[1], 0.0, 0.0])  # 1 m/s per m of offset
-                _, _, term, _, info = env.step(np.clip(action, -1, 1))
-                assert not term
-                errors.append(math.hypot(*(info["drone_position_world"] - info["deck_position_world"])[:2]))
-            held.append(max(errors[steps // 3 :]))
-        assert min(drift) > 0.05 and max(drift) < 2.0, drift
-        assert max(held) < 0.1, held  # the 0.8 m deck's edge is 0.4 m away
-    finally:
-        env.close()
+    drift, held = [], []
+    for seed in seeds:
+        _, info = env.reset(seed=seed, options={"offset": (0.0, 0.0)})
+        p0 = info["drone_position_world"].copy()
+        for _ in range(steps):
+            _, _, term, _, info = env.step(np.zeros(4))
+            assert not term
+        drift.append(math.hypot(*(info["drone_position_world"] - p0)[:2]))
+        _, info = env.reset(seed=seed, options={"offset": (0.0, 0.0)})
+        errors = []
+        for _ in range(steps):
+            rel = info["deck_position_body"]
+            action = np.array([rel[0], rel[1], 0.0, 0.0])  # 1 m/s per m of offset
+            _, _, term, _, info = env.step(np.clip(action, -1, 1))
+            assert not term
+            errors.append(math.hypot(*(info["drone_position_world"] - info["deck_position_world"])[:2]))
+        held.append(max(errors[steps // 3 :]))
+    assert min(drift) > 0.05 and max(drift) < 2.0, drift
+    assert max(held) < 0.1, held  # the 0.8 m deck's edge is 0.4 m away

@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import io
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -47,13 +46,10 @@ def test_recording_scores_each_estimator_against_ground_truth() -> None:
     assert "ATDA 1/3" in table and "IHRCF 0/3" in table
 
 
-def test_rollout_stops_where_the_episode_ends() -> None:
-    env = gym.make("ihrcf_env/DeckHover-v0", deck_profile="static", keep_image=False, max_episode_steps=3)
-    try:
-        calls = []
-        rec = rollout(env, 5, lambda obs: calls.append(obs) or np.zeros(4), seed=0, options=HOVER_START)
-    finally:
-        env.close()
+def test_rollout_stops_where_the_episode_ends(make_env) -> None:
+    env = make_env("ihrcf_env/DeckHover-v0", deck_profile="static", keep_image=False, max_episode_steps=3)
+    calls = []
+    rec = rollout(env, 5, lambda obs: calls.append(obs) or np.zeros(4), seed=0, options=HOVER_START)
     assert rec.n == 3 and len(calls) == 3 and rec.ended_early == "truncated"
     assert np.allclose(np.diff(rec.time), 1 / 20) and np.all(rec.valid["ihrcf"])
     assert np.allclose(rec.position["gt"][:, :2], 0.0, atol=0.01)  # HOVER_START: straight over the deck
@@ -68,22 +64,16 @@ def test_accuracy_scores_the_hover() -> None:
     assert stats["ihrcf"].mae[2] < 0.005  # m
 
 
-def test_hover_rollout_is_the_paper_start() -> None:
-    env = gym.make("ihrcf_env/DeckHover-v0", deck_profile="static", keep_image=False)
-    try:
-        rec = hover_rollout(env, 2)
-    finally:
-        env.close()
+def test_hover_rollout_is_the_paper_start(make_env) -> None:
+    env = make_env("ihrcf_env/DeckHover-v0", deck_profile="static", keep_image=False)
+    rec = hover_rollout(env, 2)
     assert rec.n == 2
     assert rec.position["gt"][0] == pytest.approx([0.0, 0.0, -1.0], abs=0.02)
 
 
-def test_hover_rollout_at_another_altitude() -> None:
-    env = gym.make("ihrcf_env/DeckHover-v0", deck_profile="static", keep_image=False)
-    try:
-        rec = hover_rollout(env, 2, altitude=2.0)
-    finally:
-        env.close()
+def test_hover_rollout_at_another_altitude(make_env) -> None:
+    env = make_env("ihrcf_env/DeckHover-v0", deck_profile="static", keep_image=False)
+    rec = hover_rollout(env, 2, altitude=2.0)
     assert rec.position["gt"][0] == pytest.approx([0.0, 0.0, -2.0], abs=0.02)
     assert rec.valid["ihrcf"].all()  # the tag is seen and estimated from 2 m too
 
@@ -94,25 +84,19 @@ class _Terminal(io.StringIO):
 
 
 @pytest.mark.parametrize(("stream", "shown"), [(_Terminal, True), (io.StringIO, False)])
-def test_progress_bar_only_on_a_terminal(stream: type[io.StringIO], shown: bool) -> None:
-    env = gym.make("ihrcf_env/DeckHover-v0", deck_profile="static", keep_image=False)
+def test_progress_bar_only_on_a_terminal(make_env, stream: type[io.StringIO], shown: bool) -> None:
+    env = make_env("ihrcf_env/DeckHover-v0", deck_profile="static", keep_image=False)
     err = stream()
-    try:
-        with contextlib.redirect_stderr(err):
-            rollout(env, 2, seed=0, options=HOVER_START, progress=True)
-    finally:
-        env.close()
+    with contextlib.redirect_stderr(err):
+        rollout(env, 2, seed=0, options=HOVER_START, progress=True)
     assert ("100%" in err.getvalue()) is shown
 
 
-def test_hover_rollout_can_hold_over_the_tag_horizontally() -> None:
-    env = gym.make(
+def test_hover_rollout_can_hold_over_the_tag_horizontally(make_env) -> None:
+    env = make_env(
         "ihrcf_env/DeckHover-v0", deck_profile="static", keep_image=False, autopilot_feedback="estimated"
     )
-    try:
-        rec = hover_rollout(env, 40, seed=3, track="fused")
-    finally:
-        env.close()
+    rec = hover_rollout(env, 40, seed=3, track="fused")
     assert np.all(rec.command[:, 2:] == 0.0)  # altitude and heading stay on the autopilot
     assert np.any(rec.command[:, :2] != 0.0)  # the fused estimate steers x/y once it has converged
     assert rec.valid["fused"][-1]

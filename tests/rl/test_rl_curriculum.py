@@ -35,58 +35,45 @@ def test_level_interpolates_the_start_between_easy_and_the_task(env: StartCurric
     assert _start(env, 7) == _start(env, 7)  # seeded
 
 
-def test_level_one_is_the_task_start_bitwise(env: StartCurriculum) -> None:
+def test_level_one_is_the_task_start_bitwise(closing, env: StartCurriculum) -> None:
     env.set_curriculum_level(1.0)
-    plain = make_env("ihrcf_env/DeckLanding-v1", "projected")
-    try:
-        for seed in (0, 5):
-            obs, info = env.reset(seed=seed)
-            ref, _ = plain.reset(seed=seed)
-            assert np.array_equal(obs, ref) and info["curriculum_level"] == 1.0
-    finally:
-        plain.close()
+    plain = closing(make_env("ihrcf_env/DeckLanding-v1", "projected"))
+    for seed in (0, 5):
+        obs, info = env.reset(seed=seed)
+        ref, _ = plain.reset(seed=seed)
+        assert np.array_equal(obs, ref) and info["curriculum_level"] == 1.0
 
 
-def test_full_fraction_and_explicit_options_keep_the_task_start() -> None:
-    plain = make_env("ihrcf_env/DeckLanding-v1", "projected")
-    always = StartCurriculum(make_env("ihrcf_env/DeckLanding-v1", "projected"), full_fraction=1.0)
-    try:
-        assert np.array_equal(always.reset(seed=3)[0], plain.reset(seed=3)[0])
-        always.full_fraction = 0.0
-        opts = {"altitude": 2.0, "offset": (0.1, 0.0)}
-        assert np.array_equal(always.reset(seed=4, options=opts)[0], plain.reset(seed=4, options=opts)[0])
-    finally:
-        plain.close()
-        always.close()
+def test_full_fraction_and_explicit_options_keep_the_task_start(closing) -> None:
+    plain = closing(make_env("ihrcf_env/DeckLanding-v1", "projected"))
+    always = closing(StartCurriculum(make_env("ihrcf_env/DeckLanding-v1", "projected"), full_fraction=1.0))
+    assert np.array_equal(always.reset(seed=3)[0], plain.reset(seed=3)[0])
+    always.full_fraction = 0.0
+    opts = {"altitude": 2.0, "offset": (0.1, 0.0)}
+    assert np.array_equal(always.reset(seed=4, options=opts)[0], plain.reset(seed=4, options=opts)[0])
 
 
-def test_bad_input_names_the_parameter() -> None:
-    e = make_env("ihrcf_env/DeckLanding-v1", "projected")
-    try:
-        with pytest.raises(ValueError, match="easy_altitude"):
-            StartCurriculum(e, easy_altitude=(0.1, 0.5))
-        with pytest.raises(ValueError, match="easy_altitude"):
-            StartCurriculum(e, easy_altitude=(1.0, 0.5))
-        with pytest.raises(TypeError, match="easy_altitude"):
-            StartCurriculum(e, easy_altitude="low")  # type: ignore[arg-type]
-        with pytest.raises(TypeError, match="easy_offset"):
-            StartCurriculum(e, easy_offset="near")  # type: ignore[arg-type]
-        with pytest.raises(TypeError, match="full_fraction"):
-            StartCurriculum(e, full_fraction=None)  # type: ignore[arg-type]
-        with pytest.raises(ValueError, match="easy_offset"):
-            StartCurriculum(e, easy_offset=2.0)
-        with pytest.raises(ValueError, match="full_fraction"):
-            StartCurriculum(e, full_fraction=1.5)
-        with pytest.raises(ValueError, match="level"):
-            StartCurriculum(e).set_curriculum_level(1.2)
-    finally:
-        e.close()
-    v0 = make_env("ihrcf_env/DeckHover-v0", "projected")
-    try:
-        with pytest.raises(TypeError, match="DeckLanding-v1"):
-            StartCurriculum(v0)
-    finally:
-        v0.close()
+def test_bad_input_names_the_parameter(closing) -> None:
+    e = closing(make_env("ihrcf_env/DeckLanding-v1", "projected"))
+    with pytest.raises(ValueError, match="easy_altitude"):
+        StartCurriculum(e, easy_altitude=(0.1, 0.5))
+    with pytest.raises(ValueError, match="easy_altitude"):
+        StartCurriculum(e, easy_altitude=(1.0, 0.5))
+    with pytest.raises(TypeError, match="easy_altitude"):
+        StartCurriculum(e, easy_altitude="low")  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="easy_offset"):
+        StartCurriculum(e, easy_offset="near")  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="full_fraction"):
+        StartCurriculum(e, full_fraction=None)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="easy_offset"):
+        StartCurriculum(e, easy_offset=2.0)
+    with pytest.raises(ValueError, match="full_fraction"):
+        StartCurriculum(e, full_fraction=1.5)
+    with pytest.raises(ValueError, match="level"):
+        StartCurriculum(e).set_curriculum_level(1.2)
+    v0 = closing(make_env("ihrcf_env/DeckHover-v0", "projected"))
+    with pytest.raises(TypeError, match="DeckLanding-v1"):
+        StartCurriculum(v0)
 
 
 def test_name_value_parses_command_line_weights() -> None:

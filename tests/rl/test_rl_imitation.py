@@ -36,102 +36,89 @@ def _model(venv: Any) -> Any:
     )
 
 
-def test_collect_labels_every_step_with_the_expert() -> None:
+def test_collect_labels_every_step_with_the_expert(closing) -> None:
     from ihrcf_env.control.policies import BlindDescent
     from ihrcf_env.rl.imitation import collect
 
-    venv = _venv()
-    try:
-        expert = BlindDescent(0.3)
-        obs, act, landed, flown = collect(venv, [expert], episodes=2, seed=30_000)
-        assert flown == 2 and landed == 0 and obs.shape == (80, *venv.observation_space.shape)
-        np.testing.assert_allclose(act, np.tile([0.0, 0.0, -0.3, 0.0], (80, 1)), atol=1e-7)
-        assert np.isfinite(obs).all()
-        again, _, _, _ = collect(venv, [expert], episodes=2, seed=30_000)
-        np.testing.assert_array_equal(again, obs)  # seeded
-        # the learner flies (here: an untrained policy), the expert still labels every step
-        model = _model(venv)
-        o2, a2, _, _ = collect(venv, [expert], 1, 30_001, model, noise=0.1, rng=np.random.default_rng(0))
-        assert len(o2) == 40 and np.allclose(a2[:, 2], -0.3)
-        for kwargs, match in (
-            ({"experts": []}, "one expert per env"),
-            ({"episodes": 0}, "episodes"),
-            ({"noise": -1.0}, "noise"),
-            ({"noise": 0.1}, "noise"),  # no rng
-        ):
-            args = {"venv": venv, "experts": [expert], "episodes": 1, "seed": 0} | kwargs
-            with pytest.raises(ValueError, match=match):
-                collect(**args)
-    finally:
-        venv.close()
+    venv = closing(_venv())
+    expert = BlindDescent(0.3)
+    obs, act, landed, flown = collect(venv, [expert], episodes=2, seed=30_000)
+    assert flown == 2 and landed == 0 and obs.shape == (80, *venv.observation_space.shape)
+    np.testing.assert_allclose(act, np.tile([0.0, 0.0, -0.3, 0.0], (80, 1)), atol=1e-7)
+    assert np.isfinite(obs).all()
+    again, _, _, _ = collect(venv, [expert], episodes=2, seed=30_000)
+    np.testing.assert_array_equal(again, obs)  # seeded
+    # the learner flies (here: an untrained policy), the expert still labels every step
+    model = _model(venv)
+    o2, a2, _, _ = collect(venv, [expert], 1, 30_001, model, noise=0.1, rng=np.random.default_rng(0))
+    assert len(o2) == 40 and np.allclose(a2[:, 2], -0.3)
+    for kwargs, match in (
+        ({"experts": []}, "one expert per env"),
+        ({"episodes": 0}, "episodes"),
+        ({"noise": -1.0}, "noise"),
+        ({"noise": 0.1}, "noise"),  # no rng
+    ):
+        args = {"venv": venv, "experts": [expert], "episodes": 1, "seed": 0} | kwargs
+        with pytest.raises(ValueError, match=match):
+            collect(**args)
 
 
-def test_fit_policy_regresses_the_mean_and_sets_the_normaliser() -> None:
+def test_fit_policy_regresses_the_mean_and_sets_the_normaliser(closing) -> None:
     from ihrcf_env.control.policies import BlindDescent
     from ihrcf_env.rl.imitation import dagger, fit_policy
     from ihrcf_env.rl.sb3 import norm_extractors
 
-    venv = _venv()
-    try:
-        model = _model(venv)
-        rng = np.random.default_rng(0)
-        n, d = 2000, venv.observation_space.shape[0]
-        obs = rng.normal(0.3, 0.2, size=(n, d)).astype(np.float32)
-        target = np.clip(obs[:, :4] - 0.3, -1, 1).astype(np.float32)  # a function of the observation
-        before = float(np.mean((model.predict(obs, deterministic=True)[0] - target) ** 2))
-        loss = fit_policy(model, obs, target, epochs=30)
-        after = float(np.mean((model.predict(obs, deterministic=True)[0] - target) ** 2))
-        assert loss < 0.2 * before and after < 0.2 * before
-        (ext,) = norm_extractors(model)
-        np.testing.assert_allclose(ext.mean.numpy(), obs.mean(axis=0), rtol=1e-5, atol=1e-6)
-        assert float(ext.count) == n
-        with pytest.raises(ValueError, match="matching"):
-            fit_policy(model, obs[:10], target[:9])
-        with pytest.raises(ValueError, match="rounds"):
-            dagger(model, venv, lambda: BlindDescent(0.3), -1, 1, 0)
-    finally:
-        venv.close()
+    venv = closing(_venv())
+    model = _model(venv)
+    rng = np.random.default_rng(0)
+    n, d = 2000, venv.observation_space.shape[0]
+    obs = rng.normal(0.3, 0.2, size=(n, d)).astype(np.float32)
+    target = np.clip(obs[:, :4] - 0.3, -1, 1).astype(np.float32)  # a function of the observation
+    before = float(np.mean((model.predict(obs, deterministic=True)[0] - target) ** 2))
+    loss = fit_policy(model, obs, target, epochs=30)
+    after = float(np.mean((model.predict(obs, deterministic=True)[0] - target) ** 2))
+    assert loss < 0.2 * before and after < 0.2 * before
+    (ext,) = norm_extractors(model)
+    np.testing.assert_allclose(ext.mean.numpy(), obs.mean(axis=0), rtol=1e-5, atol=1e-6)
+    assert float(ext.count) == n
+    with pytest.raises(ValueError, match="matching"):
+        fit_policy(model, obs[:10], target[:9])
+    with pytest.raises(ValueError, match="rounds"):
+        dagger(model, venv, lambda: BlindDescent(0.3), -1, 1, 0)
 
 
-def test_dagger_with_the_scripted_expert_aggregates_rounds() -> None:
+def test_dagger_with_the_scripted_expert_aggregates_rounds(closing) -> None:
     from ihrcf_env.control.policies import ScriptedLanding
     from ihrcf_env.rl.envs import make_env
     from ihrcf_env.rl.imitation import dagger
 
-    venv = _venv(steps=30)
-    probe = make_env(V1, "projected")
-    try:
-        model = _model(venv)
-        rounds = dagger(model, venv, lambda: ScriptedLanding.from_env(probe), 1, 1, 30_000, epochs=2)
-        assert [r.pilot for r in rounds] == ["expert", "learner"]
-        assert [r.samples for r in rounds] == [30, 60] and all(np.isfinite(r.loss) for r in rounds)
-    finally:
-        probe.close()
-        venv.close()
+    venv = closing(_venv(steps=30))
+    probe = closing(make_env(V1, "projected"))
+    model = _model(venv)
+    rounds = dagger(model, venv, lambda: ScriptedLanding.from_env(probe), 1, 1, 30_000, epochs=2)
+    assert [r.pilot for r in rounds] == ["expert", "learner"]
+    assert [r.samples for r in rounds] == [30, 60] and all(np.isfinite(r.loss) for r in rounds)
 
 
-def test_critic_warmup_freezes_the_actor_then_releases_it() -> None:
+def test_critic_warmup_freezes_the_actor_then_releases_it(closing) -> None:
     import torch as th
 
     from ihrcf_env.rl.sb3 import CriticWarmupCallback
 
-    venv = _venv()
-    try:
-        model = _model(venv)
-        p = model.policy
-        actor = [*p.mlp_extractor.policy_net.parameters(), *p.action_net.parameters(), p.log_std]
-        critic = [*p.mlp_extractor.value_net.parameters(), *p.value_net.parameters()]
-        a0 = [t.detach().clone() for t in actor]
-        c0 = [t.detach().clone() for t in critic]
-        cb = CriticWarmupCallback(128)
-        model.learn(128, callback=cb)  # two updates, both critic only
-        assert all(th.equal(a, b) for a, b in zip(a0, actor, strict=True))
-        assert not all(th.equal(a, b) for a, b in zip(c0, critic, strict=True))
-        assert all(t.requires_grad for t in actor)  # released at the end of learn()
-        model.learn(64, callback=cb, reset_num_timesteps=False)  # past the warm-up: the actor learns
-        assert not all(th.equal(a, b) for a, b in zip(a0, actor, strict=True))
-    finally:
-        venv.close()
+    venv = closing(_venv())
+    model = _model(venv)
+    p = model.policy
+    actor = [*p.mlp_extractor.policy_net.parameters(), *p.action_net.parameters(), p.log_std]
+    critic = [*p.mlp_extractor.value_net.parameters(), *p.value_net.parameters()]
+    a0 = [t.detach().clone() for t in actor]
+    c0 = [t.detach().clone() for t in critic]
+    cb = CriticWarmupCallback(128)
+    model.learn(128, callback=cb)  # two updates, both critic only
+    assert all(th.equal(a, b) for a, b in zip(a0, actor, strict=True))
+    assert not all(th.equal(a, b) for a, b in zip(c0, critic, strict=True))
+    assert all(t.requires_grad for t in actor)  # released at the end of learn()
+    model.learn(64, callback=cb, reset_num_timesteps=False)  # past the warm-up: the actor learns
+    assert not all(th.equal(a, b) for a, b in zip(a0, actor, strict=True))
     with pytest.raises(ValueError, match="steps"):
         CriticWarmupCallback(-1)
 

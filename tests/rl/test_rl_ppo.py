@@ -4,16 +4,15 @@ saved policy reloads and reproduces its last held-out evaluation, and ``--resume
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
 
+from tests.conftest import example
+
 pytestmark = pytest.mark.rl
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 CAMERA = "projected"
 TINY = [
     "--n-steps",
@@ -35,14 +34,6 @@ TINY = [
     "--camera-model",
     CAMERA,
 ]
-
-
-def _example(name: str) -> ModuleType:
-    spec = importlib.util.spec_from_file_location(f"_example_{name}", EXAMPLES / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_running_norm_matches_numpy_and_clips() -> None:
@@ -71,7 +62,7 @@ def test_running_norm_matches_numpy_and_clips() -> None:
     assert y[2] == 5.0  # 1 / sqrt(1e-6 + 1e-4) = 99.5, clipped
 
 
-def test_running_norm_reads_only_its_inputs_and_saves_them(tmp_path: Path) -> None:
+def test_running_norm_reads_only_its_inputs_and_saves_them(closing, tmp_path: Path) -> None:
     pytest.importorskip("stable_baselines3")
     import gymnasium as gym
     import torch as th
@@ -89,21 +80,18 @@ def test_running_norm_reads_only_its_inputs_and_saves_them(tmp_path: Path) -> No
     for bad in ([], [4], [-1], [1, 1]):
         with pytest.raises(ValueError, match="inputs"):
             RunningNormExtractor(space, inputs=bad)
-    env = make_env("ihrcf_env/DeckLanding-v1", CAMERA)
-    try:
-        kw = {
-            "features_extractor_class": RunningNormExtractor,
-            "features_extractor_kwargs": {"inputs": [0, 5]},
-        }
-        PPO("MlpPolicy", env, seed=0, device="cpu", policy_kwargs=kw).save(tmp_path / "p.zip")
-        (loaded,) = norm_extractors(PPO.load(tmp_path / "p.zip", device="cpu"))
-        assert loaded.inputs.tolist() == [0, 5] and loaded.features_dim == 2
-    finally:
-        env.close()
+    env = closing(make_env("ihrcf_env/DeckLanding-v1", CAMERA))
+    kw = {
+        "features_extractor_class": RunningNormExtractor,
+        "features_extractor_kwargs": {"inputs": [0, 5]},
+    }
+    PPO("MlpPolicy", env, seed=0, device="cpu", policy_kwargs=kw).save(tmp_path / "p.zip")
+    (loaded,) = norm_extractors(PPO.load(tmp_path / "p.zip", device="cpu"))
+    assert loaded.inputs.tolist() == [0, 5] and loaded.features_dim == 2
 
 
 def test_train_ppo_saves_a_policy_that_reloads_and_resumes(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    closing, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     pytest.importorskip("stable_baselines3")
     from stable_baselines3 import PPO
@@ -112,7 +100,7 @@ def test_train_ppo_saves_a_policy_that_reloads_and_resumes(
     from ihrcf_env.rl.envs import make_env
     from ihrcf_env.rl.sb3 import RunningNormExtractor, evaluate_on_seeds, norm_extractors
 
-    train_ppo = _example("train_ppo")
+    train_ppo = example("train_ppo")
     out = tmp_path / "ppo"
     assert train_ppo.main(["--total-steps", "256", "--out", str(out), *TINY]) == 0
     text = capsys.readouterr().out
@@ -141,12 +129,9 @@ def test_train_ppo_saves_a_policy_that_reloads_and_resumes(
     model = PPO.load(out / "final.zip", device="cpu")
     (ext,) = norm_extractors(model)
     assert isinstance(ext, RunningNormExtractor) and float(ext.count) == 128  # one rollout (2 x 64) merged
-    env = make_env("ihrcf_env/DeckLanding-v1", CAMERA, max_episode_steps=60)
-    try:
-        assert model.observation_space == env.observation_space
-        res = evaluate_on_seeds(model, env, [20_000, 20_001])  # the seeds of the run's evaluations
-    finally:
-        env.close()
+    env = closing(make_env("ihrcf_env/DeckLanding-v1", CAMERA, max_episode_steps=60))
+    assert model.observation_space == env.observation_space
+    res = evaluate_on_seeds(model, env, [20_000, 20_001])  # the seeds of the run's evaluations
     assert res.mean_return == pytest.approx(float(evals[-1]["mean_return"]), rel=1e-6, abs=1e-9)
     assert res.success_rate == float(evals[-1]["success_rate"])
 
@@ -165,7 +150,7 @@ def test_train_ppo_saves_a_policy_that_reloads_and_resumes(
     assert int(read_csv(out / "eval.csv")[-1]["timesteps"]) == stopped
 
 
-def test_curriculum_callback_raises_the_level_with_the_steps() -> None:
+def test_curriculum_callback_raises_the_level_with_the_steps(closing) -> None:
     pytest.importorskip("stable_baselines3")
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import DummyVecEnv
@@ -174,39 +159,35 @@ def test_curriculum_callback_raises_the_level_with_the_steps() -> None:
     from ihrcf_env.rl.envs import make_env
     from ihrcf_env.rl.sb3 import CurriculumCallback
 
-    venv = DummyVecEnv(
-        [lambda: StartCurriculum(make_env("ihrcf_env/DeckLanding-v1", CAMERA, max_episode_steps=30))]
+    venv = closing(
+        DummyVecEnv(
+            [lambda: StartCurriculum(make_env("ihrcf_env/DeckLanding-v1", CAMERA, max_episode_steps=30))]
+        )
     )
-    try:
-        model = PPO("MlpPolicy", venv, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu")
-        cb = CurriculumCallback(256)
-        model.learn(192, callback=cb)  # rollouts start at 0, 64 and 128 steps
-        assert cb.level == 0.5 and venv.get_attr("level") == [0.5]
-        model.learn(128, callback=cb, reset_num_timesteps=False)  # 192, 256: then the task's start
-        assert cb.level == 1.0 and venv.get_attr("level") == [1.0]
-    finally:
-        venv.close()
+    model = PPO("MlpPolicy", venv, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu")
+    cb = CurriculumCallback(256)
+    model.learn(192, callback=cb)  # rollouts start at 0, 64 and 128 steps
+    assert cb.level == 0.5 and venv.get_attr("level") == [0.5]
+    model.learn(128, callback=cb, reset_num_timesteps=False)  # 192, 256: then the task's start
+    assert cb.level == 1.0 and venv.get_attr("level") == [1.0]
     with pytest.raises(ValueError, match="steps"):
         CurriculumCallback(0)
 
 
-def test_initial_action_mean_sets_the_untrained_policys_mean() -> None:
+def test_initial_action_mean_sets_the_untrained_policys_mean(closing) -> None:
     pytest.importorskip("stable_baselines3")
     from stable_baselines3 import PPO
 
     from ihrcf_env.rl.envs import make_env
     from ihrcf_env.rl.sb3 import RunningNormExtractor, set_initial_action_mean
 
-    env = make_env("ihrcf_env/DeckLanding-v1", CAMERA)
-    try:
-        kw = {"features_extractor_class": RunningNormExtractor, "log_std_init": -1.0}
-        model = PPO("MlpPolicy", env, seed=0, device="cpu", policy_kwargs=kw)
-        set_initial_action_mean(model, [0.0, 0.0, -0.3, 0.0])
-        obs, _ = env.reset(seed=0)
-        action, _ = model.predict(obs, deterministic=True)
-        np.testing.assert_allclose(action, [0.0, 0.0, -0.3, 0.0], atol=0.05)  # the small weights' part
-        for bad in ([0.0, 0.0], [0.0, 0.0, float("nan"), 0.0]):
-            with pytest.raises(ValueError, match="mean"):
-                set_initial_action_mean(model, bad)
-    finally:
-        env.close()
+    env = closing(make_env("ihrcf_env/DeckLanding-v1", CAMERA))
+    kw = {"features_extractor_class": RunningNormExtractor, "log_std_init": -1.0}
+    model = PPO("MlpPolicy", env, seed=0, device="cpu", policy_kwargs=kw)
+    set_initial_action_mean(model, [0.0, 0.0, -0.3, 0.0])
+    obs, _ = env.reset(seed=0)
+    action, _ = model.predict(obs, deterministic=True)
+    np.testing.assert_allclose(action, [0.0, 0.0, -0.3, 0.0], atol=0.05)  # the small weights' part
+    for bad in ([0.0, 0.0], [0.0, 0.0, float("nan"), 0.0]):
+        with pytest.raises(ValueError, match="mean"):
+            set_initial_action_mean(model, bad)

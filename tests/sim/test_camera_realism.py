@@ -3,6 +3,7 @@ statistics, determinism, blur, vignetting, background, detection and pose accura
 1 m hover with the shipped calibration."""
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -52,24 +53,27 @@ def episode(**kw: float) -> EpisodeImaging:
     return EpisodeImaging(**base)  # type: ignore[arg-type]
 
 
-def hover_world(camera: CameraConfig, seed: int = 0, frames: int = 10) -> World:
-    w = World(WorldConfig(camera=camera))
+def hover_world(
+    camera: CameraConfig, seed: int = 0, frames: int = 10, make: Callable[..., World] = World
+) -> World:
+    """A world hovering 1 m over the paper's deck; ``make`` builds it (pass the ``make_world``
+    fixture in a test: it closes the world at teardown)."""
+    w = make(WorldConfig(camera=camera))
     w.reset(paper_profile(), horizon_s=frames / 20 + 2, altitude=1.0)
     w.reset_random(np.random.default_rng(seed))
     return w
 
 
-def read_frames(camera: CameraConfig, seed: int, n: int = 3) -> list[np.ndarray]:
-    w = hover_world(camera, seed, n)
+def read_frames(
+    make_world: Callable[..., World], camera: CameraConfig, seed: int, n: int = 3
+) -> list[np.ndarray]:
+    w = hover_world(camera, seed, n, make=make_world)
     rng = np.random.default_rng(seed)
     w.reset_random(rng)
     out = []
-    try:
-        for _ in range(n):
-            w.step()
-            out.append(w.read_sensors(rng, ("camera",))["image"])
-    finally:
-        w.close()
+    for _ in range(n):
+        w.step()
+        out.append(w.read_sensors(rng, ("camera",))["image"])
     return out
 
 
@@ -102,50 +106,47 @@ def test_default_parameters_follow_the_imx296_figures():
 # -- ideal mode unchanged --------------------------------------------------------------------------
 
 
-def test_ideal_images_are_unchanged_bit_for_bit():
+def test_ideal_images_are_unchanged_bit_for_bit(make_world):
     """Default and explicit "ideal" read exactly the pre-realism render: one getCameraImage call
     with the config's light, no segmentation mask, RGB of the RGBA buffer; nothing drawn from the
     rng."""
     for cfg in (CameraConfig(), CameraConfig(quality="ideal")):
-        w = hover_world(cfg)
-        try:
-            for _ in range(3):
-                w.step()
-            rng = np.random.default_rng(5)
-            w.reset_random(rng)
-            img = w.read_sensors(rng, ("camera",))["image"]
-            assert rng.bit_generator.state == np.random.default_rng(5).bit_generator.state
-            cam = w.camera
-            assert cam is not None and cam.imager is None and cam.episode is None
-            pos, R = w.drone_pose()
-            eye, R_wc = cam.pose(pos, R)
-            view = p.computeViewMatrix(
-                eye.tolist(), (eye + R_wc[:, 2]).tolist(), (-R_wc[:, 1]).tolist(), physicsClientId=w.client
-            )
-            c = cam.config
-            _, _, rgba, _, _ = p.getCameraImage(
-                c.width,
-                c.height,
-                viewMatrix=view,
-                projectionMatrix=cam._proj,
-                shadow=0,
-                lightDirection=list(c.light_direction),
-                lightAmbientCoeff=c.ambient,
-                lightDiffuseCoeff=c.diffuse,
-                lightSpecularCoeff=c.specular,
-                renderer=p.ER_TINY_RENDERER,
-                flags=p.ER_NO_SEGMENTATION_MASK,
-                physicsClientId=w.client,
-            )
-            before = np.asarray(rgba, dtype=np.uint8).reshape(c.height, c.width, 4)[:, :, :3]
-            assert img.dtype == np.uint8 and np.array_equal(img, before)
-        finally:
-            w.close()
+        w = hover_world(cfg, make=make_world)
+        for _ in range(3):
+            w.step()
+        rng = np.random.default_rng(5)
+        w.reset_random(rng)
+        img = w.read_sensors(rng, ("camera",))["image"]
+        assert rng.bit_generator.state == np.random.default_rng(5).bit_generator.state
+        cam = w.camera
+        assert cam is not None and cam.imager is None and cam.episode is None
+        pos, R = w.drone_pose()
+        eye, R_wc = cam.pose(pos, R)
+        view = p.computeViewMatrix(
+            eye.tolist(), (eye + R_wc[:, 2]).tolist(), (-R_wc[:, 1]).tolist(), physicsClientId=w.client
+        )
+        c = cam.config
+        _, _, rgba, _, _ = p.getCameraImage(
+            c.width,
+            c.height,
+            viewMatrix=view,
+            projectionMatrix=cam._proj,
+            shadow=0,
+            lightDirection=list(c.light_direction),
+            lightAmbientCoeff=c.ambient,
+            lightDiffuseCoeff=c.diffuse,
+            lightSpecularCoeff=c.specular,
+            renderer=p.ER_TINY_RENDERER,
+            flags=p.ER_NO_SEGMENTATION_MASK,
+            physicsClientId=w.client,
+        )
+        before = np.asarray(rgba, dtype=np.uint8).reshape(c.height, c.width, 4)[:, :, :3]
+        assert img.dtype == np.uint8 and np.array_equal(img, before)
 
 
-def test_default_and_explicit_ideal_agree_with_distortion():
-    a = read_frames(CameraConfig(distortion=(-0.05, 0.0)), seed=1, n=2)
-    b = read_frames(CameraConfig(distortion=(-0.05, 0.0), quality="ideal"), seed=1, n=2)
+def test_default_and_explicit_ideal_agree_with_distortion(make_world):
+    a = read_frames(make_world, CameraConfig(distortion=(-0.05, 0.0)), seed=1, n=2)
+    b = read_frames(make_world, CameraConfig(distortion=(-0.05, 0.0), quality="ideal"), seed=1, n=2)
     assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
 
 
@@ -215,28 +216,25 @@ def test_saturated_pixels_stay_at_full_scale_and_nothing_wraps():
 # -- determinism ------------------------------------------------------------------------------------
 
 
-def test_same_seed_same_images_different_seed_different():
-    a = read_frames(REALISTIC, seed=11)
-    b = read_frames(REALISTIC, seed=11)
-    c = read_frames(REALISTIC, seed=12)
+def test_same_seed_same_images_different_seed_different(make_world):
+    a = read_frames(make_world, REALISTIC, seed=11)
+    b = read_frames(make_world, REALISTIC, seed=11)
+    c = read_frames(make_world, REALISTIC, seed=12)
     assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
     assert not any(np.array_equal(x, y) for x, y in zip(a, c, strict=True))
     assert not np.array_equal(a[0], a[1])  # the noise changes from frame to frame
 
 
-def test_episodes_vary_within_their_ranges():
+def test_episodes_vary_within_their_ranges(make_world):
     ip = ImagingParams()
-    w = World(WorldConfig(camera=REALISTIC))
-    try:
-        cam = w.camera
-        assert cam is not None
-        eps = []
-        for seed in range(20):
-            cam.reset(np.random.default_rng(seed))
-            assert cam.episode is not None
-            eps.append(cam.episode)
-    finally:
-        w.close()
+    w = make_world(WorldConfig(camera=REALISTIC))
+    cam = w.camera
+    assert cam is not None
+    eps = []
+    for seed in range(20):
+        cam.reset(np.random.default_rng(seed))
+        assert cam.episode is not None
+        eps.append(cam.episode)
     for ep in eps:
         assert ep.exposure_s <= ip.max_exposure_s + 1e-12
         assert 1.0 <= ep.gain <= ip.max_gain
@@ -360,17 +358,17 @@ def test_texture_is_small_periodic_and_seeded():
         assert wrap < 2 * inner + 1
 
 
-def test_background_is_not_blank_and_the_deck_is_where_the_ideal_render_has_it():
-    ideal = read_frames(CameraConfig(), seed=2, n=1)[0]
-    real = read_frames(REALISTIC, seed=2, n=1)[0]
+def test_background_is_not_blank_and_the_deck_is_where_the_ideal_render_has_it(make_world):
+    ideal = read_frames(make_world, CameraConfig(), seed=2, n=1)[0]
+    real = read_frames(make_world, REALISTIC, seed=2, n=1)[0]
     background = np.all(ideal == ideal[0, 0], axis=2)  # the ideal render's blank background
     assert 0.2 < background.mean() < 0.9 and ideal[background].std() == 0
     assert real[background].astype(float).std() > 8.0
     assert abs(real[background].astype(float).mean() - float(ideal[0, 0].mean())) > 40
 
 
-def test_realistic_camera_works_with_distortion():
-    imgs = read_frames(CameraConfig(quality="realistic", distortion=(-0.05, 0.0)), seed=3, n=1)
+def test_realistic_camera_works_with_distortion(make_world):
+    imgs = read_frames(make_world, CameraConfig(quality="realistic", distortion=(-0.05, 0.0)), seed=3, n=1)
     assert imgs[0].dtype == np.uint8 and TagDetector(0).detect(imgs[0]) is not None
 
 
@@ -421,16 +419,13 @@ def test_shipped_calibration_stays_valid_for_the_realistic_camera(hover_run):
         assert np.all(mae[3:] < 1.5), (name, mae)  # degrees
 
 
-def test_static_deck_frames_differ_only_by_noise():
+def test_static_deck_frames_differ_only_by_noise(make_world):
     """Nothing moves: two frames differ by the sensor noise (zero mean, a few DN), not by content."""
-    w = World(WorldConfig(camera=REALISTIC))
-    try:
-        w.reset(StaticProfile(), horizon_s=1.0, altitude=1.0)
-        rng = np.random.default_rng(4)
-        w.reset_random(rng)
-        a = w.read_sensors(rng, ("camera",))["image"].astype(float)
-        b = w.read_sensors(rng, ("camera",))["image"].astype(float)
-    finally:
-        w.close()
+    w = make_world(WorldConfig(camera=REALISTIC))
+    w.reset(StaticProfile(), horizon_s=1.0, altitude=1.0)
+    rng = np.random.default_rng(4)
+    w.reset_random(rng)
+    a = w.read_sensors(rng, ("camera",))["image"].astype(float)
+    b = w.read_sensors(rng, ("camera",))["image"].astype(float)
     d = a - b
     assert abs(d.mean()) < 0.5 and 0.5 < d.std() < 12

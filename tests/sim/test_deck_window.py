@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 from ihrcf_env.core.profiles import paper_profile, sea_state_profile
 from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.sim.deck import DeckTrajectory
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.world import WorldConfig
 
 DT = 1 / 240
 HALF = 0.02
@@ -79,25 +79,22 @@ def test_ticks_out_of_the_window_are_refused() -> None:
         traj.position[len(traj)]
 
 
-def test_world_deck_poses_do_not_depend_on_the_window() -> None:
+def test_world_deck_poses_do_not_depend_on_the_window(make_world) -> None:
     """A long episode (past two 30 s chunks) drives the plate through the same poses as a trajectory
     that keeps everything."""
     runs = []
     for keep_all in (False, True):
-        w = World(WorldConfig(camera=None))
-        try:
-            w.reset(paper_profile(), 30.0, altitude=1.0)
-            traj = w.deck.trajectory
-            assert traj is not None
-            if keep_all:
-                traj.window = 10**9
-            poses = []
-            for _ in range(1500):  # 75 s
-                w.step()
-                pos, R = w.deck.pose()
-                poses.append(np.concatenate([pos, R.ravel()]))
-            runs.append(np.array(poses))
-            assert (traj.stored_ticks <= 2 * 7200) != keep_all
-        finally:
-            w.close()
+        w = make_world(WorldConfig(camera=None))
+        w.reset(paper_profile(), 30.0, altitude=1.0)
+        traj = w.deck.trajectory
+        assert traj is not None
+        if keep_all:
+            traj.window = 10**9
+        poses = []
+        for _ in range(1500):  # 75 s
+            w.step()
+            pos, R = w.deck.pose()
+            poses.append(np.concatenate([pos, R.ravel()]))
+        runs.append(np.array(poses))
+        assert (traj.stored_ticks <= 2 * 7200) != keep_all
     assert np.array_equal(runs[0], runs[1])

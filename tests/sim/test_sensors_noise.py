@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import tempfile
-from pathlib import Path
-
 import numpy as np
 import pybullet as p
 import pytest
@@ -16,6 +13,7 @@ from ihrcf_env.sim.disturbances import ConstantForce, Disturbance
 from ihrcf_env.sim.noise import Chain, Dropout, GaussianNoise, NoiseModel, NoNoise
 from ihrcf_env.sim.sensors import IMU, Sensor, ToFConfig
 from ihrcf_env.sim.world import World, WorldConfig
+from tests.conftest import temp_dirs
 
 N = 4000
 
@@ -72,11 +70,10 @@ def test_noise_parameters_of_the_wrong_type_are_named(bad) -> None:
 
 
 @pytest.fixture
-def world():
-    w = World(WorldConfig(camera=None))
+def world(make_world) -> World:
+    w = make_world(WorldConfig(camera=None))
     w.reset(StaticProfile(), 10.0, altitude=1.0)
-    yield w
-    w.close()
+    return w
 
 
 def test_sensors_share_one_interface_and_read_named_arrays(world: World) -> None:
@@ -89,15 +86,12 @@ def test_sensors_share_one_interface_and_read_named_arrays(world: World) -> None
     assert out["ranges"] == pytest.approx(np.full(4, 0.97), abs=1e-3)  # 1 m less the camera 3 cm below
 
 
-def test_camera_is_a_sensor_too() -> None:
-    w = World(WorldConfig())
-    try:
-        w.reset(StaticProfile(), 10.0, altitude=1.0)
-        assert list(w.sensors) == ["camera", "tof", "imu"]
-        img = w.read_sensors(np.random.default_rng(0), ("camera",))["image"]
-        assert img.shape == (512, 512, 3) and img.dtype == np.uint8 and img.min() < 50  # the tag is seen
-    finally:
-        w.close()
+def test_camera_is_a_sensor_too(make_world) -> None:
+    w = make_world(WorldConfig())
+    w.reset(StaticProfile(), 10.0, altitude=1.0)
+    assert list(w.sensors) == ["camera", "tof", "imu"]
+    img = w.read_sensors(np.random.default_rng(0), ("camera",))["image"]
+    assert img.shape == (512, 512, 3) and img.dtype == np.uint8 and img.min() < 50  # the tag is seen
 
 
 def test_imu_noise_is_pluggable(world: World) -> None:
@@ -111,15 +105,12 @@ def test_imu_noise_is_pluggable(world: World) -> None:
     assert isinstance(IMU(), Sensor)
 
 
-def test_tof_noise_is_pluggable() -> None:
-    w = World(WorldConfig(camera=None, tof=ToFConfig(noise="ideal")))
-    try:
-        w.reset(StaticProfile(), 10.0, altitude=1.0)
-        w.tof.noise = Dropout(1.0)
-        _, valid = w.read_tof(np.random.default_rng(0))
-        assert not valid.any()
-    finally:
-        w.close()
+def test_tof_noise_is_pluggable(make_world) -> None:
+    w = make_world(WorldConfig(camera=None, tof=ToFConfig(noise="ideal")))
+    w.reset(StaticProfile(), 10.0, altitude=1.0)
+    w.tof.noise = Dropout(1.0)
+    _, valid = w.read_tof(np.random.default_rng(0))
+    assert not valid.any()
 
 
 def test_disturbance_hook_pushes_the_drone(world: World) -> None:
@@ -137,12 +128,8 @@ def test_disturbance_hook_pushes_the_drone(world: World) -> None:
         world.add_disturbance(lambda t, pos, vel: (0, 0, 0))  # type: ignore[arg-type]
 
 
-def _ihrcf_tmpdirs() -> set[str]:
-    return {d.name for d in Path(tempfile.gettempdir()).glob("ihrcf_env_*")}
-
-
 def test_failed_world_construction_leaks_nothing() -> None:
-    before = _ihrcf_tmpdirs()
+    before = temp_dirs()
     probe = p.connect(p.DIRECT)
     p.disconnect(physicsClientId=probe)
     with pytest.raises(ValueError, match="tag_id"):
@@ -150,7 +137,7 @@ def test_failed_world_construction_leaks_nothing() -> None:
     assert p.getConnectionInfo(physicsClientId=probe)["isConnected"] == 0
     # the failed world's client (the next id) is disconnected again
     assert all(p.getConnectionInfo(physicsClientId=probe + k)["isConnected"] == 0 for k in range(1, 3))
-    assert _ihrcf_tmpdirs() == before
+    assert temp_dirs() == before
 
 
 def test_closed_world_says_so() -> None:
@@ -174,13 +161,10 @@ def test_imu_attitude_noise_is_pluggable(world: World) -> None:
     assert 0 < 2 * np.arccos(min(1.0, abs(float(q @ q_true)))) < 0.1
 
 
-def test_realistic_tof_takes_extra_noise_too() -> None:
-    w = World(WorldConfig(camera=None, tof=ToFConfig(noise="realistic")))
-    try:
-        w.reset(StaticProfile(), 10.0, altitude=1.0)
-        assert isinstance(w.tof.noise, NoNoise)
-        w.tof.noise = Dropout(1.0)
-        _, valid = w.read_tof(np.random.default_rng(0))
-        assert not valid.any()
-    finally:
-        w.close()
+def test_realistic_tof_takes_extra_noise_too(make_world) -> None:
+    w = make_world(WorldConfig(camera=None, tof=ToFConfig(noise="realistic")))
+    w.reset(StaticProfile(), 10.0, altitude=1.0)
+    assert isinstance(w.tof.noise, NoNoise)
+    w.tof.noise = Dropout(1.0)
+    _, valid = w.read_tof(np.random.default_rng(0))
+    assert not valid.any()

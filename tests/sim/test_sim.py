@@ -14,10 +14,8 @@ from ihrcf_env.sim.world import World, WorldConfig
 
 
 @pytest.fixture
-def world():
-    w = World(WorldConfig(camera=None))
-    yield w
-    w.close()
+def world(make_world) -> World:
+    return make_world(WorldConfig(camera=None))
 
 
 def fixed_pose(offset, rpy) -> CallableProfile:
@@ -60,58 +58,52 @@ def test_tof_miss_is_flagged_and_clamped(world):
     assert np.all(ranges == np.float32(world.config.tof.max_range))
 
 
-def test_realistic_tof_noise_is_seeded():
-    w = World(
+def test_realistic_tof_noise_is_seeded(make_world):
+    w = make_world(
         WorldConfig(
             camera=None,
             tof=ToFConfig(noise="realistic"),
         )
     )
-    try:
-        w.reset(StaticProfile(), horizon_s=0.1, altitude=1.0)
-        a = [w.read_tof(np.random.default_rng(5)) for _ in range(2)]
-        np.testing.assert_array_equal(a[0][0], a[1][0])
-        true, _ = w.tof.true_ranges(*w.drone_pose())
-        samples = np.array([w.read_tof(np.random.default_rng(k))[0] for k in range(300)])
-        err = samples - true.astype(np.float32)
-        ok = np.abs(err) < 0.1
-        assert 0.0028 < err[ok].std() < 0.0046  # VL53L1X model: sigma 3.7 mm at 0.97 m in the dark
-        assert np.all(np.isfinite(samples))
-    finally:
-        w.close()
+    w.reset(StaticProfile(), horizon_s=0.1, altitude=1.0)
+    a = [w.read_tof(np.random.default_rng(5)) for _ in range(2)]
+    np.testing.assert_array_equal(a[0][0], a[1][0])
+    true, _ = w.tof.true_ranges(*w.drone_pose())
+    samples = np.array([w.read_tof(np.random.default_rng(k))[0] for k in range(300)])
+    err = samples - true.astype(np.float32)
+    ok = np.abs(err) < 0.1
+    assert 0.0028 < err[ok].std() < 0.0046  # VL53L1X model: sigma 3.7 mm at 0.97 m in the dark
+    assert np.all(np.isfinite(samples))
 
 
-def test_tag_corners_project_onto_black_border():
-    w = World(WorldConfig(camera=CameraConfig()))
-    try:
-        rng = np.random.default_rng(11)
-        for _ in range(4):
-            off = rng.uniform(-1, 1, 3) * 0.03
-            rpy = rng.uniform(-1, 1, 3) * np.array([0.2, 0.2, 0.3])
-            w.reset(
-                fixed_pose(off, rpy),
-                horizon_s=0.1,
-                altitude=rng.uniform(0.9, 1.3),
-                yaw=rng.uniform(-0.5, 0.5),
-            )
-            img = w.render_camera().astype(float).mean(axis=2)
-            p_bd, R_bd = w.deck_in_body()
-            R_cd, t_cd = body_pose_to_cam(R_bd, p_bd, w.config.rig.camera_position)
-            K = w.config.camera.intrinsics
-            s = w.config.deck.tag_size
+def test_tag_corners_project_onto_black_border(make_world):
+    w = make_world(WorldConfig(camera=CameraConfig()))
+    rng = np.random.default_rng(11)
+    for _ in range(4):
+        off = rng.uniform(-1, 1, 3) * 0.03
+        rpy = rng.uniform(-1, 1, 3) * np.array([0.2, 0.2, 0.3])
+        w.reset(
+            fixed_pose(off, rpy),
+            horizon_s=0.1,
+            altitude=rng.uniform(0.9, 1.3),
+            yaw=rng.uniform(-0.5, 0.5),
+        )
+        img = w.render_camera().astype(float).mean(axis=2)
+        p_bd, R_bd = w.deck_in_body()
+        R_cd, t_cd = body_pose_to_cam(R_bd, p_bd, w.config.rig.camera_position)
+        K = w.config.camera.intrinsics
+        s = w.config.deck.tag_size
 
-            def project(pts, K=K, R_cd=R_cd, t_cd=t_cd):
-                X = pts @ R_cd.T + t_cd
-                uv = X @ K.T
-                return uv[:, :2] / uv[:, 2:]
+        def project(pts, K=K, R_cd=R_cd, t_cd=t_cd):
+            X = pts @ R_cd.T + t_cd
+            uv = X @ K.T
+            return uv[:, :2] / uv[:, 2:]
 
-            inner = project(tag_corners_deck(s) * 0.93)  # inside the black border, near the corner
-            outer = project(tag_corners_deck(s) * 1.07)  # in the white quiet zone
-            for (u, v), (uo, vo) in zip(inner, outer, strict=True):
-                assert img[int(round(v)), int(round(u))] < 60, "expected black border"
-                assert img[int(round(vo)), int(round(uo))] > 150, "expected white quiet zone"
-    finally:
-        w.close()
+        inner = project(tag_corners_deck(s) * 0.93)  # inside the black border, near the corner
+        outer = project(tag_corners_deck(s) * 1.07)  # in the white quiet zone
+        for (u, v), (uo, vo) in zip(inner, outer, strict=True):
+            assert img[int(round(v)), int(round(u))] < 60, "expected black border"
+            assert img[int(round(vo)), int(round(uo))] > 150, "expected white quiet zone"
 
 
 def test_deck_follows_trajectory_with_real_velocity(world):
@@ -157,51 +149,44 @@ def test_velocity_setpoint_is_tracked(world):
     np.testing.assert_allclose(vel, [0.5 * math.cos(0.5), 0.5 * math.sin(0.5), 0.2], atol=0.03)
 
 
-def test_resting_drone_is_carried_by_the_deck():
-    w = World(WorldConfig(camera=None))
-    try:
-        prof = sea_state_profile(
-            np.random.default_rng(2), {"heave": 0.05, "roll": 0.06, "pitch": 0.06, "yaw": 0.04}
-        )
-        w.reset(prof, horizon_s=7.0, altitude=0.12)
-        w.set_motor_thrusts(np.zeros(4))
-        for _ in range(10):  # settle 0.5 s
-            w.step()
+def test_resting_drone_is_carried_by_the_deck(make_world):
+    w = make_world(WorldConfig(camera=None))
+    prof = sea_state_profile(
+        np.random.default_rng(2), {"heave": 0.05, "roll": 0.06, "pitch": 0.06, "yaw": 0.04}
+    )
+    w.reset(prof, horizon_s=7.0, altitude=0.12)
+    w.set_motor_thrusts(np.zeros(4))
+    for _ in range(10):  # settle 0.5 s
+        w.step()
 
-        def in_deck():
-            pos, _ = w.drone_pose()
-            deck_pos, R_wd = w.deck.pose()
-            return R_wd.T @ (pos - deck_pos)
+    def in_deck():
+        pos, _ = w.drone_pose()
+        deck_pos, R_wd = w.deck.pose()
+        return R_wd.T @ (pos - deck_pos)
 
-        start = in_deck()
-        moved = 0.0
-        for _ in range(100):  # 5 s
-            w.step()
-            moved = max(moved, float(np.linalg.norm(in_deck()[:2] - start[:2])))
-        deck_travel = np.ptp(w.deck.trajectory.position[: w.tick], axis=0)
-        assert deck_travel.max() > 0.03  # the deck really moved
-        assert moved < 0.02
-        assert w.quad.body in {c[1] for c in p.getContactPoints(bodyB=w.deck.body, physicsClientId=w.client)}
-    finally:
-        w.close()
+    start = in_deck()
+    moved = 0.0
+    for _ in range(100):  # 5 s
+        w.step()
+        moved = max(moved, float(np.linalg.norm(in_deck()[:2] - start[:2])))
+    deck_travel = np.ptp(w.deck.trajectory.position[: w.tick], axis=0)
+    assert deck_travel.max() > 0.03  # the deck really moved
+    assert moved < 0.02
+    assert w.quad.body in {c[1] for c in p.getContactPoints(bodyB=w.deck.body, physicsClientId=w.client)}
 
 
-def test_two_worlds_are_independent():
-    a, b = World(WorldConfig(camera=None)), World(WorldConfig(camera=None))
-    try:
-        assert a.client != b.client
-        a.reset(paper_profile(), horizon_s=3.0)
-        b.reset(paper_profile(), horizon_s=3.0)
-        b.set_velocity_setpoint(np.array([0.5, 0.0, 0.0, 0.0]))
-        for _ in range(20):
-            a.step()
-            b.step()
-        pa, _ = a.drone_pose()
-        pb, _ = b.drone_pose()
-        assert abs(pa[0] - pb[0]) > 0.2
-    finally:
-        a.close()
-        b.close()
+def test_two_worlds_are_independent(make_world):
+    a, b = make_world(WorldConfig(camera=None)), make_world(WorldConfig(camera=None))
+    assert a.client != b.client
+    a.reset(paper_profile(), horizon_s=3.0)
+    b.reset(paper_profile(), horizon_s=3.0)
+    b.set_velocity_setpoint(np.array([0.5, 0.0, 0.0, 0.0]))
+    for _ in range(20):
+        a.step()
+        b.step()
+    pa, _ = a.drone_pose()
+    pb, _ = b.drone_pose()
+    assert abs(pa[0] - pb[0]) > 0.2
     a.close()  # second close is a no-op
 
 
@@ -219,30 +204,25 @@ def test_level_deck_reads_zero_angles_and_negative_height(world):
     _ = matrix_from_euler  # frames helpers exercised elsewhere
 
 
-def test_lens_distortion_moves_corners_as_brown_conrady():
+def test_lens_distortion_moves_corners_as_brown_conrady(make_world):
     import cv2
 
-    w = World(WorldConfig(camera=CameraConfig(distortion=(-0.15, 0.02))))
-    try:
-        w.reset(StaticProfile(), horizon_s=0.1, altitude=0.8, yaw=0.3)
-        img = w.render_camera()
-        p_bd, R_bd = w.deck_in_body()
-        R_cd, t_cd = body_pose_to_cam(R_bd, p_bd, w.config.rig.camera_position)
-        X = tag_corners_deck(w.config.deck.tag_size) @ R_cd.T + t_cd
-        cam = w.config.camera
-        distorted, _ = cv2.projectPoints(
-            X, np.zeros(3), np.zeros(3), cam.intrinsics, cam.distortion_coefficients
-        )
-        ideal, _ = cv2.projectPoints(X, np.zeros(3), np.zeros(3), cam.intrinsics, np.zeros(5))
-        prm = cv2.aruco.DetectorParameters()
-        prm.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
-        det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11), prm)
-        corners, ids, _ = det.detectMarkers(cv2.cvtColor(img, cv2.COLOR_RGB2GRAY))
-        found = corners[0].reshape(4, 2)
-        assert np.abs(found - distorted.reshape(4, 2)).max() < 0.5
-        assert np.abs(found - ideal.reshape(4, 2)).max() > 1.5  # distortion really there (~2.8 px)
-    finally:
-        w.close()
+    w = make_world(WorldConfig(camera=CameraConfig(distortion=(-0.15, 0.02))))
+    w.reset(StaticProfile(), horizon_s=0.1, altitude=0.8, yaw=0.3)
+    img = w.render_camera()
+    p_bd, R_bd = w.deck_in_body()
+    R_cd, t_cd = body_pose_to_cam(R_bd, p_bd, w.config.rig.camera_position)
+    X = tag_corners_deck(w.config.deck.tag_size) @ R_cd.T + t_cd
+    cam = w.config.camera
+    distorted, _ = cv2.projectPoints(X, np.zeros(3), np.zeros(3), cam.intrinsics, cam.distortion_coefficients)
+    ideal, _ = cv2.projectPoints(X, np.zeros(3), np.zeros(3), cam.intrinsics, np.zeros(5))
+    prm = cv2.aruco.DetectorParameters()
+    prm.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11), prm)
+    corners, ids, _ = det.detectMarkers(cv2.cvtColor(img, cv2.COLOR_RGB2GRAY))
+    found = corners[0].reshape(4, 2)
+    assert np.abs(found - distorted.reshape(4, 2)).max() < 0.5
+    assert np.abs(found - ideal.reshape(4, 2)).max() > 1.5  # distortion really there (~2.8 px)
 
 
 def test_motion_beyond_the_checked_horizon_stalls_instead_of_crashing(world):

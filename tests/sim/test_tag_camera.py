@@ -92,20 +92,17 @@ def test_projection_matches_tag_detector(world: World) -> None:
     assert math.sqrt(float((e**2).mean())) < 0.6
 
 
-def test_projection_with_lens_distortion() -> None:
+def test_projection_with_lens_distortion(make_world) -> None:
     cfg = CameraConfig(distortion=(-0.05, 0.01))
-    w = World(WorldConfig(camera=cfg))
-    try:
-        w.reset(StaticProfile(), horizon_s=2.0, altitude=1.0)
-        assert w.camera is not None
-        cam = make(w)
-        state = place(w, (0.25, 0.2), 1.3, (0.05, 0.0, 0.7))
-        found = TagDetector().detect(w.camera.render(state.position, state.rotation))
-        f, _ = cam.features(state)
-        assert found is not None and f is not None
-        assert np.abs(found - f.corners).max() < 1.2
-    finally:
-        w.close()
+    w = make_world(WorldConfig(camera=cfg))
+    w.reset(StaticProfile(), horizon_s=2.0, altitude=1.0)
+    assert w.camera is not None
+    cam = make(w)
+    state = place(w, (0.25, 0.2), 1.3, (0.05, 0.0, 0.7))
+    found = TagDetector().detect(w.camera.render(state.position, state.rotation))
+    f, _ = cam.features(state)
+    assert found is not None and f is not None
+    assert np.abs(found - f.corners).max() < 1.2
 
 
 def test_reading_contract_and_out_of_view(world: World) -> None:
@@ -157,47 +154,41 @@ def test_occlusion(world: World) -> None:
 
 
 @pytest.mark.parametrize("quality", ["ideal", "realistic"])
-def test_bitwise_determinism_per_seed(quality: str) -> None:
+def test_bitwise_determinism_per_seed(make_world, quality: str) -> None:
     def run(seed: int) -> list[np.ndarray]:
-        w = World(WorldConfig(camera=CameraConfig(quality=quality)))
-        try:
-            w.reset(paper_profile(), horizon_s=3.0, altitude=1.2, offset_xy=(0.1, -0.05), yaw=0.4)
-            rng = np.random.default_rng(seed)
-            cam = make(w)
-            cam.reset(rng)
-            w.set_velocity_setpoint(np.array([0.2, -0.1, 0.0, 0.3]))
-            out = []
-            for _ in range(15):
-                w.step()
-                r = cam.read(w.body_state(), 0.05, rng)
-                out.append(np.concatenate([r["tag_corners"].ravel(), [float(r["tag_detected"])]]))
-            return out
-        finally:
-            w.close()
+        w = make_world(WorldConfig(camera=CameraConfig(quality=quality)))
+        w.reset(paper_profile(), horizon_s=3.0, altitude=1.2, offset_xy=(0.1, -0.05), yaw=0.4)
+        rng = np.random.default_rng(seed)
+        cam = make(w)
+        cam.reset(rng)
+        w.set_velocity_setpoint(np.array([0.2, -0.1, 0.0, 0.3]))
+        out = []
+        for _ in range(15):
+            w.step()
+            r = cam.read(w.body_state(), 0.05, rng)
+            out.append(np.concatenate([r["tag_corners"].ravel(), [float(r["tag_detected"])]]))
+        return out
 
     a, b, c = run(3), run(3), run(4)
     assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
     assert not all(np.array_equal(x, y) for x, y in zip(a, c, strict=True))
 
 
-def test_realistic_episode_is_the_rendered_cameras() -> None:
+def test_realistic_episode_is_the_rendered_cameras(make_world) -> None:
     """Same generator state: the projected camera draws the episode (light, exposure, gain) the
     rendered camera draws; a given episode is used as is."""
-    w = World(WorldConfig(camera=CameraConfig(quality="realistic")))
-    try:
-        w.reset(StaticProfile(), horizon_s=2.0, altitude=1.0)
-        assert w.camera is not None
-        w.camera.reset(np.random.default_rng(5))
-        cam = make(w)
-        cam.reset(np.random.default_rng(5))
-        assert cam.episode == w.camera.episode
-        other = make(w)
-        other.reset(np.random.default_rng(6), episode=w.camera.episode)
-        assert other.episode is w.camera.episode
-        f, _ = cam.features(place(w, (0.0, 0.0), 1.0, (0.0, 0.0, 0.0)))
-        assert f is not None and np.all(f.noise_ratio > 0)
-    finally:
-        w.close()
+    w = make_world(WorldConfig(camera=CameraConfig(quality="realistic")))
+    w.reset(StaticProfile(), horizon_s=2.0, altitude=1.0)
+    assert w.camera is not None
+    w.camera.reset(np.random.default_rng(5))
+    cam = make(w)
+    cam.reset(np.random.default_rng(5))
+    assert cam.episode == w.camera.episode
+    other = make(w)
+    other.reset(np.random.default_rng(6), episode=w.camera.episode)
+    assert other.episode is w.camera.episode
+    f, _ = cam.features(place(w, (0.0, 0.0), 1.0, (0.0, 0.0, 0.0)))
+    assert f is not None and np.all(f.noise_ratio > 0)
 
 
 def test_bad_arguments(world: World) -> None:

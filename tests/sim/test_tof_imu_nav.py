@@ -5,6 +5,7 @@ drawing nothing."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pybullet as p
@@ -164,34 +165,30 @@ def test_attitude_error_tilt_and_yaw_drift_statistics() -> None:
     )
 
 
-def test_ideal_imu_and_tof_draw_nothing_and_pass_the_truth() -> None:
-    w = World(WorldConfig(camera=None))
-    try:
-        w.reset(StaticProfile(), 10.0, altitude=1.0)
-        rng = np.random.default_rng(8)
-        state = rng.bit_generator.state
-        w.reset_random(rng)
-        out = w.read_sensors(rng)
-        assert rng.bit_generator.state == state
-        s = w.body_state()
-        np.testing.assert_array_equal(out["quaternion"], s.quaternion)
-        assert isinstance(w.navigation, TruthNavigation)
-        true = ((1.0, 2.0, 3.0), (0.1, 0.2, 0.3))
-        est = w.navigation.estimate(0.5, *true)
-        assert est[0] is true[0] and est[1] is true[1]
-        np.testing.assert_array_equal(w.nav_velocity(), s.velocity)
-        np.testing.assert_array_equal(w.nav_position(), s.position)
-    finally:
-        w.close()
+def test_ideal_imu_and_tof_draw_nothing_and_pass_the_truth(make_world) -> None:
+    w = make_world(WorldConfig(camera=None))
+    w.reset(StaticProfile(), 10.0, altitude=1.0)
+    rng = np.random.default_rng(8)
+    state = rng.bit_generator.state
+    w.reset_random(rng)
+    out = w.read_sensors(rng)
+    assert rng.bit_generator.state == state
+    s = w.body_state()
+    np.testing.assert_array_equal(out["quaternion"], s.quaternion)
+    assert isinstance(w.navigation, TruthNavigation)
+    true = ((1.0, 2.0, 3.0), (0.1, 0.2, 0.3))
+    est = w.navigation.estimate(0.5, *true)
+    assert est[0] is true[0] and est[1] is true[1]
+    np.testing.assert_array_equal(w.nav_velocity(), s.velocity)
+    np.testing.assert_array_equal(w.nav_position(), s.position)
 
 
 # -- ToF: the VL53L1X cone --------------------------------------------------------------------------
 @pytest.fixture
-def tof_world():
-    w = World(WorldConfig(camera=None, tof=ToFConfig(noise=VL53L1X(dropout=0.0))))
+def tof_world(make_world) -> World:
+    w = make_world(WorldConfig(camera=None, tof=ToFConfig(noise=VL53L1X(dropout=0.0))))
     w.reset(StaticProfile(), 10.0, altitude=1.0)
-    yield w
-    w.close()
+    return w
 
 
 def _place(w: World, x: float, y: float, z: float, quat=(0.0, 0.0, 0.0, 1.0)) -> None:
@@ -272,7 +269,7 @@ def test_range_limits_depend_on_reflectance_and_ambient() -> None:
     assert 2.6 < max_range(VL53L1X()) < 3.0  # the default 54 % grey target in the dark
 
 
-def test_no_target_out_of_range_and_too_close_are_invalid(tof_world: World) -> None:
+def test_no_target_out_of_range_and_too_close_are_invalid(make_world, tof_world: World) -> None:
     w = tof_world
     rng = np.random.default_rng(10)
     max_range = np.float32(w.config.tof.max_range)
@@ -288,14 +285,11 @@ def test_no_target_out_of_range_and_too_close_are_invalid(tof_world: World) -> N
         assert not valid.any(), name
         assert np.all(ranges == max_range), name
     # strong ambient light: 1 m is beyond reach for a grey target
-    sunny = World(WorldConfig(camera=None, tof=ToFConfig(noise=VL53L1X(ambient=1.0, dropout=0.0))))
-    try:
-        sunny.reset(StaticProfile(), 10.0, altitude=1.0)
-        assert not sunny.read_tof(rng)[1].any()
-        sunny.reset(StaticProfile(), 10.0, altitude=0.4)
-        assert sunny.read_tof(rng)[1].all()
-    finally:
-        sunny.close()
+    sunny = make_world(WorldConfig(camera=None, tof=ToFConfig(noise=VL53L1X(ambient=1.0, dropout=0.0))))
+    sunny.reset(StaticProfile(), 10.0, altitude=1.0)
+    assert not sunny.read_tof(rng)[1].any()
+    sunny.reset(StaticProfile(), 10.0, altitude=0.4)
+    assert sunny.read_tof(rng)[1].all()
 
 
 def test_realistic_tof_is_seeded_and_offsets_are_per_episode(tof_world: World) -> None:
@@ -364,8 +358,10 @@ def test_navigation_is_deterministic_and_independent_of_how_often_it_is_read() -
         NavigationErrors(horizontal_sigma=-1.0)
 
 
-def _hold(feedback: str, seed: int, seconds: float = 30.0) -> tuple[np.ndarray, np.ndarray, World]:
-    w = World(WorldConfig(camera=None, navigation=NavigationConfig(feedback)))
+def _hold(
+    make_world: Callable[..., World], feedback: str, seed: int, seconds: float = 30.0
+) -> tuple[np.ndarray, np.ndarray, World]:
+    w = make_world(WorldConfig(camera=None, navigation=NavigationConfig(feedback)))
     w.reset(StaticProfile(), 60.0, altitude=1.0)
     w.reset_random(np.random.default_rng(seed))
     p0 = w.drone_pose()[0]
@@ -376,20 +372,14 @@ def _hold(feedback: str, seed: int, seconds: float = 30.0) -> tuple[np.ndarray, 
 
 
 @pytest.mark.parametrize("seed", [0, 1])
-def test_zero_command_drifts_with_the_estimate_under_estimated_feedback(seed: int) -> None:
-    p0, e0, w = _hold("estimated", seed)
-    try:
-        p1 = w.drone_pose()[0]
-        e1 = w.nav_position() - p1
-        moved = p1 - p0
-        # the drone holds its *estimated* position: it moves by minus the change of the estimate's error
-        np.testing.assert_allclose(moved, -(e1 - e0), atol=0.03)
-        assert np.linalg.norm(moved) > 0.02
-        assert not np.array_equal(w.nav_velocity(), w.snapshot().drone_velocity)
-    finally:
-        w.close()
-    p0, _, w = _hold("truth", seed, seconds=5.0)
-    try:
-        assert np.linalg.norm(w.drone_pose()[0] - p0) < 1e-3
-    finally:
-        w.close()
+def test_zero_command_drifts_with_the_estimate_under_estimated_feedback(make_world, seed: int) -> None:
+    p0, e0, w = _hold(make_world, "estimated", seed)
+    p1 = w.drone_pose()[0]
+    e1 = w.nav_position() - p1
+    moved = p1 - p0
+    # the drone holds its *estimated* position: it moves by minus the change of the estimate's error
+    np.testing.assert_allclose(moved, -(e1 - e0), atol=0.03)
+    assert np.linalg.norm(moved) > 0.02
+    assert not np.array_equal(w.nav_velocity(), w.snapshot().drone_velocity)
+    p0, _, w = _hold(make_world, "truth", seed, seconds=5.0)
+    assert np.linalg.norm(w.drone_pose()[0] - p0) < 1e-3

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import math
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -42,36 +41,27 @@ def toy(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(ESTIMATORS, "toy", BelowAtHeight)
 
 
-def test_default_layout_is_untouched_by_a_registered_estimator(toy):
-    env = gym.make(HOVER_ID, flatten=True)
-    try:
-        assert env.observation_space.shape == (46,)  # ihrcf, atda, fused, ground_truth
-        assert env.get_wrapper_attr("flat_slices") == flat_slices()
-    finally:
-        env.close()
+def test_default_layout_is_untouched_by_a_registered_estimator(make_env, toy):
+    env = make_env(HOVER_ID, flatten=True)
+    assert env.observation_space.shape == (46,)  # ihrcf, atda, fused, ground_truth
+    assert env.get_wrapper_attr("flat_slices") == flat_slices()
 
 
-def test_opted_in_estimator_gets_its_key_reason_and_slices(toy):
+def test_opted_in_estimator_gets_its_key_reason_and_slices(make_env, toy):
     names = ("ihrcf", "atda", "toy")
-    env = gym.make(HOVER_ID, keep_image=False, estimators=names)
-    try:
-        obs, info = env.reset(seed=0)
-        assert set(obs) >= {"ihrcf", "atda", "toy", "ground_truth"}
-        assert obs["toy"]["valid"] == 1 and info["toy_reason"] == ""
-        np.testing.assert_allclose(obs["toy"]["position"], [0.0, 0.0, -1.0])
-        obs, _, _, _, info = env.step(np.zeros(4))
-        assert info["toy_residual"] == 0.0
-        toy_source = env.get_wrapper_attr("estimators")["toy"]
-        assert toy_source.times == [0.0, info["time"]]  # reset, then one step, with the env's time
-    finally:
-        env.close()
-    flat = gym.make(HOVER_ID, flatten=True, estimators=names)
-    try:
-        s = flat.get_wrapper_attr("flat_slices")
-        assert s == flat_slices(names)
-        assert (s["toy"], s["ground_truth"], s["all"]) == (slice(32, 39), slice(39, 46), slice(0, 46))
-        obs, _ = flat.reset(seed=0)
-        assert obs.shape == (46,) and flat.observation_space.contains(obs)
-        np.testing.assert_allclose(obs[s["toy.position"]], [0.0, 0.0, -1.0])
-    finally:
-        flat.close()
+    env = make_env(HOVER_ID, keep_image=False, estimators=names)
+    obs, info = env.reset(seed=0)
+    assert set(obs) >= {"ihrcf", "atda", "toy", "ground_truth"}
+    assert obs["toy"]["valid"] == 1 and info["toy_reason"] == ""
+    np.testing.assert_allclose(obs["toy"]["position"], [0.0, 0.0, -1.0])
+    obs, _, _, _, info = env.step(np.zeros(4))
+    assert info["toy_residual"] == 0.0
+    toy_source = env.get_wrapper_attr("estimators")["toy"]
+    assert toy_source.times == [0.0, info["time"]]  # reset, then one step, with the env's time
+    flat = make_env(HOVER_ID, flatten=True, estimators=names)
+    s = flat.get_wrapper_attr("flat_slices")
+    assert s == flat_slices(names)
+    assert (s["toy"], s["ground_truth"], s["all"]) == (slice(32, 39), slice(39, 46), slice(0, 46))
+    obs, _ = flat.reset(seed=0)
+    assert obs.shape == (46,) and flat.observation_space.contains(obs)
+    np.testing.assert_allclose(obs[s["toy.position"]], [0.0, 0.0, -1.0])

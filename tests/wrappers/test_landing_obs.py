@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
@@ -13,7 +14,6 @@ import pytest
 from gymnasium import spaces
 from gymnasium.utils.env_checker import check_env
 
-import ihrcf_env
 from ihrcf_env.core.estimators import PoseEstimate
 from ihrcf_env.wrappers.landing_obs import (
     MAX_AGE,
@@ -22,12 +22,6 @@ from ihrcf_env.wrappers.landing_obs import (
     heading_rotation,
     landing_obs_fields,
 )
-
-KW = {"horizon_s": 60.0}
-
-
-def make(**kwargs: Any) -> gym.Env:
-    return gym.make(ihrcf_env.LANDING_V1_ID, **{**KW, **kwargs})
 
 
 def test_layout_is_documented_and_contiguous() -> None:
@@ -57,106 +51,90 @@ def GROUND_TRUTH_FREE(slices: dict[str, slice]) -> bool:
     return not any(k.startswith("ground_truth") for k in slices)
 
 
-def test_check_env_passes_without_warnings() -> None:
-    env = make()
-    try:
-        assert isinstance(env.observation_space, spaces.Box) and env.observation_space.dtype == np.float32
-        assert env.observation_space.shape == (50,)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            check_env(env.unwrapped, skip_render_check=True)  # the raw v1 env
-            check_env(env, skip_render_check=True)  # as made (wrappers, TimeLimit)
-        ours = [str(w.message) for w in caught if "different from the unwrapped" not in str(w.message)]
-        assert ours == [], ours
-    finally:
-        env.close()
+def test_check_env_passes_without_warnings(make_v1) -> None:
+    env = make_v1()
+    assert isinstance(env.observation_space, spaces.Box) and env.observation_space.dtype == np.float32
+    assert env.observation_space.shape == (50,)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env.unwrapped, skip_render_check=True)  # the raw v1 env
+        check_env(env, skip_render_check=True)  # as made (wrappers, TimeLimit)
+    ours = [str(w.message) for w in caught if "different from the unwrapped" not in str(w.message)]
+    assert ours == [], ours
 
 
 @pytest.mark.rl  # needs stable-baselines3: runs in the [rl] venv (`pytest -m rl`, .ci/run)
-def test_sb3_check_env() -> None:
+def test_sb3_check_env(make_v1) -> None:
     sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
-    env = make()
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            sb3_checker.check_env(env, warn=True)
-        assert [str(w.message) for w in caught] == []
-    finally:
-        env.close()
+    env = make_v1()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sb3_checker.check_env(env, warn=True)
+    assert [str(w.message) for w in caught] == []
 
 
-def test_no_ground_truth_by_default_and_privileged_block() -> None:
+def test_no_ground_truth_by_default_and_privileged_block(make_v1) -> None:
     """The default observation equals the first 50 values of the privileged one; the 14 more are
     the true deck pose (heading frame), relative velocity and wind, as in info."""
-    env, priv = make(), make(privileged=True)
-    try:
-        assert GROUND_TRUTH_FREE(env.get_wrapper_attr("obs_slices"))
-        assert priv.observation_space.shape == (64,)
-        obs, info = env.reset(seed=5)
-        pobs, pinfo = priv.reset(seed=5)
-        for _ in range(5):
-            a = np.array([0.2, -0.1, -0.2, 0.0], np.float32)
-            obs, *_, info = env.step(a)
-            pobs, *_, pinfo = priv.step(a)
-        assert np.array_equal(obs, pobs[:50])
-        s = priv.get_wrapper_attr("obs_slices")
-        R_lb, R_lw = heading_rotation(pinfo["drone_quaternion_world"])
-        assert pobs[s["ground_truth.position"]] * POSITION_SCALE == pytest.approx(
-            R_lb @ pinfo["deck_position_body"], abs=1e-5
-        )
-        assert pobs[s["ground_truth.velocity"]] == pytest.approx(R_lw @ pinfo["relative_velocity"], abs=1e-5)
-        assert pobs[s["ground_truth.wind"]] == pytest.approx(R_lw @ pinfo["wind_velocity"], abs=1e-5)
-        # ground truth is always in info, whatever the observation
-        for key in ("deck_position_body", "deck_euler_body", "drone_position_world", "relative_velocity"):
-            assert key in info
-    finally:
-        env.close()
-        priv.close()
+    env, priv = make_v1(), make_v1(privileged=True)
+    assert GROUND_TRUTH_FREE(env.get_wrapper_attr("obs_slices"))
+    assert priv.observation_space.shape == (64,)
+    obs, info = env.reset(seed=5)
+    pobs, pinfo = priv.reset(seed=5)
+    for _ in range(5):
+        a = np.array([0.2, -0.1, -0.2, 0.0], np.float32)
+        obs, *_, info = env.step(a)
+        pobs, *_, pinfo = priv.step(a)
+    assert np.array_equal(obs, pobs[:50])
+    s = priv.get_wrapper_attr("obs_slices")
+    R_lb, R_lw = heading_rotation(pinfo["drone_quaternion_world"])
+    assert pobs[s["ground_truth.position"]] * POSITION_SCALE == pytest.approx(
+        R_lb @ pinfo["deck_position_body"], abs=1e-5
+    )
+    assert pobs[s["ground_truth.velocity"]] == pytest.approx(R_lw @ pinfo["relative_velocity"], abs=1e-5)
+    assert pobs[s["ground_truth.wind"]] == pytest.approx(R_lw @ pinfo["wind_velocity"], abs=1e-5)
+    # ground truth is always in info, whatever the observation
+    for key in ("deck_position_body", "deck_euler_body", "drone_position_world", "relative_velocity"):
+        assert key in info
 
 
-def test_estimate_blocks_decode_to_the_estimates() -> None:
-    env = make(wind=False)  # calm: the tag stays in view of a hovering drone
-    try:
-        obs, info = env.reset(seed=2)
-        for _ in range(15):  # the fused filter converges in 10 frames
-            obs, *_, info = env.step(np.zeros(4, np.float32))
-        s, sc = env.get_wrapper_attr("obs_slices"), env.get_wrapper_attr("obs_scales")
-        assert env.observation_space.contains(obs)
-        assert obs[s["fused.valid"]][0] == 1.0 and obs[s["atda.valid"]][0] == 1.0
-        # the estimate, in the heading frame, is close to the truth (a few cm at ~2 m)
-        R_lb, _ = heading_rotation(info["drone_quaternion_world"])
-        truth = R_lb @ info["deck_position_body"]
-        assert obs[s["fused.position"]] * sc["fused.position"] == pytest.approx(truth, abs=0.1)
-        assert obs[s["fused.normal"]][2] > 0.97  # the deck tilts a few degrees
-        assert math.hypot(*obs[s["fused.yaw"]]) == pytest.approx(1.0, abs=1e-5)
-        assert obs[s["fused.age"]][0] == pytest.approx(info["fused_age"])
-        assert np.linalg.norm(obs[s["imu.up"]]) == pytest.approx(1.0, abs=1e-5)
-        assert obs[s["imu.linear_acceleration"]][2] == pytest.approx(1.0, abs=0.1)  # hovering
-        assert np.all(obs[s["ranges_valid"]] == np.isin(obs[s["ranges_valid"]], (0.0, 1.0)))
-    finally:
-        env.close()
+def test_estimate_blocks_decode_to_the_estimates(make_v1) -> None:
+    env = make_v1(wind=False)  # calm: the tag stays in view of a hovering drone
+    obs, info = env.reset(seed=2)
+    for _ in range(15):  # the fused filter converges in 10 frames
+        obs, *_, info = env.step(np.zeros(4, np.float32))
+    s, sc = env.get_wrapper_attr("obs_slices"), env.get_wrapper_attr("obs_scales")
+    assert env.observation_space.contains(obs)
+    assert obs[s["fused.valid"]][0] == 1.0 and obs[s["atda.valid"]][0] == 1.0
+    # the estimate, in the heading frame, is close to the truth (a few cm at ~2 m)
+    R_lb, _ = heading_rotation(info["drone_quaternion_world"])
+    truth = R_lb @ info["deck_position_body"]
+    assert obs[s["fused.position"]] * sc["fused.position"] == pytest.approx(truth, abs=0.1)
+    assert obs[s["fused.normal"]][2] > 0.97  # the deck tilts a few degrees
+    assert math.hypot(*obs[s["fused.yaw"]]) == pytest.approx(1.0, abs=1e-5)
+    assert obs[s["fused.age"]][0] == pytest.approx(info["fused_age"])
+    assert np.linalg.norm(obs[s["imu.up"]]) == pytest.approx(1.0, abs=1e-5)
+    assert obs[s["imu.linear_acceleration"]][2] == pytest.approx(1.0, abs=0.1)  # hovering
+    assert np.all(obs[s["ranges_valid"]] == np.isin(obs[s["ranges_valid"]], (0.0, 1.0)))
 
 
-def test_is_success_and_determinism() -> None:
-    env = make()
-    try:
-        rng = np.random.default_rng(0)
-        actions = rng.uniform(-1, 1, (12, 4)).astype(np.float32)
-        runs = []
-        for _ in range(2):
-            obs, info = env.reset(seed=11)
-            assert info["is_success"] is False
-            seq = [obs]
-            for a in actions:
-                obs, _, terminated, truncated, info = env.step(a)
-                assert "is_success" in info and info["is_success"] == (info["outcome"] == "success")
-                seq.append(obs)
-            runs.append(np.array(seq))
-        assert runs[0].tobytes() == runs[1].tobytes()  # bitwise equal
-        other, _ = env.reset(seed=12)
-        assert not np.array_equal(other, runs[0][0])
-    finally:
-        env.close()
+def test_is_success_and_determinism(make_v1) -> None:
+    env = make_v1()
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, (12, 4)).astype(np.float32)
+    runs = []
+    for _ in range(2):
+        obs, info = env.reset(seed=11)
+        assert info["is_success"] is False
+        seq = [obs]
+        for a in actions:
+            obs, _, terminated, truncated, info = env.step(a)
+            assert "is_success" in info and info["is_success"] == (info["outcome"] == "success")
+            seq.append(obs)
+        runs.append(np.array(seq))
+    assert runs[0].tobytes() == runs[1].tobytes()  # bitwise equal
+    other, _ = env.reset(seed=12)
+    assert not np.array_equal(other, runs[0][0])
 
 
 class _FakeStage:
@@ -188,75 +166,63 @@ class _FakeStage:
         pass
 
 
-def _scripted(valid: list[int]) -> LandingObservation:
-    env = LandingObservation(make(raw=True, camera_model="projected"), estimators=("fused",))
+def _scripted(make_v1: Callable[..., gym.Env], valid: list[int]) -> LandingObservation:
+    env = LandingObservation(make_v1(raw=True, camera_model="projected"), estimators=("fused",))
     env.stage = _FakeStage(valid)  # type: ignore[assignment]
     return env
 
 
-def test_invalid_estimates_hold_the_last_values_and_age() -> None:
-    env = _scripted([1, 1, 0, 0, 0, 1])
-    try:
-        s = env.obs_slices
-        obs, _ = env.reset(seed=0)
-        assert obs[s["fused.valid"]][0] == 1.0 and obs[s["fused.age"]][0] == 0.0
+def test_invalid_estimates_hold_the_last_values_and_age(make_v1) -> None:
+    env = _scripted(make_v1, [1, 1, 0, 0, 0, 1])
+    s = env.obs_slices
+    obs, _ = env.reset(seed=0)
+    assert obs[s["fused.valid"]][0] == 1.0 and obs[s["fused.age"]][0] == 0.0
+    obs, *_ = env.step(np.zeros(4))
+    held = obs[s["fused.position"]].copy()
+    assert np.linalg.norm(held) * POSITION_SCALE == pytest.approx(math.hypot(0.1, 2.0), abs=1e-5)
+    for k in (2, 3, 4):  # invalid: the values of step 1 stay, their age grows
         obs, *_ = env.step(np.zeros(4))
-        held = obs[s["fused.position"]].copy()
-        assert np.linalg.norm(held) * POSITION_SCALE == pytest.approx(math.hypot(0.1, 2.0), abs=1e-5)
-        for k in (2, 3, 4):  # invalid: the values of step 1 stay, their age grows
-            obs, *_ = env.step(np.zeros(4))
-            assert obs[s["fused.valid"]][0] == 0.0
-            assert np.array_equal(obs[s["fused.position"]], held)
-            assert obs[s["fused.age"]][0] == pytest.approx(0.05 * (k - 1))
-        obs, *_ = env.step(np.zeros(4))  # valid again
-        assert obs[s["fused.valid"]][0] == 1.0 and obs[s["fused.age"]][0] == 0.0
-        assert np.linalg.norm(obs[s["fused.position"]]) * POSITION_SCALE == pytest.approx(
-            math.hypot(0.5, 2.0), abs=1e-5
-        )
-    finally:
-        env.close()
-    never = _scripted([0])  # never valid: zeros and the largest age
-    try:
-        obs, _ = never.reset(seed=0)
-        assert np.all(obs[s["fused.position"]] == 0) and obs[s["fused.age"]][0] == MAX_AGE
-    finally:
-        never.close()
+        assert obs[s["fused.valid"]][0] == 0.0
+        assert np.array_equal(obs[s["fused.position"]], held)
+        assert obs[s["fused.age"]][0] == pytest.approx(0.05 * (k - 1))
+    obs, *_ = env.step(np.zeros(4))  # valid again
+    assert obs[s["fused.valid"]][0] == 1.0 and obs[s["fused.age"]][0] == 0.0
+    assert np.linalg.norm(obs[s["fused.position"]]) * POSITION_SCALE == pytest.approx(
+        math.hypot(0.5, 2.0), abs=1e-5
+    )
+    never = _scripted(make_v1, [0])  # never valid: zeros and the largest age
+    obs, _ = never.reset(seed=0)
+    assert np.all(obs[s["fused.position"]] == 0) and obs[s["fused.age"]][0] == MAX_AGE
 
 
-def test_bad_wrapper_options() -> None:
+def test_bad_wrapper_options(make_v1) -> None:
     with pytest.raises(TypeError, match="privileged"):
-        make(privileged="yes")
+        make_v1(privileged="yes")
     with pytest.raises(ValueError, match="privileged"):
-        make(raw=True, privileged=True)
+        make_v1(raw=True, privileged=True)
     with pytest.raises(TypeError, match="max_residual"):
-        make(max_residual="0.01")
-    raw = make(raw=True, camera_model="projected")
-    try:
-        with pytest.raises(TypeError, match="privileged"):
-            LandingObservation(raw, privileged=1)  # type: ignore[arg-type]
-    finally:
-        raw.close()
+        make_v1(max_residual="0.01")
+    raw = make_v1(raw=True, camera_model="projected")
+    with pytest.raises(TypeError, match="privileged"):
+        LandingObservation(raw, privileged=1)  # type: ignore[arg-type]
 
 
-def test_the_tag_is_in_view_at_the_start() -> None:
+def test_the_tag_is_in_view_at_the_start(make_v1) -> None:
     """ATDA (tag corners + K) is valid at reset: on drawn starts and on the worst corner of the start
     region (lowest altitude, largest offset, along the image diagonal)."""
-    env = make()
+    env = make_v1()
     base = env.unwrapped
-    try:
-        s = env.get_wrapper_attr("obs_slices")
-        for seed in range(8):
-            obs, info = env.reset(seed=seed)
-            assert obs[s["atda.valid"]][0] == 1.0, (seed, info["atda_reason"])
-        r = base.start_radius(1.5)
-        for yaw in (math.pi / 4, -3 * math.pi / 4):
-            obs, info = env.reset(seed=0, options={"altitude": 1.5, "offset": (r, 0.0), "yaw": yaw})
-            assert obs[s["atda.valid"]][0] == 1.0, (yaw, info["atda_reason"])
-    finally:
-        env.close()
+    s = env.get_wrapper_attr("obs_slices")
+    for seed in range(8):
+        obs, info = env.reset(seed=seed)
+        assert obs[s["atda.valid"]][0] == 1.0, (seed, info["atda_reason"])
+    r = base.start_radius(1.5)
+    for yaw in (math.pi / 4, -3 * math.pi / 4):
+        obs, info = env.reset(seed=0, options={"altitude": 1.5, "offset": (r, 0.0), "yaw": yaw})
+        assert obs[s["atda.valid"]][0] == 1.0, (yaw, info["atda_reason"])
 
 
-def test_deck_motion_block_tracks_the_deck() -> None:
+def test_deck_motion_block_tracks_the_deck(make_v1) -> None:
     """deck_motion=True appends the fused filter's deck motion (6 values, heading frame): zeros until
     the filter converges, then the deck origin's velocity relative to the drone and the rate of the
     deck normal; with ideal sensors they follow the truth (measured MAE 2-9 mm/s, 0.03 1/s)."""
@@ -264,35 +230,32 @@ def test_deck_motion_block_tracks_the_deck() -> None:
     assert slices["motion"] == slice(50, 56) and slices["all"] == slice(0, 56)
     assert slices["motion.velocity"] == slice(50, 53) and slices["motion.normal_rate"] == slice(53, 56)
     assert np.all(low[50:] == -20.0) and np.all(high[50:] == 20.0)
-    env = make(camera_model="projected", sensor_preset="ideal", deck_motion=True, wind=False)
-    try:
-        sl = env.get_wrapper_attr("obs_slices")
-        world = env.unwrapped.world
-        obs, _ = env.reset(seed=2)
-        assert obs.shape == (56,) and not np.any(obs[sl["motion"]])  # not converged yet
-        est, true, prev = [], [], None
-        for k in range(120):
-            obs, _, terminated, truncated, _ = env.step(np.zeros(4, np.float32))
-            assert not (terminated or truncated)
-            s = world.snapshot()
-            _, R_lw = heading_rotation(s.drone_quaternion)
-            if prev is not None and k >= 40:
-                assert obs[sl["fused.valid"]][0] == 1.0
-                v = (s.deck_position - prev) * 20.0 - s.drone_velocity  # 20 Hz control
-                est.append(obs[sl["motion.velocity"]])
-                true.append(R_lw @ v)
-            prev = s.deck_position.copy()
-    finally:
-        env.close()
+    env = make_v1(camera_model="projected", sensor_preset="ideal", deck_motion=True, wind=False)
+    sl = env.get_wrapper_attr("obs_slices")
+    world = env.unwrapped.world
+    obs, _ = env.reset(seed=2)
+    assert obs.shape == (56,) and not np.any(obs[sl["motion"]])  # not converged yet
+    est, true, prev = [], [], None
+    for k in range(120):
+        obs, _, terminated, truncated, _ = env.step(np.zeros(4, np.float32))
+        assert not (terminated or truncated)
+        s = world.snapshot()
+        _, R_lw = heading_rotation(s.drone_quaternion)
+        if prev is not None and k >= 40:
+            assert obs[sl["fused.valid"]][0] == 1.0
+            v = (s.deck_position - prev) * 20.0 - s.drone_velocity  # 20 Hz control
+            est.append(obs[sl["motion.velocity"]])
+            true.append(R_lw @ v)
+        prev = s.deck_position.copy()
     err = np.abs(np.array(est) - np.array(true)).mean(axis=0)
     assert np.all(err < 0.02), err
     assert np.corrcoef(np.array(est)[:, 2], np.array(true)[:, 2])[0, 1] > 0.8
 
 
-def test_deck_motion_bad_options() -> None:
+def test_deck_motion_bad_options(make_v1) -> None:
     with pytest.raises(ValueError, match="deck_motion needs the fused estimator"):
-        make(camera_model="projected", deck_motion=True, estimators=("ihrcf", "atda"))
+        make_v1(camera_model="projected", deck_motion=True, estimators=("ihrcf", "atda"))
     with pytest.raises(TypeError, match="deck_motion must be True or False"):
-        make(camera_model="projected", deck_motion="yes")
+        make_v1(camera_model="projected", deck_motion="yes")
     with pytest.raises(ValueError, match="deck_motion: observation-wrapper options have no effect"):
-        make(camera_model="projected", deck_motion=True, raw=True)
+        make_v1(camera_model="projected", deck_motion=True, raw=True)

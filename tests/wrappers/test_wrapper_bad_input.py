@@ -17,6 +17,7 @@ from ihrcf_env.core.calibration import Calibration, CalibrationError, default_ca
 from ihrcf_env.envs import deck_landing
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
 from ihrcf_env.wrappers.estimates import DeckPoseObservation
+from tests.conftest import calibration_fields
 
 HOVER_ID = "ihrcf_env/DeckHover-v0"
 
@@ -222,15 +223,7 @@ def test_numbers_of_either_json_kind_are_accepted_where_a_float_belongs(tmp_path
 
 def test_calibration_constructor_checks_types_too():
     cal = Calibration.load(default_calibration_path())
-    kw = dict(
-        image_width=cal.image_width,
-        image_height=cal.image_height,
-        fov=cal.fov,
-        rig=cal.rig,
-        tables=cal.tables,
-        K=cal.K,
-        dist=cal.dist,
-    )
+    kw = calibration_fields(cal)
     assert Calibration(**{**kw, "image_width": np.int64(512)}).image_width == 512
     with pytest.raises(TypeError, match="image_width must be an integer"):
         Calibration(**{**kw, "image_width": 512.7})
