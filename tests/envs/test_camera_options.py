@@ -135,6 +135,6 @@ def test_missing_or_corrupt_detector_model_names_the_file_and_the_fit_command(tm
     path = tmp_path / "model.json"
     if content is not None:
         path.write_text(content)
-    with pytest.raises(Exception, match="fit_detector") as err:
+    with pytest.raises(Exception, match="fit[-_]detector") as err:
         make_config(camera_model="projected", detector_model=str(path))
     assert str(path) in str(err.value)
