@@ -72,7 +72,7 @@ def no_leaks() -> Iterator[None]:
     """Fails the test if it leaves a PyBullet client connected or an env temp dir behind."""
     clients, dirs = connected_clients(), temp_dirs()
     yield
-    assert connected_clients() == clients, "a PyBullet client was left connected"
+    assert connected_clients() <= clients, "a PyBullet client was left connected"
     assert temp_dirs() <= dirs, "an env temporary directory was left behind"
 
 

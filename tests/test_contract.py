@@ -112,7 +112,7 @@ def test_envs_dropped_without_close_release_their_clients() -> None:
         env.reset(seed=seed)
         del env
         gc.collect()
-    assert connected_clients() == clients
+    assert connected_clients() <= clients
     assert temp_dirs() <= dirs
 
 

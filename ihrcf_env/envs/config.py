@@ -534,11 +534,6 @@ def make_config(
     cam_model, cam_output, cam_hz, detector = _camera_options(
         has_camera, camera_model, camera_output, camera_hz, detector_model, rate
     )
-    if not has_camera and not is_raw:
-        raise ValueError(
-            "camera=False leaves IHRCF and ATDA without an image: use camera=True, or raw=True for a "
-            "camera-less simulation"
-        )
     preset_name = check_str("sensor_preset", pick("sensor_preset", sensor_preset), tuple(SENSOR_PRESETS))
     preset = SENSOR_PRESETS[preset_name]
     quality = (
@@ -632,6 +627,11 @@ def make_config(
         max_velocity=max_velocity,
         landing=goal,
     )
+    if not has_camera and not is_raw:
+        raise ValueError(
+            "camera=False leaves IHRCF and ATDA without an image: use camera=True, or raw=True for a "
+            "camera-less simulation"
+        )
     cal = None
     if not is_raw:
         cal = load_calibration(calibration)
