@@ -173,8 +173,8 @@ class ObservationConfig:
     (None when raw or without a camera), checked against the camera; ``keep_image`` / ``flatten``:
     the hover task's wrapper options; ``max_residual`` (m): IHRCF's rigid-fit threshold;
     ``estimators``: registered names, in order; ``fused_params``: the fused filter's parameters
-    (resolved from the ToF model when not given); ``privileged`` / ``deck_motion``: the landing
-    task's flat observation options."""
+    (from :func:`make_config`: resolved from the ToF model when not given); ``privileged`` /
+    ``deck_motion``: the landing task's flat observation options."""
 
     raw: bool = False
     calibration: Calibration | None = None
@@ -182,7 +182,7 @@ class ObservationConfig:
     flatten: bool = False
     max_residual: float = 0.01
     estimators: tuple[str, ...] = DEFAULT_ESTIMATORS
-    fused_params: FusedParams = field(default_factory=FusedParams)
+    fused_params: FusedParams | None = None
     privileged: bool = False
     deck_motion: bool = False
 
@@ -213,9 +213,9 @@ def observation_options(
     fused_params: object = None,
     privileged: object = False,
     deck_motion: object = False,
-) -> tuple[bool, bool | None, bool, float, tuple[str, ...], FusedParams | None, bool, bool]:
-    """The wrapper options' type and range checks (no file read): (raw, keep_image, flatten,
-    max_residual, estimators, fused_params, privileged, deck_motion)."""
+) -> ObservationConfig:
+    """The wrapper options' type and range checks (no file read): an :class:`ObservationConfig`
+    without its calibration, ``fused_params`` None when not given."""
     is_raw = check_bool("raw", raw)
     if calibration is not None and not isinstance(calibration, Calibration | str | os.PathLike):
         raise TypeError(
@@ -252,7 +252,16 @@ def observation_options(
         ]
         if given:
             raise ValueError(f"{', '.join(given)}: observation-wrapper options have no effect with raw=True")
-    return is_raw, keep, flat, residual, names, fused_params, priv, motion
+    return ObservationConfig(
+        raw=is_raw,
+        keep_image=keep,
+        flatten=flat,
+        max_residual=residual,
+        estimators=names,
+        fused_params=fused_params,
+        privileged=priv,
+        deck_motion=motion,
+    )
 
 
 @functools.cache
@@ -493,7 +502,7 @@ def make_config(
     def pick(name: str, value: Any) -> Any:
         return defaults[name] if value is None else value
 
-    is_raw, keep, flat, residual, names, fused, priv, motion = observation_options(
+    obs = observation_options(
         raw=raw,
         calibration=calibration,
         keep_image=keep_image,
@@ -504,6 +513,7 @@ def make_config(
         privileged=privileged,
         deck_motion=deck_motion,
     )
+    is_raw = obs.raw
     given = {
         "success_radius": success_radius,
         "start_in_view": start_in_view,
@@ -522,7 +532,12 @@ def make_config(
         raise ValueError(f"{', '.join(wrong)}: option(s) of the {other} only")
 
     has_camera = check_bool("camera", camera)
-    if has_camera and not is_raw and camera_output is None and (landing or keep is False or flat):
+    if (
+        has_camera
+        and not is_raw
+        and camera_output is None
+        and (landing or obs.keep_image is False or obs.flatten)
+    ):
         camera_output = "corners"  # no image in the observation: the rendered camera renders the tag window
     distortion = check_reals("camera_distortion", camera_distortion, 2, low=-1.0, high=1.0)
     if not has_camera and any(distortion):
@@ -637,16 +652,12 @@ def make_config(
         cal = load_calibration(calibration)
         assert cam is not None
         cal.check_matches(cam.width, cam.height, cam.fov, world.rig, distortion=cam.distortion)
-    observation = ObservationConfig(
-        raw=is_raw,
+    observation = dataclasses.replace(
+        obs,
         calibration=cal,
-        keep_image=keep,
-        flatten=flat,
-        max_residual=residual,
-        estimators=names,
-        fused_params=fused if fused is not None else fused_params_for_tof(tof.model),
-        privileged=priv,
-        deck_motion=motion,
+        fused_params=None
+        if is_raw
+        else (obs.fused_params if obs.fused_params is not None else fused_params_for_tof(tof.model)),
     )
     cfg = DeckLandingConfig(
         world=world,

@@ -189,7 +189,7 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         estimators: Iterable[str] = DEFAULT_ESTIMATORS,
         fused_params: FusedParams | None = None,
     ) -> None:
-        _, keep, flat, residual, names, fused, _, _ = observation_options(
+        opts = observation_options(
             calibration=calibration,
             keep_image=keep_image,
             flatten=flatten,
@@ -200,10 +200,10 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         gym.utils.RecordConstructorArgs.__init__(
             self,
             calibration=calibration,
-            keep_image=keep,
-            flatten=flat,
-            max_residual=residual,
-            estimators=names,
+            keep_image=opts.keep_image,
+            flatten=opts.flatten,
+            max_residual=opts.max_residual,
+            estimators=opts.estimators,
             fused_params=fused_params,
         )
         gym.ObservationWrapper.__init__(self, env)
@@ -217,23 +217,23 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         cal = load_calibration(calibration)
         cal.check_matches(cam.width, cam.height, cam.fov, world.rig, distortion=cam.distortion)
         self.calibration = cal
-        if fused is None:
-            fused = fused_params_for_tof(world.tof.model)
-        self.stage = EstimatorStage(world, cal, names, residual, fused)
+        fused = opts.fused_params if opts.fused_params is not None else fused_params_for_tof(world.tof.model)
+        names = opts.estimators
+        self.stage = EstimatorStage(world, cal, names, opts.max_residual, fused)
         self.estimator: DeckPoseEstimator = self.stage.estimator
         self.estimators: dict[str, DeckPoseSource] = self.stage.sources
         self.pose_keys: tuple[str, ...] = (*names, GROUND_TRUTH)
         self.layout = hover_layout(names, world.tof.max_range)
         self.flat_slices: dict[str, slice] = self.layout.slices
         has_image = world.camera_output == "image"
-        if keep and not has_image:
+        if opts.keep_image and not has_image:
             raise ValueError(
                 f"keep_image=True needs the camera image, but the env delivers only the tag corners "
                 f'(camera_model={world.camera_model!r}, camera_output="corners"): use '
                 'keep_image=False, or camera_model="rendered" with camera_output="image"'
             )
-        self.flatten = flat
-        self.keep_image = has_image and keep is not False and not self.flatten
+        self.flatten = opts.flatten
+        self.keep_image = has_image and opts.keep_image is not False and not self.flatten
         inner = env.observation_space
         if not isinstance(inner, spaces.Dict):
             raise ValueError(f"the env's observation space must be a Dict, got {type(inner).__name__}")

@@ -162,7 +162,7 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         privileged: bool = False,
         deck_motion: bool = False,
     ) -> None:
-        _, _, _, residual, names, fused, priv, motion = observation_options(
+        opts = observation_options(
             calibration=calibration,
             max_residual=max_residual,
             estimators=estimators,
@@ -173,11 +173,11 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         gym.utils.RecordConstructorArgs.__init__(
             self,
             calibration=calibration,
-            max_residual=residual,
-            estimators=names,
+            max_residual=opts.max_residual,
+            estimators=opts.estimators,
             fused_params=fused_params,
-            privileged=priv,
-            deck_motion=motion,
+            privileged=opts.privileged,
+            deck_motion=opts.deck_motion,
         )
         gym.Wrapper.__init__(self, env)
         world = base_config(env).world
@@ -186,16 +186,16 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             raise ValueError("camera=False leaves the estimators without an image: use camera=True")
         cal = load_calibration(calibration)
         cal.check_matches(cam.width, cam.height, cam.fov, world.rig, distortion=cam.distortion)
-        self.stage = EstimatorStage(
-            world, cal, names, residual, fused if fused is not None else fused_params_for_tof(world.tof.model)
-        )
+        fused = opts.fused_params if opts.fused_params is not None else fused_params_for_tof(world.tof.model)
+        names = opts.estimators
+        self.stage = EstimatorStage(world, cal, names, opts.max_residual, fused)
         self.estimators = self.stage.sources
         self.estimator_names: tuple[str, ...] = names
         self.pose_keys: tuple[str, ...] = (*names, GROUND_TRUTH)
-        self.privileged = priv
-        self.deck_motion = motion
+        self.privileged = opts.privileged
+        self.deck_motion = opts.deck_motion
         fused_source = self.stage.sources.get("fused")
-        self._fused = fused_source if motion and isinstance(fused_source, FusedEstimator) else None
+        self._fused = fused_source if opts.deck_motion and isinstance(fused_source, FusedEstimator) else None
         self._max_range = float(world.tof.max_range)
         self.obs_slices, self.obs_scales, low, high = landing_obs_fields(
             self.estimator_names, self._max_range, self.privileged, self.deck_motion

@@ -34,6 +34,7 @@ from ihrcf_env.core.calibration.bounds import (
 )
 from ihrcf_env.core.calibration.tables import RangePixelTable
 from ihrcf_env.core.checks import check_int, check_non_negative, describe, is_int
+from ihrcf_env.core.jsonfile import read_json
 from ihrcf_env.core.paths import assets_dir
 from ihrcf_env.core.rig import SensorRig
 
@@ -56,10 +57,6 @@ def _json_default(o: Any) -> Any:
     if isinstance(o, np.generic):
         return o.item()
     raise TypeError(f"{type(o).__name__} is not JSON serialisable")
-
-
-def _reject_constant(name: str) -> float:
-    raise ValueError(f"non-finite number {name} in JSON")
 
 
 _REQUIRED_KEYS = (
@@ -255,23 +252,7 @@ class Calibration:
     def load(cls, path: str | os.PathLike[str] | Traversable) -> Calibration:
         """Read and validate a calibration file; :class:`CalibrationError` naming the file otherwise."""
         name = str(path)
-        try:
-            if isinstance(path, str | os.PathLike):
-                text = Path(path).read_text(encoding="utf-8")
-            else:
-                text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise CalibrationError(
-                f"{name}: calibration file not found; create one with python -m ihrcf_env.calibrate"
-            ) from None
-        except (OSError, UnicodeDecodeError) as e:
-            raise CalibrationError(f"{name}: cannot read calibration file: {e}") from e
-        try:
-            data = json.loads(text, parse_constant=_reject_constant)
-        except RecursionError:  # json.loads recurses once per nesting level
-            raise CalibrationError(f"{name}: not a valid calibration JSON file: nested too deeply") from None
-        except ValueError as e:
-            raise CalibrationError(f"{name}: not a valid calibration JSON file: {e}") from e
+        data = read_json(path, CalibrationError, "calibration file", "create one with ihrcf-calibrate")
         return cls.from_dict(data, source=name)
 
     def matches(

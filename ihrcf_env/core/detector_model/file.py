@@ -20,6 +20,7 @@ from typing import Any
 from ihrcf_env.core.checks import describe, is_int
 from ihrcf_env.core.detector_model.model import DetectorModel
 from ihrcf_env.core.detector_model.params import QualityParams
+from ihrcf_env.core.jsonfile import read_json
 from ihrcf_env.core.paths import assets_dir
 
 #: The command that (re)makes the detector model file.
@@ -85,22 +86,9 @@ def load_model(path: str | os.PathLike[str] | None = None) -> DetectorModel:
     the fit command when it is missing, unreadable or malformed."""
     p = Path(path) if path is not None else default_detector_model_path()
     redo = f"re-create it with {FIT_COMMAND} --out {p}"
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise DetectorModelError(
-            f"{p}: detector model file not found; create it with {FIT_COMMAND} --out {p}"
-        ) from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise DetectorModelError(f"{p}: cannot read the detector model file ({e}); {redo}") from e
-    try:
-        data = json.loads(text, parse_constant=_reject_constant)
-    except RecursionError:  # json.loads recurses once per nesting level
-        raise DetectorModelError(
-            f"{p}: not a valid detector model file (JSON nested too deeply); {redo}"
-        ) from None
-    except ValueError as e:
-        raise DetectorModelError(f"{p}: not a valid detector model file ({e}); {redo}") from None
+    data = read_json(
+        p, DetectorModelError, "detector model file", f"create it with {FIT_COMMAND} --out {p}", redo
+    )
     try:
         return model_from_dict(data, source=str(p))
     except (ValueError, TypeError) as e:
