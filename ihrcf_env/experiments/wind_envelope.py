@@ -82,11 +82,11 @@ class Envelope:
     def text(self) -> str:
         lines = [f"turbulence {self.results[0].turbulence:g}", "wind m/s  max m  mean m  tilt deg"]
         for r in self.results:
-            lines.append(
-                f"{r.mean_speed:8.1f}  {r.max_offset:5.3f}  {r.mean_offset:6.3f}  {math.degrees(r.max_tilt):8.1f}"
-            )
+            tilt = math.degrees(r.max_tilt)
+            lines.append(f"{r.mean_speed:8.1f}  {r.max_offset:5.3f}  {r.mean_offset:6.3f}  {tilt:8.1f}")
         for tol, speed in self.held.items():
-            lines.append(f"held within {tol:g} m up to {speed:g} m/s" if speed >= 0 else f"never within {tol:g} m")
+            held = f"held within {tol:g} m up to {speed:g} m/s" if speed >= 0 else f"never within {tol:g} m"
+            lines.append(held)
         return "\n".join(lines)
 
 
@@ -101,9 +101,7 @@ def envelope(
 ) -> Envelope:
     """:func:`hold_in_wind` at each mean wind speed (m/s, increasing); a tolerance's wind is the
     last speed before the first one whose offset exceeds it."""
-    results = tuple(
-        hold_in_wind(s, turbulence, seeds, settle_s, measure_s, config=config) for s in speeds
-    )
+    results = tuple(hold_in_wind(s, turbulence, seeds, settle_s, measure_s, config=config) for s in speeds)
     held: dict[float, float] = {}
     for tol in tolerances:
         best = -1.0

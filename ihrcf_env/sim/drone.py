@@ -39,6 +39,7 @@ QUAD_BOUNDS: dict[str, tuple[float, float]] = {
     "max_rotor_speed": (10.0, 1e4),
     "motor_tau": (0.0, 1.0),
     "drag": (0.0, 10.0),
+    "rotor_radius": (0.005, 1.5),
 }
 QUAD_UNITS = {
     "mass": "kg",
@@ -49,6 +50,7 @@ QUAD_UNITS = {
     "max_rotor_speed": "rad/s",
     "motor_tau": "s",
     "drag": "N s/m",
+    "rotor_radius": "m",
 }
 
 
@@ -64,6 +66,10 @@ class QuadParams:
     max_rotor_speed: float = 1000.0  # rad/s -> 4 kf w_max^2 = 23.5 N, thrust-to-weight 2.0
     motor_tau: float = 0.015  # s, rotor speed time constant
     drag: float = 0.08  # N s/m, linear aerodynamic drag
+    #: m, propeller radius (ground effect, :mod:`ihrcf_env.sim.ground_effect`): an 8-inch propeller,
+    #: the largest that clears its neighbour on 0.15 m arms (adjacent hubs 0.212 m apart) and the
+    #: size whose static thrust matches ``kf`` (see docs/flight-model.md)
+    rotor_radius: float = 0.1016
 
     def __post_init__(self) -> None:
         lo, hi = QUAD_BOUNDS["inertia"]
@@ -193,9 +199,14 @@ class Quadrotor:
         pos: tuple[float, ...],
         quat: tuple[float, ...],
         vel: tuple[float, ...],
+        thrust_scale: Sequence[float] | None = None,
     ) -> None:
         """Advance the rotor lag by ``dt`` and apply this physics step's rotor forces and drag
-        (scalar maths: this runs at the physics rate)."""
+        (scalar maths: this runs at the physics rate).
+
+        ``thrust_scale``: per-rotor thrust factors at the same rotor speed (e.g. the ground effect
+        of :class:`~ihrcf_env.sim.ground_effect.GroundEffect`); ``None`` (default) is 1 for all. The
+        rotors' reaction (yaw) torques are not scaled."""
         if dt != self._lag_dt:
             tau = self.params.motor_tau
             self._lag_dt, self._lag = dt, (min(1.0, dt / tau) if tau > 0 else 1.0)
@@ -208,10 +219,13 @@ class Quadrotor:
         f0, f1, f2, f3 = kf * w0 * w0, kf * w1 * w1, kf * w2 * w2, kf * w3 * w3
         (x0, y0), (x1, y1), (x2, y2), (x3, y3) = self._xy_list
         s0, s1, s2, s3 = self._spin_list
+        tz = -(km / kf) * (s0 * f0 + s1 * f1 + s2 * f2 + s3 * f3)
+        if thrust_scale is not None:
+            k0, k1, k2, k3 = thrust_scale
+            f0, f1, f2, f3 = f0 * k0, f1 * k1, f2 * k2, f3 * k3
         thrust = f0 + f1 + f2 + f3
         tx = f0 * y0 + f1 * y1 + f2 * y2 + f3 * y3
         ty = -(f0 * x0 + f1 * x1 + f2 * x2 + f3 * x3)
-        tz = -(km / kf) * (s0 * f0 + s1 * f1 + s2 * f2 + s3 * f3)
         R = p.getMatrixFromQuaternion(quat)
         drag = self.params.drag
         # body z axis and torque in world coordinates
