@@ -27,6 +27,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import pybullet as p
+
 from ihrcf_env.core.checks import check_positive, check_real
 
 #: Default lower bound of the height (in rotor radii) at which the formula is evaluated.
@@ -65,7 +67,7 @@ class GroundEffect:
         self,
         rotors: Sequence[Sequence[float]],
         deck_position: Sequence[float],
-        deck_rotation: Sequence[Sequence[float]],
+        deck_rotation: Sequence[Sequence[float]] | Sequence[float],
         deck_half_extent: float,
     ) -> list[float]:
         """Thrust ratio of each rotor (a list, one per rotor).
@@ -73,19 +75,25 @@ class GroundEffect:
         Args:
             rotors: rotor hub positions (world, m), e.g. from :func:`rotor_positions`.
             deck_position: a point of the deck's top face (world, m), the deck frame origin.
-            deck_rotation: the deck frame's rotation (3x3, world from deck; column 2 the normal of
-                the top face).
+            deck_rotation: the deck frame's rotation (world from deck; column 2 the normal of the
+                top face), as 3 rows of 3 or as 9 numbers row-major (as
+                ``pybullet.getMatrixFromQuaternion`` gives it).
             deck_half_extent: half the side of the deck's square top face (m).
 
         Scalar maths: this runs at the physics rate.
         """
-        cx, cy, cz = (float(v) for v in deck_position)
-        (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = deck_rotation
+        cx, cy, cz = deck_position
+        if len(deck_rotation) == 3:
+            (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = deck_rotation  # type: ignore[misc]
+        else:
+            a00, a01, a02, a10, a11, a12, a20, a21, a22 = deck_rotation
         r, half, ground = self.rotor_radius, float(deck_half_extent), self.ground_height
+        q4, z_min = 0.25 * r, self.min_height_ratio * r
+        inv_2r = 0.5 / r
         out = []
-        for rotor in rotors:
-            px, py, pz = rotor
-            ground_ratio = self.ratio(pz - ground)
+        for px, py, pz in rotors:
+            q = q4 / max(pz - ground, z_min)
+            ground_ratio = 1.0 / (1.0 - q * q)
             # distance to the deck plane along its normal (column 2)
             dx, dy, dz = px - cx, py - cy, pz - cz
             h = dx * a02 + dy * a12 + dz * a22
@@ -93,19 +101,29 @@ class GroundEffect:
                 out.append(ground_ratio)
                 continue
             # the point vertically below the rotor on the deck plane, in deck coordinates
-            t = h / a22
-            qx, qy, qz = dx, dy, dz - t
-            u = qx * a00 + qy * a10 + qz * a20
-            v = qx * a01 + qy * a11 + qz * a21
-            inside = half - max(abs(u), abs(v))  # m, > 0 over the top face
-            cover = min(1.0, max(0.0, 0.5 + inside / (2.0 * r)))
-            if cover == 0.0:
+            qz = dz - h / a22
+            u = dx * a00 + dy * a10 + qz * a20
+            v = dx * a01 + dy * a11 + qz * a21
+            cover = 0.5 + (half - max(abs(u), abs(v))) * inv_2r  # fraction of the disc over the deck
+            if cover <= 0.0:
                 out.append(ground_ratio)
-            elif cover == 1.0:
-                out.append(self.ratio(h))
-            else:
-                out.append(cover * self.ratio(h) + (1.0 - cover) * ground_ratio)
+                continue
+            q = q4 / max(h, z_min)
+            deck_ratio = 1.0 / (1.0 - q * q)
+            out.append(deck_ratio if cover >= 1.0 else cover * deck_ratio + (1.0 - cover) * ground_ratio)
         return out
+
+
+def deck_surface(
+    body_position: Sequence[float], body_quaternion: Sequence[float], half_thickness: float
+) -> tuple[tuple[float, float, float], tuple[float, ...]]:
+    """The deck's top face from its plate body's PyBullet pose: ``(point, rotation)``, the centre of
+    the top face (world, m) and the rotation as 9 numbers row-major, for
+    :meth:`GroundEffect.thrust_scale` (scalar maths, unlike ``Deck.pose``)."""
+    rot = p.getMatrixFromQuaternion(body_quaternion)
+    bx, by, bz = body_position
+    t = half_thickness
+    return (bx + rot[2] * t, by + rot[5] * t, bz + rot[8] * t), rot
 
 
 def rotor_positions(

@@ -129,3 +129,27 @@ def test_thrust_scale_default_is_bit_for_bit_and_scales_the_force() -> None:
         assert tilted[10] > 1e-3  # the left side rises: a positive rate about x
     finally:
         w.close()
+
+
+def test_deck_surface_matches_the_deck_pose() -> None:
+    """The scalar top-face pose the world passes each physics step equals ``Deck.pose()``."""
+    from ihrcf_env.core.profiles import CallableProfile
+    from ihrcf_env.sim.ground_effect import deck_surface
+
+    offset, rpy = np.array([0.02, -0.01, 0.03]), np.array([0.08, -0.05, 0.3])
+    w = World(WorldConfig(camera=None))
+    try:
+        w.reset(CallableProfile(lambda t: (offset, rpy)), horizon_s=2.0, altitude=0.5)
+        w.step()
+        body_pos, body_quat = p.getBasePositionAndOrientation(w.deck.body, physicsClientId=w.client)
+        point, rot = deck_surface(body_pos, body_quat, w.config.deck.thickness / 2)
+        deck_pos, deck_rot = w.deck.pose()
+        np.testing.assert_allclose(point, deck_pos, atol=1e-12)
+        np.testing.assert_allclose(np.reshape(rot, (3, 3)), deck_rot, atol=1e-12)
+        ge = GroundEffect(R)
+        rotors = rotor_positions(*w.drone_pose()[:1], np.reshape(w.drone_pose()[1], 9).tolist(), [(0.1, 0.1)])
+        a = ge.thrust_scale(rotors, point, rot, w.deck.top_half_extent)
+        b = ge.thrust_scale(rotors, deck_pos, deck_rot, w.deck.top_half_extent)
+        assert a == pytest.approx(b, abs=1e-12) and a[0] > 1.0
+    finally:
+        w.close()
