@@ -39,6 +39,7 @@ QUAD_BOUNDS: dict[str, tuple[float, float]] = {
     "max_rotor_speed": (10.0, 1e4),
     "motor_tau": (0.0, 1.0),
     "drag": (0.0, 10.0),
+    "rotor_radius": (0.005, 1.5),
 }
 QUAD_UNITS = {
     "mass": "kg",
@@ -49,6 +50,7 @@ QUAD_UNITS = {
     "max_rotor_speed": "rad/s",
     "motor_tau": "s",
     "drag": "N s/m",
+    "rotor_radius": "m",
 }
 
 
@@ -64,6 +66,10 @@ class QuadParams:
     max_rotor_speed: float = 1000.0  # rad/s -> 4 kf w_max^2 = 23.5 N, thrust-to-weight 2.0
     motor_tau: float = 0.015  # s, rotor speed time constant
     drag: float = 0.08  # N s/m, linear aerodynamic drag
+    #: m, propeller radius (ground effect, :mod:`ihrcf_env.sim.ground_effect`): an 8-inch propeller,
+    #: the largest that clears its neighbour on 0.15 m arms (adjacent hubs 0.212 m apart) and the
+    #: size whose static thrust matches ``kf`` (see docs/flight-model.md)
+    rotor_radius: float = 0.1016
 
     def __post_init__(self) -> None:
         lo, hi = QUAD_BOUNDS["inertia"]
@@ -193,9 +199,14 @@ class Quadrotor:
         pos: tuple[float, ...],
         quat: tuple[float, ...],
         vel: tuple[float, ...],
+        thrust_scale: Sequence[float] | None = None,
     ) -> None:
         """Advance the rotor lag by ``dt`` and apply this physics step's rotor forces and drag
-        (scalar maths: this runs at the physics rate)."""
+        (scalar maths: this runs at the physics rate).
+
+        ``thrust_scale``: per-rotor thrust factors at the same rotor speed (e.g. the ground effect
+        of :class:`~ihrcf_env.sim.ground_effect.GroundEffect`); ``None`` (default) is 1 for all. The
+        rotors' reaction (yaw) torques are not scaled."""
         if dt != self._lag_dt:
             tau = self.params.motor_tau
             self._lag_dt, self._lag = dt, (min(1.0, dt / tau) if tau > 0 else 1.0)
@@ -208,10 +219,13 @@ class Quadrotor:
         f0, f1, f2, f3 = kf * w0 * w0, kf * w1 * w1, kf * w2 * w2, kf * w3 * w3
         (x0, y0), (x1, y1), (x2, y2), (x3, y3) = self._xy_list
         s0, s1, s2, s3 = self._spin_list
+        tz = -(km / kf) * (s0 * f0 + s1 * f1 + s2 * f2 + s3 * f3)
+        if thrust_scale is not None:
+            k0, k1, k2, k3 = thrust_scale
+            f0, f1, f2, f3 = f0 * k0, f1 * k1, f2 * k2, f3 * k3
         thrust = f0 + f1 + f2 + f3
         tx = f0 * y0 + f1 * y1 + f2 * y2 + f3 * y3
         ty = -(f0 * x0 + f1 * x1 + f2 * x2 + f3 * x3)
-        tz = -(km / kf) * (s0 * f0 + s1 * f1 + s2 * f2 + s3 * f3)
         R = p.getMatrixFromQuaternion(quat)
         drag = self.params.drag
         # body z axis and torque in world coordinates
@@ -242,6 +256,8 @@ GAIN_BOUNDS: dict[str, tuple[float, float]] = {
     "k_rate": (0.0, 10.0),
     "leash": (0.01, 100.0),
     "i_limit": (0.0, 100.0),
+    "i_limit_z": (0.0, 100.0),
+    "dob_tau": (0.0, 100.0),
 }
 GAIN_UNITS = {
     "kp_pos": "1/s^2",
@@ -255,12 +271,22 @@ GAIN_UNITS = {
     "k_rate": "N m s/rad",
     "leash": "m",
     "i_limit": "m/s^2",
+    "i_limit_z": "m/s^2",
+    "dob_tau": "s",
 }
 
 
 @dataclass(frozen=True)
 class VelocityGains:
-    """Cascaded controller gains: position/velocity (outer) and attitude/rate (inner)."""
+    """Cascaded controller gains: position/velocity (outer) and attitude/rate (inner).
+
+    The horizontal loop is a PID on the position error plus a disturbance observer's feed-forward
+    (see :class:`VelocityController`). ``i_limit`` is the largest horizontal acceleration (m/s^2)
+    the integral term may command, and the largest disturbance the observer may cancel: the default
+    covers the drag of a 15 m/s wind on the default quadrotor (about 3.6 m/s^2, see
+    ``docs/flight-model.md``) with a margin, and stays below the ``max_tilt`` authority
+    (``g tan(30 deg)`` = 5.7 m/s^2). ``i_limit_z`` bounds the vertical integral term the same way.
+    ``dob_tau`` is the observer's time constant (s); 0 turns the observer off."""
 
     kp_pos: float = 3.0  # 1/s^2
     kd_vel: float = 3.5  # 1/s
@@ -272,7 +298,9 @@ class VelocityGains:
     k_att: tuple[float, float, float] = (4.5, 4.5, 1.6)  # N m / rad
     k_rate: tuple[float, float, float] = (0.38, 0.38, 0.3)  # N m s / rad
     leash: float = 0.5  # m, max position error before the set-point is dragged along
-    i_limit: float = 2.0  # m/s^2, integrator clamp
+    i_limit: float = 5.0  # m/s^2, horizontal integral term and disturbance estimate clamp
+    i_limit_z: float = 2.0  # m/s^2, vertical integral term clamp
+    dob_tau: float = 0.4  # s, disturbance observer time constant (0: off)
 
     def __post_init__(self) -> None:
         for name in ("k_att", "k_rate"):
@@ -293,17 +321,42 @@ class VelocityController:
     autopilot's position-hold mode does); the error to it is limited to ``leash``. The position
     held is that of the ``pos`` given to :meth:`compute`: with a drifting navigation estimate the
     drone drifts with it.
+
+    Horizontally the commanded acceleration is ``kp e + kd (v_c - v) + ki I - d_hat``:
+
+    * ``I``, the integral of the position error, is limited so that ``ki |I| <= i_limit`` and is
+      frozen while the tilt limit clips the command and the error would push further into it
+      (conditional integration: no wind-up while saturated);
+    * ``d_hat`` (:attr:`disturbance`, m/s^2, world x/y) is a disturbance observer's estimate of the
+      unmodelled horizontal acceleration (wind, drag, a side load): the acceleration measured by
+      differencing the velocity feedback minus the one the autopilot commanded (its own collective
+      thrust, through a model of the motor lag, along the measured body z axis), low-pass filtered
+      with time constant ``dob_tau``, magnitude at most ``i_limit``. It uses only what the autopilot
+      sees (its velocity feedback, its attitude and its own commands), never the wind itself.
     """
 
     def __init__(self, quad: Quadrotor, gains: VelocityGains | None = None) -> None:
         self.quad = quad
         self.gains = gains if gains is not None else VelocityGains()
+        tau = quad.params.motor_tau
+        self._lag_dt = math.nan  # compute(): the motor lag factor of the last dt
+        self._lag = 1.0
+        self._motor_tau = tau
         self.reset(np.zeros(3), 0.0)
 
     def reset(self, position: NDArray[np.float64], yaw: float) -> None:
+        """Hold ``position`` (world, m) and heading ``yaw`` (rad); integrals and the disturbance
+        estimate start from zero."""
         self.p_ref = [float(x) for x in position]
         self.yaw_ref = float(yaw)
         self.integral = [0.0, 0.0, 0.0]
+        #: the disturbance observer's estimate (m/s^2, world x, y)
+        self.disturbance = [0.0, 0.0]
+        self._v_prev: tuple[float, float] | None = None
+        self._thrust_model = self.quad.params.mass * GRAVITY  # N, collective thrust through the lag model
+        self._a_model = (0.0, 0.0)  # m/s^2, horizontal acceleration commanded at the last step
+        self._saturated = False  # the tilt limit clipped the last command
+        self._f_cmd = (0.0, 0.0)  # m/s^2, the last horizontal acceleration command (after the clip)
 
     def compute(
         self,
@@ -338,20 +391,50 @@ class VelocityController:
             e0, e1, e2 = e0 * k, e1 * k, e2 * k
             pr[0], pr[1], pr[2] = pos[0] + e0, pos[1] + e1, pos[2] + e2
         integ = self.integral
-        lim_i = g.i_limit
-        i0 = integ[0] = min(lim_i, max(-lim_i, integ[0] + e0 * dt))
-        i1 = integ[1] = min(lim_i, max(-lim_i, integ[1] + e1 * dt))
-        i2 = integ[2] = min(lim_i, max(-lim_i, integ[2] + e2 * dt))
         kp, kd, ki = g.kp_pos, g.kd_vel, g.ki_pos
-        fx = kp * e0 + kd * (vc0 - vel[0]) + ki * i0
-        fy = kp * e1 + kd * (vc1 - vel[1]) + ki * i1
+        lim_i = g.i_limit
+        # horizontal integral: conditional integration (frozen while the tilt limit clips the
+        # command and the error points further into the clipped direction), norm-limited
+        if ki > 0.0:
+            if not self._saturated or e0 * self._f_cmd[0] + e1 * self._f_cmd[1] <= 0.0:
+                i0, i1 = integ[0] + e0 * dt, integ[1] + e1 * dt
+                cap = lim_i / ki
+                ni = math.hypot(i0, i1)
+                if ni > cap:
+                    i0, i1 = i0 * cap / ni, i1 * cap / ni
+                integ[0], integ[1] = i0, i1
+        else:
+            integ[0] = integ[1] = 0.0
+        i0, i1 = integ[0], integ[1]
+        if g.ki_z > 0.0:
+            cap_z = g.i_limit_z / g.ki_z
+            i2 = integ[2] = min(cap_z, max(-cap_z, integ[2] + e2 * dt))
+        else:
+            i2 = integ[2] = 0.0
+        # disturbance observer: measured minus commanded horizontal acceleration, low-passed
+        d0, d1 = self.disturbance
+        if g.dob_tau > 0.0:
+            vp = self._v_prev
+            if vp is not None:
+                k = dt / (g.dob_tau + dt)
+                d0 += k * ((vel[0] - vp[0]) / dt - self._a_model[0] - d0)
+                d1 += k * ((vel[1] - vp[1]) / dt - self._a_model[1] - d1)
+                nd = math.hypot(d0, d1)
+                if nd > lim_i:
+                    d0, d1 = d0 * lim_i / nd, d1 * lim_i / nd
+                self.disturbance = [d0, d1]
+            self._v_prev = (vel[0], vel[1])
+        fx = kp * e0 + kd * (vc0 - vel[0]) + ki * i0 - d0
+        fy = kp * e1 + kd * (vc1 - vel[1]) + ki * i1 - d1
         acc_z = g.kp_z * e2 + g.kd_z * (vc2 - vel[2]) + g.ki_z * i2
         # thrust vector with tilt limit
         fz = max(acc_z + GRAVITY, 0.2 * GRAVITY)
         lim = fz * math.tan(g.max_tilt)
         nxy = math.hypot(fx, fy)
-        if nxy > lim:
+        self._saturated = nxy > lim
+        if self._saturated:
             fx, fy = fx * lim / nxy, fy * lim / nxy
+        self._f_cmd = (fx, fy)
         F0, F1, F2 = m * fx, m * fy, m * fz
         self.yaw_ref = math.remainder(self.yaw_ref + sp_r * dt, 2 * math.pi)
         nF = math.sqrt(F0 * F0 + F1 * F1 + F2 * F2)
@@ -383,4 +466,18 @@ class VelocityController:
             -ka1 * e_R1 - kr1 * (wb1 - sp_r * r21) + (wb2 * Jw0 - wb0 * Jw2),
             -ka2 * e_R2 - kr2 * (wb2 - sp_r * r22) + (wb0 * Jw1 - wb1 * Jw0),
         )
-        return self.quad.wrench_to_speeds(thrust, torque)
+        speeds = self.quad.wrench_to_speeds(thrust, torque)
+        if g.dob_tau > 0.0:
+            # the horizontal acceleration this command gives: the collective thrust of the rotor
+            # speed commands through the motor lag, along the body z axis now
+            if dt != self._lag_dt:
+                tau = self._motor_tau
+                self._lag_dt, self._lag = dt, (min(1.0, dt / tau) if tau > 0 else 1.0)
+            w0, w1, w2, w3 = speeds
+            t_cmd = self.quad.params.kf * (w0 * w0 + w1 * w1 + w2 * w2 + w3 * w3)
+            # the lag acts on rotor speed (thrust ~ w^2): lag the square root of the thrust
+            s_model = math.sqrt(self._thrust_model)
+            s_model += self._lag * (math.sqrt(t_cmd) - s_model)
+            self._thrust_model = s_model * s_model
+            self._a_model = (self._thrust_model * r02 / m, self._thrust_model * r12 / m)
+        return speeds
