@@ -14,6 +14,7 @@ from ihrcf_env.core.profiles import PROFILE_NAMES, make_profile
 from ihrcf_env.core.quiescence import (
     QuiescenceThresholds,
     energy_index,
+    heave_energy_bound,
     quiescent_fraction,
     quiescent_mask,
     quiescent_periods,
@@ -269,6 +270,15 @@ def test_quiescence_is_froude_consistent_and_energy_index_is_low_when_quiescent(
     mask = quiescent_mask(t_m, off_m, rpy_m, th.scaled(lam))
     e = energy_index(t_m, off_m, rpy_m, th.scaled(lam))
     assert np.median(e[mask]) < 2.0 < np.median(e[~mask])
+
+
+def test_heave_energy_bound_is_the_amplitude_of_a_sinusoidal_heave():
+    t = np.linspace(0.0, 10.0, 501)
+    z, vz = 0.7 * np.sin(1.3 * t + 0.2), 0.7 * 1.3 * np.cos(1.3 * t + 0.2)
+    np.testing.assert_allclose(heave_energy_bound(z, vz, 1.3), 0.7, rtol=1e-12)
+    assert heave_energy_bound(z, vz, 2.6).min() < 0.69  # the wrong frequency misjudges it
+    with pytest.raises(ValueError, match="omega"):
+        heave_energy_bound(z, vz, 0.0)
 
 
 def test_bad_thresholds_are_refused():
