@@ -359,15 +359,19 @@ class ShiftedProfile(MotionProfile):
 #: Duration (s) of the "paper" run; random deck start times are drawn in [0, PAPER_DURATION).
 PAPER_DURATION = 130.0
 
-PROFILE_NAMES: tuple[str, ...] = ("paper", "sea_state", "static")
+PROFILE_NAMES: tuple[str, ...] = ("paper", "sea_state", "static", "ship")
 
 
 def make_profile(
     spec: str | Callable[[float], object] | MotionProfile,
     rng: np.random.Generator,
     amplitudes: Mapping[str, float] | None = None,
+    ship: object = None,
 ) -> MotionProfile:
-    """Build a profile from a name in :data:`PROFILE_NAMES`, a callable or a profile instance."""
+    """Build a profile from a name in :data:`PROFILE_NAMES`, a callable or a profile instance.
+    ``"ship"``: a ship's deck (:func:`ihrcf_env.core.ship.ship_profile`) with the options
+    ``ship`` (a :class:`~ihrcf_env.core.ship.ShipOptions`, a dict of its fields, or None for the
+    defaults)."""
     if isinstance(spec, MotionProfile):
         return spec
     if isinstance(spec, str):
@@ -377,5 +381,9 @@ def make_profile(
             return sea_state_profile(rng, amplitudes)
         if spec == "static":
             return StaticProfile()
+        if spec == "ship":
+            from ihrcf_env.core.ship import ship_profile  # the ship module builds on this one
+
+            return ship_profile(rng, ship)  # type: ignore[arg-type]
         raise ValueError(f"deck_profile must be one of {PROFILE_NAMES} or a callable, got {spec!r}")
     return CallableProfile(spec)
