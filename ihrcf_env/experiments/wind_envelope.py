@@ -19,6 +19,7 @@ import numpy as np
 
 from ihrcf_env.core.profiles import StaticProfile
 from ihrcf_env.sim.disturbances import Wind, WindParams
+from ihrcf_env.sim.drone import VelocityGains
 from ihrcf_env.sim.world import World, WorldConfig
 
 
@@ -45,7 +46,7 @@ def hold_in_wind(
     """Hover with a zero command in a wind of ``mean_speed`` (m/s) and ``turbulence`` (Dryden scale,
     0: steady) for ``settle_s + measure_s`` seconds, once per seed (each seed draws the wind
     direction and the gusts). ``altitude`` (m) is the start height above the deck."""
-    cfg = config if config is not None else WorldConfig(camera=None)
+    cfg = config if config is not None else WorldConfig(camera=None, gains=VelocityGains(wind_hold=True))
     world = World(cfg)
     try:
         wind = Wind(WindParams(mean_speed_min=mean_speed, mean_speed_max=mean_speed, turbulence=turbulence))

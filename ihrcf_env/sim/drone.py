@@ -24,7 +24,7 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
-from ihrcf_env.core.checks import check_fields, check_reals, set_field
+from ihrcf_env.core.checks import check_bool, check_fields, check_reals, set_field
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.sim.assets import asset_path
 
@@ -276,6 +276,10 @@ GAIN_UNITS = {
 }
 
 
+#: Integral state clamp (m s) of the classic loop (``VelocityGains.wind_hold=False``).
+CLASSIC_I_CLAMP = 2.0
+
+
 @dataclass(frozen=True)
 class VelocityGains:
     """Cascaded controller gains: position/velocity (outer) and attitude/rate (inner).
@@ -301,6 +305,9 @@ class VelocityGains:
     i_limit: float = 5.0  # m/s^2, horizontal integral term and disturbance estimate clamp
     i_limit_z: float = 2.0  # m/s^2, vertical integral term clamp
     dob_tau: float = 0.4  # s, disturbance observer time constant (0: off)
+    #: the wind-holding loop (anti-windup + disturbance observer); False: the classic loop, a
+    #: per-axis integrator clamp of :data:`CLASSIC_I_CLAMP` (m s) and no observer
+    wind_hold: bool = False
 
     def __post_init__(self) -> None:
         for name in ("k_att", "k_rate"):
@@ -308,6 +315,7 @@ class VelocityGains:
             set_field(
                 self, name, check_reals(f"VelocityGains.{name}", getattr(self, name), 3, low=lo, high=hi)
             )
+        set_field(self, "wind_hold", check_bool("VelocityGains.wind_hold", self.wind_hold))
         scalars = {k: v for k, v in GAIN_BOUNDS.items() if k not in ("k_att", "k_rate")}
         check_fields(self, lambda f: f"VelocityGains.{f}", scalars, GAIN_UNITS)
 
@@ -392,47 +400,54 @@ class VelocityController:
             pr[0], pr[1], pr[2] = pos[0] + e0, pos[1] + e1, pos[2] + e2
         integ = self.integral
         kp, kd, ki = g.kp_pos, g.kd_vel, g.ki_pos
-        lim_i = g.i_limit
-        # horizontal integral: conditional integration (frozen while the tilt limit clips the
-        # command and the error points further into the clipped direction), norm-limited
-        if ki > 0.0:
-            if not self._saturated or e0 * self._f_cmd[0] + e1 * self._f_cmd[1] <= 0.0:
-                i0, i1 = integ[0] + e0 * dt, integ[1] + e1 * dt
-                cap = lim_i / ki
-                ni = math.hypot(i0, i1)
-                if ni > cap:
-                    i0, i1 = i0 * cap / ni, i1 * cap / ni
-                integ[0], integ[1] = i0, i1
+        if not g.wind_hold:  # the classic loop (DeckHover-v0, DeckLanding-v1), unchanged
+            i0 = integ[0] = min(CLASSIC_I_CLAMP, max(-CLASSIC_I_CLAMP, integ[0] + e0 * dt))
+            i1 = integ[1] = min(CLASSIC_I_CLAMP, max(-CLASSIC_I_CLAMP, integ[1] + e1 * dt))
+            i2 = integ[2] = min(CLASSIC_I_CLAMP, max(-CLASSIC_I_CLAMP, integ[2] + e2 * dt))
+            fx = kp * e0 + kd * (vc0 - vel[0]) + ki * i0
+            fy = kp * e1 + kd * (vc1 - vel[1]) + ki * i1
         else:
-            integ[0] = integ[1] = 0.0
-        i0, i1 = integ[0], integ[1]
-        if g.ki_z > 0.0:
-            cap_z = g.i_limit_z / g.ki_z
-            i2 = integ[2] = min(cap_z, max(-cap_z, integ[2] + e2 * dt))
-        else:
-            i2 = integ[2] = 0.0
-        # disturbance observer: measured minus commanded horizontal acceleration, low-passed
-        d0, d1 = self.disturbance
-        if g.dob_tau > 0.0:
-            vp = self._v_prev
-            if vp is not None:
-                k = dt / (g.dob_tau + dt)
-                d0 += k * ((vel[0] - vp[0]) / dt - self._a_model[0] - d0)
-                d1 += k * ((vel[1] - vp[1]) / dt - self._a_model[1] - d1)
-                nd = math.hypot(d0, d1)
-                if nd > lim_i:
-                    d0, d1 = d0 * lim_i / nd, d1 * lim_i / nd
-                self.disturbance = [d0, d1]
-            self._v_prev = (vel[0], vel[1])
-        fx = kp * e0 + kd * (vc0 - vel[0]) + ki * i0 - d0
-        fy = kp * e1 + kd * (vc1 - vel[1]) + ki * i1 - d1
+            lim_i = g.i_limit
+            # horizontal integral: conditional integration (frozen while the tilt limit clips the
+            # command and the error points further into the clipped direction), norm-limited
+            if ki > 0.0:
+                if not self._saturated or e0 * self._f_cmd[0] + e1 * self._f_cmd[1] <= 0.0:
+                    i0, i1 = integ[0] + e0 * dt, integ[1] + e1 * dt
+                    cap = lim_i / ki
+                    ni = math.hypot(i0, i1)
+                    if ni > cap:
+                        i0, i1 = i0 * cap / ni, i1 * cap / ni
+                    integ[0], integ[1] = i0, i1
+            else:
+                integ[0] = integ[1] = 0.0
+            i0, i1 = integ[0], integ[1]
+            if g.ki_z > 0.0:
+                cap_z = g.i_limit_z / g.ki_z
+                i2 = integ[2] = min(cap_z, max(-cap_z, integ[2] + e2 * dt))
+            else:
+                i2 = integ[2] = 0.0
+            # disturbance observer: measured minus commanded horizontal acceleration, low-passed
+            d0, d1 = self.disturbance
+            if g.dob_tau > 0.0:
+                vp = self._v_prev
+                if vp is not None:
+                    k = dt / (g.dob_tau + dt)
+                    d0 += k * ((vel[0] - vp[0]) / dt - self._a_model[0] - d0)
+                    d1 += k * ((vel[1] - vp[1]) / dt - self._a_model[1] - d1)
+                    nd = math.hypot(d0, d1)
+                    if nd > lim_i:
+                        d0, d1 = d0 * lim_i / nd, d1 * lim_i / nd
+                    self.disturbance = [d0, d1]
+                self._v_prev = (vel[0], vel[1])
+            fx = kp * e0 + kd * (vc0 - vel[0]) + ki * i0 - d0
+            fy = kp * e1 + kd * (vc1 - vel[1]) + ki * i1 - d1
         acc_z = g.kp_z * e2 + g.kd_z * (vc2 - vel[2]) + g.ki_z * i2
         # thrust vector with tilt limit
         fz = max(acc_z + GRAVITY, 0.2 * GRAVITY)
         lim = fz * math.tan(g.max_tilt)
         nxy = math.hypot(fx, fy)
-        self._saturated = nxy > lim
-        if self._saturated:
+        self._saturated = nxy > lim and g.wind_hold
+        if nxy > lim:
             fx, fy = fx * lim / nxy, fy * lim / nxy
         self._f_cmd = (fx, fy)
         F0, F1, F2 = m * fx, m * fy, m * fz
@@ -467,7 +482,7 @@ class VelocityController:
             -ka2 * e_R2 - kr2 * (wb2 - sp_r * r22) + (wb0 * Jw1 - wb1 * Jw0),
         )
         speeds = self.quad.wrench_to_speeds(thrust, torque)
-        if g.dob_tau > 0.0:
+        if g.wind_hold and g.dob_tau > 0.0:
             # the horizontal acceleration this command gives: the collective thrust of the rotor
             # speed commands through the motor lag, along the body z axis now
             if dt != self._lag_dt:

@@ -48,7 +48,7 @@ def test_the_disturbance_estimate_is_the_drag_and_uses_no_wind() -> None:
     """The observer's estimate converges to the wind's acceleration (drag / mass), from the
     autopilot's own feedback; with the observer off the integral term carries it."""
     speed = 10.0
-    for gains in (VelocityGains(), VelocityGains(dob_tau=0.0)):
+    for gains in (VelocityGains(wind_hold=True), VelocityGains(wind_hold=True, dob_tau=0.0)):
         w = World(WorldConfig(camera=None, gains=gains))
         try:
             wind = Wind(WindParams(mean_speed_min=speed, mean_speed_max=speed, turbulence=0.0))
@@ -74,7 +74,7 @@ def test_the_disturbance_estimate_is_the_drag_and_uses_no_wind() -> None:
 def test_no_integral_wind_up_while_the_tilt_limit_clips() -> None:
     """A side load beyond the tilt authority (8 N on 1.2 kg: 6.7 m/s^2 > g tan 30 deg): the
     integral stops growing while the command is clipped, instead of winding to its clamp."""
-    gains = VelocityGains(dob_tau=0.0)
+    gains = VelocityGains(wind_hold=True, dob_tau=0.0)
     w = World(WorldConfig(camera=None, gains=gains))
     try:
         w.add_disturbance(ConstantForce((8.0, 0.0, 0.0)))
@@ -103,3 +103,14 @@ def test_bad_gains_are_refused() -> None:
         VelocityGains(dob_tau=-1.0)
     with pytest.raises(ValueError, match="i_limit_z"):
         VelocityGains(i_limit_z=1e9)
+
+
+def test_the_classic_loop_is_the_default_and_drifts_in_a_fresh_breeze() -> None:
+    """Existing tasks keep their autopilot: the classic loop saturates its integrator at 12 m/s."""
+    from ihrcf_env.sim.world import WorldConfig
+
+    assert VelocityGains().wind_hold is False
+    classic = hold_in_wind(
+        12.0, turbulence=0.0, settle_s=10.0, measure_s=3.0, config=WorldConfig(camera=None)
+    )
+    assert classic.max_offset > 0.5
