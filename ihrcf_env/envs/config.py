@@ -61,6 +61,7 @@ from ihrcf_env.core.checks import (
 )
 from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedParams, check_estimator_names
 from ihrcf_env.core.profiles import check_sea_state_amplitudes
+from ihrcf_env.core.ship import ShipOptions
 from ihrcf_env.envs.task_config import (
     ARENA_MARGIN,
     CEILING_MARGIN,
@@ -76,6 +77,7 @@ from ihrcf_env.envs.task_config import (
 )
 from ihrcf_env.sim.deck import DeckConfig
 from ihrcf_env.sim.disturbances import Disturbance, WindParams
+from ihrcf_env.sim.drone import VelocityGains
 from ihrcf_env.sim.navigation import FEEDBACK_MODES, NavigationConfig, NavigationErrors
 from ihrcf_env.sim.registry import check_measurement_noise, check_sensor_names
 from ihrcf_env.sim.sensors import TOF_PRESETS, CameraConfig, ToFConfig
@@ -152,6 +154,9 @@ LANDING_OPTIONS: tuple[str, ...] = (
 )
 #: Options of the hover task only (its observation wrapper's).
 HOVER_OPTIONS: tuple[str, ...] = ("keep_image", "flatten")
+#: ``autopilot``: the classic position loop, or the wind-holding one (anti-windup and a
+#: disturbance observer, :class:`~ihrcf_env.sim.drone.VelocityController`).
+AUTOPILOTS: tuple[str, ...] = ("classic", "wind_hold")
 #: Largest IHRCF rigid-fit residual threshold (m).
 MAX_RESIDUAL = 1.0
 
@@ -445,9 +450,12 @@ def make_config(
     task: str = "hover",
     render_mode: str | None = None,
     action_mode: str = "velocity",
+    autopilot: str = "classic",
+    ground_effect: bool = False,
     control_hz: int = 20,
     deck_profile: ProfileSpec | None = None,
     sea_state_amplitudes: Mapping[str, float] | None = None,
+    ship: ShipOptions | Mapping[str, Any] | None = None,
     random_deck_start: bool | None = None,
     camera: bool = True,
     camera_width: int = 512,
@@ -598,6 +606,8 @@ def make_config(
     )
     extra = check_sensor_names(sensors)
     world = WorldConfig(
+        gains=VelocityGains(wind_hold=check_str("autopilot", autopilot, AUTOPILOTS) == "wind_hold"),
+        ground_effect=check_bool("ground_effect", ground_effect),
         control_hz=rate,
         action_mode=check_str("action_mode", action_mode, ACTION_MODES),
         camera=cam,
@@ -638,6 +648,7 @@ def make_config(
             sea_state_amplitudes,
             pick("random_deck_start", random_deck_start),
             DEFAULT_HORIZON_S if horizon_s is None else horizon_s,
+            ship,  # type: ignore[arg-type]  # checked, made ShipOptions
         ),
         max_velocity=max_velocity,
         landing=goal,

@@ -22,9 +22,11 @@ from ihrcf_env.core.checks import (
     check_real,
     check_reals,
     check_str,
+    from_fields,
     set_field,
 )
 from ihrcf_env.core.profiles import PROFILE_NAMES, MotionProfile, make_profile, sea_state_amplitudes
+from ihrcf_env.core.ship import ShipOptions
 
 #: Seconds of deck motion checked against the legs' stroke at reset when ``horizon_s`` is None.
 DEFAULT_HORIZON_S = 600.0
@@ -172,14 +174,17 @@ ProfileSpec = str | Callable[[float], Any] | MotionProfile
 @dataclass(frozen=True)
 class DeckMotion:
     """How the deck moves. Options ``deck_profile``, ``sea_state_amplitudes`` (only with
-    ``"sea_state"``), ``random_deck_start`` (start at a seeded time in [0, 130) s of the profile)
-    and ``horizon_s`` (seconds of motion checked against the legs' stroke at reset; beyond it the
-    deck stops rather than fail mid-episode)."""
+    ``"sea_state"``), ``ship`` (:class:`~ihrcf_env.core.ship.ShipOptions` or a dict of its fields,
+    only with ``"ship"``: sea state, vessel, heading, speed, Froude scale), ``random_deck_start``
+    (start at a seeded time in [0, 130) s of the profile) and ``horizon_s`` (seconds of motion
+    checked against the legs' stroke at reset; beyond it the deck stops rather than fail
+    mid-episode)."""
 
     profile: ProfileSpec = "paper"
     sea_state_amplitudes: Mapping[str, float] | None = None
     random_start: bool = False
     horizon_s: float = DEFAULT_HORIZON_S
+    ship: ShipOptions | None = None
 
     def __post_init__(self) -> None:
         prof = self.profile
@@ -198,13 +203,20 @@ class DeckMotion:
                 )
             sea_state_amplitudes(self.sea_state_amplitudes)  # types, names, signs
             set_field(self, "sea_state_amplitudes", dict(self.sea_state_amplitudes))
+        if self.ship is not None:
+            if prof != "ship":
+                raise ValueError(
+                    f"ship is only used with deck_profile='ship', got deck_profile={prof!r}: drop it or "
+                    "choose 'ship'"
+                )
+            set_field(self, "ship", from_fields("ship", ShipOptions, self.ship))
         set_field(self, "random_start", check_bool("random_deck_start", self.random_start))
         h = check_positive("horizon_s", self.horizon_s, "s", high=MAX_HORIZON_S)
         set_field(self, "horizon_s", h)
 
     def make_profile(self, rng: np.random.Generator) -> MotionProfile:
         """This episode's profile (a sea state draws its periods and phases from ``rng``)."""
-        return make_profile(self.profile, rng, self.sea_state_amplitudes)
+        return make_profile(self.profile, rng, self.sea_state_amplitudes, ship=self.ship)
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,7 @@ from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.sim.deck import Deck, DeckConfig, DeckTrajectory, rigid_point_velocity
 from ihrcf_env.sim.disturbances import Disturbance, disturbance_force
 from ihrcf_env.sim.drone import QuadParams, Quadrotor, VelocityController, VelocityGains
+from ihrcf_env.sim.ground_effect import GroundEffect, deck_surface, rotor_positions
 from ihrcf_env.sim.navigation import Navigation, NavigationConfig, make_navigation
 from ihrcf_env.sim.sensors import IMU, BodyState, CameraConfig, DownCamera, Sensor, ToFArray, ToFConfig
 from ihrcf_env.sim.sensors.base import TAG_CAMERA
@@ -78,6 +79,8 @@ class WorldConfig:
     camera_output: str = "image"
     camera_hz: int | None = None  # None: every control step
     detector_model: DetectorModel | None = None  # "projected": the fitted model (None: the shipped one)
+    #: per-rotor ground effect over the deck and the ground (:mod:`ihrcf_env.sim.ground_effect`)
+    ground_effect: bool = False
     #: registered sensors (:mod:`ihrcf_env.sim.registry`) read after the built-in ones
     extra_sensors: tuple[str, ...] = ()
     #: (measurement, registered noise model) pairs applied to the readings
@@ -231,6 +234,8 @@ class World:
         for name in CAMERA_SENSORS:
             if name in self.sensors:
                 self.sensors[name].update_interval = cfg.camera_every  # type: ignore[attr-defined]
+        self.ground_effect = GroundEffect(cfg.quad.rotor_radius) if cfg.ground_effect else None
+        self._motor_xy = cfg.quad.motor_xy.tolist()
         self.disturbances: list[Disturbance] = []
         self.tick = 0
         self._held: dict[str, dict[str, NDArray]] = {}  # sensor -> its last reading
@@ -396,6 +401,7 @@ class World:
         prev_vel: tuple[float, ...] = (0.0, 0.0, 0.0)
         body = quad.body
         get_pose, get_velocity = p.getBasePositionAndOrientation, p.getBaseVelocity
+        half_thickness = self.config.deck.thickness / 2
         for _ in range(self.config.substeps):
             deck.drive(self.tick)
             pos, quat = get_pose(body, physicsClientId=cid)  # quad.state(), inlined
@@ -407,7 +413,13 @@ class World:
             else:  # position/velocity loops on the navigation estimate, attitude loop on the truth
                 pos_est, vel_est = nav.estimate(self.tick * dt, pos, vel)
                 cmd = ctrl.compute(self._setpoint, dt, pos_est, quat, vel_est, omega)
-            quad.apply(cmd, dt, pos, quat, vel)
+            scale = None
+            if self.ground_effect is not None:
+                deck_pos, deck_quat = get_pose(deck.body, physicsClientId=cid)
+                point, rot = deck_surface(deck_pos, deck_quat, half_thickness)
+                rotors = rotor_positions(pos, p.getMatrixFromQuaternion(quat), self._motor_xy)
+                scale = self.ground_effect.thrust_scale(rotors, point, rot, deck.top_half_extent)
+            quad.apply(cmd, dt, pos, quat, vel, thrust_scale=scale)
             if disturbances:
                 t = self.tick * dt
                 fx = fy = fz = 0.0

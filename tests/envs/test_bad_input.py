@@ -462,6 +462,10 @@ BAD_OPTIONS = [
     ({"reward_weights": {}}, ValueError, "reward_weights"),
     ({"wind": "strong"}, TypeError, "wind"),
     ({"sensors": "altimeter"}, TypeError, "sensors"),
+    ({"autopilot": "px4"}, ValueError, "autopilot"),
+    ({"ground_effect": 1}, TypeError, "ground_effect"),
+    ({"ship": {"sea_state": 4}}, ValueError, "ship"),  # only with deck_profile="ship"
+    ({"ship": {"sea_state": 99}, "deck_profile": "ship"}, ValueError, "ship"),
     ({"sensors": ("lidar",)}, ValueError, "sensors"),
     ({"measurement_noise": ["ranges"]}, TypeError, "measurement_noise"),
     ({"measurement_noise": {"ranges": "hail"}}, ValueError, "measurement_noise"),

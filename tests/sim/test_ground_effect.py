@@ -153,3 +153,22 @@ def test_deck_surface_matches_the_deck_pose() -> None:
         assert a == pytest.approx(b, abs=1e-12) and a[0] > 1.0
     finally:
         w.close()
+
+
+def test_the_world_applies_ground_effect_when_asked() -> None:
+    """A drone resting its rotors ~1 R above the deck gets more thrust with ground_effect on: with
+    the same commands it climbs away from the deck, and the option is off by default."""
+    from ihrcf_env.core.profiles import StaticProfile
+
+    heights = []
+    for flag in (False, True):
+        w = World(WorldConfig(camera=None, ground_effect=flag))
+        try:
+            w.reset(StaticProfile(), 10.0, altitude=0.13)
+            for _ in range(20):
+                w.step()
+            heights.append(w.snapshot().drone_position[2])
+        finally:
+            w.close()
+    assert WorldConfig().ground_effect is False
+    assert heights[1] > heights[0] + 0.005
