@@ -7,7 +7,9 @@ without importing PyBullet:
 
 * ``ihrcf_env/DeckHover-v0``: the paper's hover-and-track experiment (estimates beside ground truth);
 * ``ihrcf_env/DeckHoverRaw-v0``: its raw env (camera, ToF, IMU; no estimators);
-* ``ihrcf_env/DeckLanding-v1``: the landing task (flat RL observation; ``raw=True`` for the raw env).
+* ``ihrcf_env/DeckLanding-v1``: the landing task (flat RL observation; ``raw=True`` for the raw env);
+* ``ihrcf_env/DeckLanding-v2``: the landing task in a ship's motion, wind and ground effect, graded
+  by ``level`` (``"calm"``, ``"moderate"``, ``"rough"``).
 
 The ids ``ihrcf_env/DeckLanding-v0`` and ``ihrcf_env/DeckLandingRaw-v0`` are deprecated aliases of
 the hover ids.
@@ -25,13 +27,14 @@ __version__ = "0.2.0"
 HOVER_ID = "ihrcf_env/DeckHover-v0"
 HOVER_RAW_ID = "ihrcf_env/DeckHoverRaw-v0"
 LANDING_V1_ID = "ihrcf_env/DeckLanding-v1"
+LANDING_V2_ID = "ihrcf_env/DeckLanding-v2"
 #: Deprecated ids -> the ids they stand for.
 DEPRECATED_IDS: dict[str, str] = {
     "ihrcf_env/DeckLanding-v0": HOVER_ID,
     "ihrcf_env/DeckLandingRaw-v0": HOVER_RAW_ID,
 }
 #: Every id this package registers.
-ENV_IDS: tuple[str, ...] = (HOVER_ID, HOVER_RAW_ID, LANDING_V1_ID, *DEPRECATED_IDS)
+ENV_IDS: tuple[str, ...] = (HOVER_ID, HOVER_RAW_ID, LANDING_V1_ID, LANDING_V2_ID, *DEPRECATED_IDS)
 
 
 def _deprecated(old: str, new: str, entry: str) -> Any:
@@ -49,6 +52,7 @@ _ENTRY = {
     HOVER_ID: "ihrcf_env.wrappers.estimates:make_deck_hover",
     HOVER_RAW_ID: "ihrcf_env.envs.deck_landing:DeckLandingEnv",
     LANDING_V1_ID: "ihrcf_env.wrappers.landing_obs:make_deck_landing_v1",
+    LANDING_V2_ID: "ihrcf_env.wrappers.landing_obs:make_deck_landing_v2",
 }
 for _id, _entry in _ENTRY.items():
     if _id not in registry:

@@ -62,6 +62,7 @@ from ihrcf_env.core.checks import (
 from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedParams, check_estimator_names
 from ihrcf_env.core.profiles import check_sea_state_amplitudes
 from ihrcf_env.core.ship import ShipOptions
+from ihrcf_env.envs.levels import DEFAULT_LEVEL, LEVELS
 from ihrcf_env.envs.task_config import (
     ARENA_MARGIN,
     CEILING_MARGIN,
@@ -131,6 +132,18 @@ TASK_DEFAULTS: dict[str, dict[str, Any]] = {
         "start_offset": 0.1,
         "start_yaw": 0.2,
         "wind": False,
+        "autopilot": "classic",
+        "ground_effect": False,
+    },
+    "landing-v2": {
+        "random_deck_start": True,
+        "sensor_preset": "realistic",
+        "start_altitude": 2.25,
+        "start_altitude_jitter": 0.75,
+        "start_offset": 1.0,
+        "start_yaw": math.pi,
+        "autopilot": "wind_hold",
+        "ground_effect": True,
     },
     "landing-v1": {
         "deck_profile": "sea_state",
@@ -141,9 +154,11 @@ TASK_DEFAULTS: dict[str, dict[str, Any]] = {
         "start_offset": 1.0,
         "start_yaw": math.pi,
         "wind": True,
+        "autopilot": "classic",
+        "ground_effect": False,
     },
 }
-#: Options of the landing task only.
+#: Options of the landing tasks only.
 LANDING_OPTIONS: tuple[str, ...] = (
     "success_radius",
     "start_in_view",
@@ -450,8 +465,9 @@ def make_config(
     task: str = "hover",
     render_mode: str | None = None,
     action_mode: str = "velocity",
-    autopilot: str = "classic",
-    ground_effect: bool = False,
+    level: str | None = None,
+    autopilot: str | None = None,
+    ground_effect: bool | None = None,
     control_hz: int = 20,
     deck_profile: ProfileSpec | None = None,
     sea_state_amplitudes: Mapping[str, float] | None = None,
@@ -504,8 +520,14 @@ def make_config(
     """The validated configuration of a deck task (module docstring). Options left at None take
     ``task``'s default (:data:`TASK_DEFAULTS`). Raises TypeError / ValueError naming the option.
     ``disturbances`` are deep-copied: every env gets its own."""
-    defaults = TASK_DEFAULTS[check_str("task", task, tuple(TASK_DEFAULTS))]
+    defaults = dict(TASK_DEFAULTS[check_str("task", task, tuple(TASK_DEFAULTS))])
     landing = task != "hover"
+    if task == "landing-v2":
+        defaults.update(
+            LEVELS[check_str("level", DEFAULT_LEVEL if level is None else level, tuple(LEVELS))].defaults()
+        )
+    elif level is not None:
+        raise ValueError("level is an option of the landing task v2 (ihrcf_env/DeckLanding-v2) only")
 
     def pick(name: str, value: Any) -> Any:
         return defaults[name] if value is None else value
@@ -606,8 +628,10 @@ def make_config(
     )
     extra = check_sensor_names(sensors)
     world = WorldConfig(
-        gains=VelocityGains(wind_hold=check_str("autopilot", autopilot, AUTOPILOTS) == "wind_hold"),
-        ground_effect=check_bool("ground_effect", ground_effect),
+        gains=VelocityGains(
+            wind_hold=check_str("autopilot", pick("autopilot", autopilot), AUTOPILOTS) == "wind_hold"
+        ),
+        ground_effect=check_bool("ground_effect", pick("ground_effect", ground_effect)),
         control_hz=rate,
         action_mode=check_str("action_mode", action_mode, ACTION_MODES),
         camera=cam,
@@ -648,7 +672,7 @@ def make_config(
             sea_state_amplitudes,
             pick("random_deck_start", random_deck_start),
             DEFAULT_HORIZON_S if horizon_s is None else horizon_s,
-            ship,  # type: ignore[arg-type]  # checked, made ShipOptions
+            defaults.get("ship") if ship is None and deck_profile is None else ship,  # type: ignore[arg-type]
         ),
         max_velocity=max_velocity,
         landing=goal,

@@ -189,3 +189,12 @@ class DeckLandingV1Env(DeckLandingEnv):
         info = super()._get_info(s)
         info["tag_offset"] = self.tag_offset(s)
         return info
+
+
+class DeckLandingV2Env(DeckLandingV1Env):
+    """The landing task of ``ihrcf_env/DeckLanding-v2``: v1's goal, start, reward and outcomes in
+    the conditions real deck landings face, graded by ``level`` (``"calm"``, ``"moderate"``,
+    ``"rough"``; :mod:`ihrcf_env.envs.levels`): a ship's deck in a WMO sea state, wind with gusts,
+    the wind-holding autopilot and ground effect."""
+
+    task_name = "landing-v2"

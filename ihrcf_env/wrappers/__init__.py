@@ -4,7 +4,13 @@ sensors (:class:`DeckPoseObservation`, Dict or flat) and the landing task's flat
 
 from ihrcf_env.wrappers.estimates import DeckPoseObservation, flat_slices, hover_layout, make_deck_hover
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage, estimator_from_calibration
-from ihrcf_env.wrappers.landing_obs import LandingObservation, landing_obs_fields, make_deck_landing_v1
+from ihrcf_env.wrappers.landing_obs import (
+    LandingObservation,
+    landing_obs_fields,
+    make_deck_landing_v1,
+    make_deck_landing_v2,
+    make_landing,
+)
 
 __all__ = [
     "DeckPoseObservation",
@@ -16,4 +22,6 @@ __all__ = [
     "landing_obs_fields",
     "make_deck_hover",
     "make_deck_landing_v1",
+    "make_deck_landing_v2",
+    "make_landing",
 ]

@@ -279,17 +279,16 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return np.concatenate([p, R_ld[:, 2], [math.cos(yaw), math.sin(yaw)]])
 
 
-def make_deck_landing_v1(**options: Any) -> gym.Env:
-    """Entry point of ``ihrcf_env/DeckLanding-v1``: the validated options
-    (:func:`~ihrcf_env.envs.config.make_config`, ``task="landing-v1"``) ->
-    :class:`~ihrcf_env.envs.landing_v1.DeckLandingV1Env` wrapped with :class:`LandingObservation`
-    (``raw=True``: the raw env). No image is observed, so the rendered camera renders only the
-    tag's window (``camera_output="corners"`` unless given). Everything is checked before any
-    physics client exists; a failed wrapper closes the env."""
-    config = make_config(task="landing-v1", **options)
-    from ihrcf_env.envs.landing_v1 import DeckLandingV1Env
+def make_landing(task: str, **options: Any) -> gym.Env:
+    """A landing task's env from validated options (:func:`~ihrcf_env.envs.config.make_config`
+    with ``task``) wrapped with :class:`LandingObservation` (``raw=True``: the raw env). No image is
+    observed, so the rendered camera renders only the tag's window (``camera_output="corners"``
+    unless given). Everything is checked before any physics client exists; a failed wrapper closes
+    the env."""
+    config = make_config(task=task, **options)
+    from ihrcf_env.envs.landing_v1 import DeckLandingV1Env, DeckLandingV2Env
 
-    env = DeckLandingV1Env(config)
+    env = (DeckLandingV2Env if task == "landing-v2" else DeckLandingV1Env)(config)
     if config.observation.raw:
         return env
     obs = config.observation
@@ -306,3 +305,13 @@ def make_deck_landing_v1(**options: Any) -> gym.Env:
     except BaseException:
         env.close()
         raise
+
+
+def make_deck_landing_v1(**options: Any) -> gym.Env:
+    """Entry point of ``ihrcf_env/DeckLanding-v1`` (:func:`make_landing`)."""
+    return make_landing("landing-v1", **options)
+
+
+def make_deck_landing_v2(**options: Any) -> gym.Env:
+    """Entry point of ``ihrcf_env/DeckLanding-v2`` (:func:`make_landing`; ``level=`` grades it)."""
+    return make_landing("landing-v2", **options)
