@@ -68,7 +68,17 @@ def make_v1(make_env: Callable[..., gym.Env]) -> Callable[..., gym.Env]:
 
 
 @pytest.fixture
-def no_leaks() -> Iterator[None]:
+def private_tmp(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """A temporary-files folder of this test alone (``tempfile`` writes there), so counting the
+    env's temp dirs sees this process only, not other test runs sharing the system's folder."""
+    folder = tmp_path / "tmp"
+    folder.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(folder))
+    return folder
+
+
+@pytest.fixture
+def no_leaks(private_tmp: Path) -> Iterator[None]:
     """Fails the test if it leaves a PyBullet client connected or an env temp dir behind."""
     clients, dirs = connected_clients(), temp_dirs()
     yield

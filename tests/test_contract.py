@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import gc
 import warnings
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -84,11 +85,13 @@ def test_deprecated_ids_warn_and_make_the_new_env(env_id: str) -> None:
         env.close()
 
 
-def test_ids_of_the_package_make_no_warning() -> None:
-    for env_id in (ihrcf_env.HOVER_ID, ihrcf_env.HOVER_RAW_ID, ihrcf_env.LANDING_V1_ID):
+def test_current_ids_make_no_warning_and_v1_is_out_of_date() -> None:
+    for env_id in (ihrcf_env.HOVER_ID, ihrcf_env.HOVER_RAW_ID, ihrcf_env.LANDING_V2_ID):
         with warnings.catch_warnings():
             warnings.simplefilter("error")
             gym.make(env_id, **FAST).close()
+    with pytest.warns(DeprecationWarning, match="out of date"):  # Gymnasium's word for an older version
+        gym.make(ihrcf_env.LANDING_V1_ID, **FAST).close()
 
 
 def test_spec_round_trip_with_a_calibration_object(no_leaks: None) -> None:
@@ -104,7 +107,7 @@ def test_spec_round_trip_with_a_calibration_object(no_leaks: None) -> None:
             env.close()
 
 
-def test_envs_dropped_without_close_release_their_clients() -> None:
+def test_envs_dropped_without_close_release_their_clients(private_tmp: Path) -> None:
     gc.collect()
     clients, dirs = connected_clients(), temp_dirs()
     for seed in range(20):

@@ -75,6 +75,7 @@ from ihrcf_env.envs.task_config import (
     RewardWeightsV1,
     StartDistribution,
     TaskConfig,
+    Thresholds,
 )
 from ihrcf_env.sim.deck import DeckConfig
 from ihrcf_env.sim.disturbances import Disturbance, WindParams
@@ -158,6 +159,9 @@ TASK_DEFAULTS: dict[str, dict[str, Any]] = {
         "ground_effect": False,
     },
 }
+#: Touchdown limits of the landing task v2: a drone holding position in a 12-15 m/s wind leans
+#: 17-20 deg into it, so the relative tilt allowed at touchdown is 20 deg (v1: 10 deg).
+V2_THRESHOLDS = Thresholds(success_tilt=math.radians(20.0))
 #: Options of the landing tasks only.
 LANDING_OPTIONS: tuple[str, ...] = (
     "success_radius",
@@ -676,6 +680,7 @@ def make_config(
         ),
         max_velocity=max_velocity,
         landing=goal,
+        thresholds=V2_THRESHOLDS if task == "landing-v2" else Thresholds(),
     )
     if not has_camera and not is_raw:
         raise ValueError(

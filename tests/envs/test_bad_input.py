@@ -463,6 +463,7 @@ BAD_OPTIONS = [
     ({"wind": "strong"}, TypeError, "wind"),
     ({"sensors": "altimeter"}, TypeError, "sensors"),
     ({"autopilot": "px4"}, ValueError, "autopilot"),
+    ({"level": "calm"}, ValueError, "level"),  # an option of the landing task v2
     ({"ground_effect": 1}, TypeError, "ground_effect"),
     ({"ship": {"sea_state": 4}}, ValueError, "ship"),  # only with deck_profile="ship"
     ({"ship": {"sea_state": 99}, "deck_profile": "ship"}, ValueError, "ship"),

@@ -128,7 +128,7 @@ def test_disturbance_hook_pushes_the_drone(world: World) -> None:
         world.add_disturbance(lambda t, pos, vel: (0, 0, 0))  # type: ignore[arg-type]
 
 
-def test_failed_world_construction_leaks_nothing() -> None:
+def test_failed_world_construction_leaks_nothing(private_tmp) -> None:
     before = temp_dirs()
     probe = p.connect(p.DIRECT)
     p.disconnect(physicsClientId=probe)
