@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import json
 import math
 import os
 import re
@@ -21,9 +22,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ihrcf_env import LANDING_V1_ID
+from ihrcf_env import LANDING_V1_ID, LANDING_V2_ID
 from ihrcf_env.cli.common import MAX_SEED, int_in, make_parser, seed_type
 from ihrcf_env.control.policies import BlindDescent, Policy, ScriptedLanding
+from ihrcf_env.core.metrics import wilson_interval
+from ihrcf_env.envs.levels import LEVELS, TEST_SEEDS
 from ihrcf_env.experiments.episode import EpisodeResult, run_episodes
 
 SB3_ALGOS = ("PPO", "SAC", "TD3", "A2C", "DDPG")
@@ -195,8 +198,10 @@ def summary(episodes: Sequence[EpisodeResult]) -> list[str]:
     speeds = [e.speed for e in touched if e.speed is not None]
     tilts = [math.degrees(e.tilt) for e in touched if e.tilt is not None]
     offsets = [e.offset for e in touched if e.offset is not None]
+    lo, hi = wilson_interval(len(ok), n)
     lines = [
-        f"episodes {n}, success rate {len(ok) / n:.1%}, mean return {np.mean([e.ret for e in episodes]):.2f}",
+        f"episodes {n}, success rate {len(ok) / n:.1%} (95 % Wilson interval {lo:.1%}..{hi:.1%}), "
+        f"mean return {np.mean([e.ret for e in episodes]):.2f}",
         f"touchdown (mean / max over the {len(touched)} episodes that touched down): relative vertical "
         f"speed {_stat(speeds, 'm/s')}, relative tilt {_stat(tilts, 'deg', '.2f')}, offset from the tag "
         f"centre {_stat(offsets, 'm')}",
@@ -213,8 +218,8 @@ DESCRIPTION = f"""\
 Run a landing policy over seeded episodes and report.
 
 POLICY is one of
-  scripted   the package's landing controller on the v1 observation (own sensing only, never
-             ground truth); needs --env-id {LANDING_V1_ID}
+  scripted   the package's landing controller on the landing observation (own sensing only,
+             never ground truth); needs a landing env ({LANDING_V1_ID} or {LANDING_V2_ID})
   blind:VZ   constant descent at VZ m/s (> 0), no lateral command
   FILE.zip   a saved stable-baselines3 policy (--algo names its class), run deterministically;
              needs stable-baselines3 (pip install ".[rl]")
@@ -223,22 +228,59 @@ Prints one line per episode (unless --quiet), then the success rate, the touchdo
 vertical speed / relative tilt / horizontal offset from the tag centre (mean, max), the time to
 land, the failures with their figures and, as the last line, "success K/N".
 
+The benchmark protocol of {LANDING_V2_ID}: --level L runs that level's test seeds
+({TEST_SEEDS.start}..{TEST_SEEDS.stop - 1}, unless --seed is given) on {LANDING_V2_ID}.
+
 examples:
-  ihrcf-evaluate --policy blind:0.3 --episodes 50 --camera-model projected
+  ihrcf-evaluate --policy scripted --level moderate --episodes 100 --camera-model projected
+  ihrcf-evaluate --policy blind:0.3 --episodes 50 --camera-model projected --option wind=false
   ihrcf-evaluate --policy scripted --episodes 10 --seed 100
   python -m ihrcf_env.evaluate --policy ppo_landing.zip --episodes 50 --camera-model rendered
 """
 
 
+def _parse_options(ap: argparse.ArgumentParser, items: Sequence[str]) -> dict[str, Any]:
+    """``--option KEY=VALUE`` items as env options (VALUE as JSON, else as text)."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key.isidentifier():
+            ap.error(f"argument --option: {item!r} is not KEY=VALUE")
+        try:
+            out[key] = json.loads(text)
+        except ValueError:
+            out[key] = text
+    return out
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The command's argument parser."""
     ap = make_parser("evaluate", DESCRIPTION)
-    ap.add_argument("--env-id", default=LANDING_V1_ID, help="registered ihrcf_env env id")
+    ap.add_argument(
+        "--env-id",
+        default=None,
+        help=f"registered ihrcf_env env id (default: {LANDING_V1_ID}; with --level {LANDING_V2_ID})",
+    )
+    ap.add_argument(
+        "--level", choices=tuple(LEVELS), default=None, help=f"a level of {LANDING_V2_ID} (default: none)"
+    )
+    ap.add_argument(
+        "--option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="an env option (repeatable); VALUE is read as JSON (true, 0.5, a dict) or else as text",
+    )
     ap.add_argument(
         "--policy", required=True, help="scripted | blind:VZ | a stable-baselines3 .zip (required)"
     )
     ap.add_argument("--episodes", type=int_in(1), default=10, help="episodes, one seed each (>= 1)")
-    ap.add_argument("--seed", type=seed_type, default=0, help="first seed, an integer >= 0")
+    ap.add_argument(
+        "--seed",
+        type=seed_type,
+        default=None,
+        help="first seed, an integer >= 0 (default: 0; the test seeds with --level)",
+    )
     ap.add_argument(
         "--camera-model",
         choices=("rendered", "projected"),
@@ -269,6 +311,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
     """Every check that needs no env: ``ap.error`` (exit status 2) naming the argument."""
+    if args.env_id is None:
+        args.env_id = LANDING_V2_ID if args.level is not None else LANDING_V1_ID
+    elif args.level is not None and args.env_id != LANDING_V2_ID:
+        ap.error(f"argument --level: levels are of {LANDING_V2_ID}, not {args.env_id}")
+    if args.seed is None:
+        args.seed = TEST_SEEDS.start if args.level is not None else 0
+    args.options = _parse_options(ap, args.option)
     last = args.seed + args.episodes - 1
     if last > MAX_SEED:
         ap.error(f"argument --seed: the seeds {args.seed}..{last} go beyond {MAX_SEED}")
@@ -283,8 +332,8 @@ def _check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
         ap.error(
             f"argument --policy: {spec!r} is not 'scripted', 'blind:VZ' or a saved stable-baselines3 .zip"
         )
-    if spec == "scripted" and args.env_id != LANDING_V1_ID:
-        ap.error(f"argument --policy: scripted needs the v1 observation: use --env-id {LANDING_V1_ID}")
+    if spec == "scripted" and args.env_id not in (LANDING_V1_ID, LANDING_V2_ID):
+        ap.error(f"argument --policy: scripted needs a landing observation: use --env-id {LANDING_V2_ID}")
     if spec.startswith("blind:"):
         try:
             vz = float(spec.removeprefix("blind:"))
@@ -302,7 +351,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = ap.parse_args(argv)
     _check_args(ap, args)
     spec = args.policy
-    kwargs: dict[str, Any] = {}
+    kwargs: dict[str, Any] = dict(args.options)
+    if args.level is not None:
+        kwargs["level"] = args.level
     if args.camera_model is not None:
         kwargs["camera_model"] = args.camera_model
     if args.sensor_preset is not None:

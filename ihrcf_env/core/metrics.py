@@ -254,3 +254,15 @@ def format_landing_summary(profile: str, s: LandingSummary) -> str:
         f"  time to land (successes) mean {s.time_mean:.1f} max {s.time_max:.1f} s\n"
         f"  failures: {reasons}"
     )
+
+
+def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    """The Wilson score interval (low, high) of a success rate ``successes / n`` (default 95 %):
+    well behaved at 0 and n successes, unlike the normal approximation."""
+    if n <= 0 or not 0 <= successes <= n:
+        raise ValueError(f"need 0 <= successes <= n and n > 0, got {successes}/{n}")
+    p = successes / n
+    z2 = z * z
+    centre = (p + z2 / (2 * n)) / (1 + z2 / n)
+    half = z / (1 + z2 / n) * math.sqrt(p * (1 - p) / n + z2 / (4 * n * n))
+    return max(0.0, centre - half), min(1.0, centre + half)
