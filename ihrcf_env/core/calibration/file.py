@@ -252,7 +252,7 @@ class Calibration:
     def load(cls, path: str | os.PathLike[str] | Traversable) -> Calibration:
         """Read and validate a calibration file; :class:`CalibrationError` naming the file otherwise."""
         name = str(path)
-        data = read_json(path, CalibrationError, "calibration file", "create one with ihrcf-calibrate")
+        data = read_json(path, CalibrationError, "calibration JSON file", "create one with ihrcf-calibrate")
         return cls.from_dict(data, source=name)
 
     def matches(
