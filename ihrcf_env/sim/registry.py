@@ -325,6 +325,21 @@ def check_faults(
     return tuple(out)
 
 
+def world_measurements(camera_output: str | None, sensors: tuple[str, ...] = ()) -> frozenset[str]:
+    """What a world measures (the ``measurements`` of :func:`check_faults`): the camera's
+    (``camera_output`` "image" or "corners"; None without a camera), the ToF's and the IMU's, and
+    the registered ``sensors``'."""
+    camera = {
+        "image": ("image",),
+        "corners": ("tag_corners", "tag_detected", "tag_reason", "tag_status"),
+        None: (),
+    }[camera_output]
+    out = {*camera, "ranges", "ranges_valid", "quaternion", "angular_velocity", "linear_acceleration"}
+    for s in sensors:
+        out |= set(SENSORS[s].outputs)
+    return frozenset(out)
+
+
 def apply_faults(
     faults: Mapping[str, Fault],
     reading: Mapping[str, NDArray],

@@ -110,6 +110,11 @@ def test_a_fault_on_a_measurement_the_env_lacks_is_refused() -> None:
     with pytest.raises(ValueError, match="camera_dropout.*does not measure"):
         check_faults({"camera_dropout": True}, measurements={"ranges", "ranges_valid"})
     assert check_faults({"camera_dropout": True}, measurements={"image"}) == (("camera_dropout", ()),)
+    no_camera = registry.world_measurements(None)
+    assert "ranges" in no_camera and "angular_velocity" in no_camera and "tag_corners" not in no_camera
+    with pytest.raises(ValueError, match="tag_occlusion"):
+        check_faults({"tag_occlusion": True}, measurements=registry.world_measurements("image"))
+    assert check_faults({"tag_occlusion": True}, measurements=registry.world_measurements("corners"))
 
 
 def test_user_faults_register_like_the_built_in_ones() -> None:
