@@ -65,7 +65,7 @@ def _draw_onset(window: tuple[float, float], rng: np.random.Generator) -> float:
 
 
 def check_tof_sensors(name: str, value: Any) -> tuple[int, ...] | None:
-    """Indices of ToF sensors (0..3 for ps1..ps4), each once, at most three (one must remain)."""
+    """Indices of ToF sensors (0..3 for ps1..ps4), each once (one index alone or a sequence)."""
     if value is None:
         return None
     items = [value] if not isinstance(value, Sequence | np.ndarray) or isinstance(value, str) else list(value)
