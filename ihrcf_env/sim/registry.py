@@ -17,15 +17,29 @@ applied to any measurement by option::
 Both draw their randomness from their own streams (``"sensor.<name>"``, ``"noise.<measurement>"``),
 so adding one never changes the start, deck or wind of a seed. Registering is process-wide; the
 options are validated by name like every other option.
+
+A **fault** (:class:`Fault`: ``reset(rng)``, ``apply(reading, time, dt, rng) -> reading``) acts on
+a whole sensor reading, several measurements at once (a lost camera frame clears the corners and
+sets ``tag_detected``, ``tag_reason`` and ``tag_status``), after the noise models. It is registered
+with a factory of its parameters and switched on by the option ``faults={name: params or True}``;
+each draws from its own stream ``"fault.<name>"``. Built in: :mod:`ihrcf_env.sim.faults`::
+
+    register_fault("tof_glare", lambda **params: Glare(**params), acts_on=("ranges",))
+    gym.make(..., faults={"tof_dead": {"sensors": [2]}, "camera_dropout": True})
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+import inspect
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
 
 from ihrcf_env.core.checks import check_real, describe
+from ihrcf_env.sim import faults as _faults
 from ihrcf_env.sim.noise import NoiseModel, NoNoise
 
 if TYPE_CHECKING:
@@ -173,3 +187,175 @@ def check_measurement_noise(value: Any, sensors: tuple[str, ...]) -> tuple[tuple
             )
         out.append((str(key), str(model)))
     return tuple(out)
+
+
+# -- faults ------------------------------------------------------------------------------------------
+@runtime_checkable
+class Fault(Protocol):
+    """A sensor failure acting on whole readings (several measurements at once).
+
+    ``reset(rng)`` draws the episode's fault; ``apply(reading, time, dt, rng)`` returns the faulty
+    reading as a new dict (``reading`` is one sensor's mapping, after the noise models; keys the
+    fault does not act on pass unchanged, a reading without its keys passes whole). ``time`` (s) is
+    the reading's time since the episode's start, ``dt`` (s) the time since the sensor's previous
+    sample. An optional ``check_with(faults: {name: Fault})`` raises ValueError for a combination
+    of faults that contradict each other."""
+
+    def reset(self, rng: np.random.Generator) -> None: ...
+
+    def apply(
+        self, reading: Mapping[str, NDArray], time: float, dt: float, rng: np.random.Generator
+    ) -> dict[str, NDArray]: ...
+
+
+@dataclass(frozen=True)
+class FaultEntry:
+    """A registered fault: ``factory(**params) -> Fault`` and the measurements it acts on."""
+
+    factory: Callable[..., Fault]
+    acts_on: frozenset[str]
+
+
+FAULTS: dict[str, FaultEntry] = {}
+#: A validated ``faults`` option: (name, ((parameter, value), ...)) pairs, lists made tuples.
+FaultSpec = tuple[tuple[str, tuple[tuple[str, Any], ...]], ...]
+
+
+def register_fault(
+    name: str, factory: Callable[..., Fault], acts_on: Collection[str] = (), *, replace: bool = False
+) -> None:
+    """Add the fault ``name``: ``factory(**params)`` builds one (it validates its parameters,
+    raising TypeError / ValueError naming them), switched on by ``faults={name: params or True}``.
+    ``acts_on``: the measurements it changes (an env without any of them refuses the fault)."""
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ValueError(f"fault name must be an identifier, got {name!r}")
+    if not callable(factory):
+        raise TypeError(f"fault factory must be callable (**params -> Fault), got {describe(factory)}")
+    if isinstance(acts_on, str) or not all(isinstance(k, str) for k in acts_on):
+        raise TypeError(f"fault acts_on must be a sequence of measurement names, got {describe(acts_on)}")
+    if name in FAULTS and not replace:
+        raise ValueError(f"a fault {name!r} is already registered (replace=True to replace it)")
+    FAULTS[name] = FaultEntry(factory, frozenset(acts_on))
+
+
+def _frozen_param(value: Any) -> Any:
+    """Lists (and arrays) as tuples, so a validated option is hashable and compares by value."""
+    if isinstance(value, list | tuple | np.ndarray):
+        return tuple(_frozen_param(v) for v in value)
+    return value
+
+
+def _parameters(factory: Callable[..., Fault]) -> list[str] | None:
+    """The keyword parameters ``factory`` accepts (None: any, or not inspectable)."""
+    try:
+        params = inspect.signature(factory).parameters.values()
+    except (TypeError, ValueError):
+        return None
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params):
+        return None
+    return [p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+
+
+def build_fault(name: str, params: Mapping[str, Any]) -> Fault:
+    """The registered fault ``name`` built with ``params``; errors name the option and parameter."""
+    entry = FAULTS[name]
+    known = _parameters(entry.factory)
+    if known is not None:
+        for key in params:
+            if key not in known:
+                raise ValueError(f"faults[{name!r}]: unknown parameter {key!r}; parameters: {known}")
+    try:
+        fault = entry.factory(**params)
+    except (TypeError, ValueError) as e:
+        raise type(e)(f"faults[{name!r}]: {e}") from None
+    if not (callable(getattr(fault, "reset", None)) and callable(getattr(fault, "apply", None))):
+        raise TypeError(f"faults[{name!r}]: the factory must return a Fault, got {describe(fault)}")
+    return fault
+
+
+def build_faults(spec: FaultSpec) -> dict[str, Fault]:
+    """Name -> a new fault of each entry of a validated ``faults`` option (:func:`check_faults`),
+    in the option's order (the order they are applied in)."""
+    return {name: build_fault(name, dict(params)) for name, params in spec}
+
+
+def check_faults(
+    value: Any,
+    measurements: Collection[str] | None = None,
+    context: Mapping[str, Any] | None = None,
+) -> FaultSpec:
+    """The ``faults`` option: ``{name: params dict, True (defaults) or False (off)}`` of registered
+    faults. Every fault is built once, so bad parameters are refused here, naming them, and so are
+    contradicting faults. ``measurements``: what the env measures (a fault acting on none of them is
+    refused); ``context``: world settings handed to every factory taking a parameter of that name
+    unless given (e.g. ``tof_max_range``, the value an invalid ToF reading reads)."""
+    if value is None:
+        return ()
+    if not isinstance(value, Mapping):
+        raise TypeError(f"faults must be a dict {{fault: params dict or True}}, got {describe(value)}")
+    out = []
+    built: dict[str, Fault] = {}
+    for name, params in value.items():
+        if name not in FAULTS:
+            raise ValueError(f"faults: unknown fault {name!r}; registered: {sorted(FAULTS)}")
+        if params is False:
+            continue
+        if params is True:
+            params = {}
+        if not isinstance(params, Mapping) or not all(isinstance(k, str) for k in params):
+            raise TypeError(
+                f"faults[{name!r}] must be a dict of its parameters or True, got {describe(params)}"
+            )
+        entry = FAULTS[name]
+        if measurements is not None and entry.acts_on and not entry.acts_on & set(measurements):
+            raise ValueError(
+                f"faults[{name!r}] acts on {sorted(entry.acts_on)}, which this env does not measure"
+            )
+        full = dict(params)
+        known = _parameters(entry.factory) or []
+        for key, setting in (context or {}).items():
+            if key in known and key not in full:
+                full[key] = setting
+        built[name] = build_fault(name, full)
+        out.append((str(name), tuple((k, _frozen_param(v)) for k, v in full.items())))
+    for fault in built.values():
+        check_with = getattr(fault, "check_with", None)
+        if callable(check_with):
+            check_with(built)
+    return tuple(out)
+
+
+def world_measurements(camera_output: str | None, sensors: tuple[str, ...] = ()) -> frozenset[str]:
+    """What a world measures (the ``measurements`` of :func:`check_faults`): the camera's
+    (``camera_output`` "image" or "corners"; None without a camera), the ToF's and the IMU's, and
+    the registered ``sensors``'."""
+    camera = {
+        "image": ("image",),
+        "corners": ("tag_corners", "tag_detected", "tag_reason", "tag_status"),
+        None: (),
+    }[camera_output]
+    out = {*camera, "ranges", "ranges_valid", "quaternion", "angular_velocity", "linear_acceleration"}
+    for s in sensors:
+        out |= set(SENSORS[s].outputs)
+    return frozenset(out)
+
+
+def apply_faults(
+    faults: Mapping[str, Fault],
+    reading: Mapping[str, NDArray],
+    time: float,
+    dt: float,
+    generator: Callable[[str], np.random.Generator],
+) -> dict[str, NDArray]:
+    """``reading`` through every fault in order; ``generator(name)`` is the fault's stream."""
+    out = dict(reading)
+    for name, fault in faults.items():
+        out = fault.apply(out, time, dt, generator(name))
+    return out
+
+
+register_fault("tof_dead", _faults.ToFDead, ("ranges",))
+register_fault("tof_stuck", _faults.ToFStuck, ("ranges",))
+register_fault("camera_dropout", _faults.CameraDropout, ("tag_corners", "image"))
+register_fault("tag_occlusion", _faults.TagOcclusion, ("tag_corners",))
+register_fault("imu_bias_step", _faults.ImuBiasStep, ("angular_velocity", "linear_acceleration"))
