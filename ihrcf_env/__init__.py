@@ -91,3 +91,10 @@ def register_noise_model(name: str, factory: Any, *, replace: bool = False) -> N
     from ihrcf_env.sim.registry import register_noise_model as _register
 
     _register(name, factory, replace=replace)
+
+
+def register_fault(name: str, factory: Any, acts_on: Any = (), *, replace: bool = False) -> None:
+    """Register a sensor fault from user code (see :func:`ihrcf_env.sim.registry.register_fault`)."""
+    from ihrcf_env.sim.registry import register_fault as _register
+
+    _register(name, factory, acts_on, replace=replace)

@@ -81,7 +81,12 @@ from ihrcf_env.sim.deck import DeckConfig
 from ihrcf_env.sim.disturbances import Disturbance, WindParams
 from ihrcf_env.sim.drone import VelocityGains
 from ihrcf_env.sim.navigation import FEEDBACK_MODES, NavigationConfig, NavigationErrors
-from ihrcf_env.sim.registry import check_measurement_noise, check_sensor_names
+from ihrcf_env.sim.registry import (
+    check_faults,
+    check_measurement_noise,
+    check_sensor_names,
+    world_measurements,
+)
 from ihrcf_env.sim.sensors import TOF_PRESETS, CameraConfig, ToFConfig
 from ihrcf_env.sim.sensors.camera import CAMERA_QUALITIES
 from ihrcf_env.sim.sensors.imu import IMU_NOISE_PRESETS, IMUConfig, IMUNoise
@@ -507,6 +512,7 @@ def make_config(
     disturbances: Sequence[Disturbance] = (),
     sensors: Sequence[str] = (),
     measurement_noise: Mapping[str, str] | None = None,
+    faults: Mapping[str, Any] | None = None,
     success_radius: float | None = None,
     start_in_view: bool | None = None,
     view_margin: float | None = None,
@@ -649,6 +655,11 @@ def make_config(
         detector_model=detector,
         extra_sensors=extra,
         measurement_noise=check_measurement_noise(measurement_noise, extra),
+        faults=check_faults(
+            faults,
+            world_measurements(cam_output if cam is not None else None, extra),
+            {"tof_max_range": max_range},
+        ),
     )
     goal = None
     if landing:

@@ -11,10 +11,10 @@ import math
 import struct
 import tempfile
 import weakref
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pybullet as p
@@ -31,6 +31,7 @@ from ihrcf_env.sim.disturbances import Disturbance, disturbance_force
 from ihrcf_env.sim.drone import QuadParams, Quadrotor, VelocityController, VelocityGains
 from ihrcf_env.sim.ground_effect import GroundEffect, deck_surface, rotor_positions
 from ihrcf_env.sim.navigation import Navigation, NavigationConfig, make_navigation
+from ihrcf_env.sim.registry import apply_faults
 from ihrcf_env.sim.sensors import IMU, BodyState, CameraConfig, DownCamera, Sensor, ToFArray, ToFConfig
 from ihrcf_env.sim.sensors.base import TAG_CAMERA
 from ihrcf_env.sim.sensors.imu import IMUConfig
@@ -85,6 +86,8 @@ class WorldConfig:
     extra_sensors: tuple[str, ...] = ()
     #: (measurement, registered noise model) pairs applied to the readings
     measurement_noise: tuple[tuple[str, str], ...] = ()
+    #: sensor faults (:func:`ihrcf_env.sim.registry.check_faults`), applied after the noise models
+    faults: tuple[tuple[str, tuple[tuple[str, Any], ...]], ...] = ()
 
     def __post_init__(self) -> None:
         if not (isinstance(self.physics_hz, int | np.integer) and self.physics_hz > 0):
@@ -224,13 +227,15 @@ class World:
             self.sensors.update(self._camera_sensor(cfg.camera))
         self.sensors["tof"] = self.tof
         self.sensors["imu"] = self.imu_sensor
-        from ihrcf_env.sim.registry import NOISE_MODELS, SENSORS, measurement_sizes
+        from ihrcf_env.sim.registry import NOISE_MODELS, SENSORS, build_faults, measurement_sizes
 
         for name in cfg.extra_sensors:
             self.sensors[name] = SENSORS[name].factory(self)
         sizes = measurement_sizes(cfg.extra_sensors)
         #: measurement -> the noise model corrupting it (``measurement_noise``)
         self.corruptors = {key: NOISE_MODELS[model](sizes[key]) for key, model in cfg.measurement_noise}
+        #: fault name -> the fault (``faults``), applied in this order after the corruptors
+        self.faults = build_faults(cfg.faults)
         for name in CAMERA_SENSORS:
             if name in self.sensors:
                 self.sensors[name].update_interval = cfg.camera_every  # type: ignore[attr-defined]
@@ -317,6 +322,9 @@ class World:
         for key, model in self.corruptors.items():
             rng = self._rngs[f"noise.{key}"] = streams.generator(f"noise.{key}")
             model.reset(rng)
+        for key, fault in self.faults.items():
+            rng = self._rngs[f"fault.{key}"] = streams.generator(f"fault.{key}")
+            fault.reset(rng)
         names = self.disturbance_streams
         for i, d in enumerate(self.disturbances):
             d.reset(streams.generator(names[i] if i < len(names) else f"disturbance.{i}"))
@@ -531,6 +539,10 @@ class World:
             reading = sensor.read(state, control_dt * every, gen)
             if self.corruptors:
                 reading = self._corrupt(reading, control_dt * every, rng)
+            if self.faults:
+                reading = apply_faults(
+                    self.faults, reading, state.time, control_dt * every, self._fault_rng(rng)
+                )
             out.update(reading)
             if held:
                 self._held[name] = dict(reading)
@@ -561,6 +573,19 @@ class World:
             if mask_key in out:
                 out[mask_key] = np.asarray(ok).astype(np.asarray(out[mask_key]).dtype)
         return out
+
+    def _fault_rng(self, rng: np.random.Generator | None) -> Callable[[str], np.random.Generator]:
+        """Fault name -> its stream (``rng`` when given; before the first reset_random a fixed one)."""
+
+        def gen(name: str) -> np.random.Generator:
+            if rng is not None:
+                return rng
+            key = f"fault.{name}"
+            if key not in self._rngs:
+                self._rngs[key] = SeedStreams(0).generator(key)
+            return self._rngs[key]
+
+        return gen
 
     @property
     def camera_time(self) -> float:

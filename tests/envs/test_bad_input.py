@@ -463,6 +463,12 @@ BAD_OPTIONS = [
     ({"wind": "strong"}, TypeError, "wind"),
     ({"sensors": "altimeter"}, TypeError, "sensors"),
     ({"autopilot": "px4"}, ValueError, "autopilot"),
+    ({"faults": ["tof_dead"]}, TypeError, "faults"),
+    ({"faults": {"tof_gone": True}}, ValueError, "faults"),
+    ({"faults": {"tof_dead": {"sensors": [4]}}}, ValueError, "faults"),
+    ({"faults": {"tof_dead": {"count": 4}}}, ValueError, "faults"),
+    ({"faults": {"camera_dropout": {"loss_rate": 1.5}}}, ValueError, "faults"),
+    ({"faults": {"imu_bias_step": {"onset": -1.0}}}, ValueError, "faults"),
     ({"level": "calm"}, ValueError, "level"),  # an option of the landing task v2
     ({"ground_effect": 1}, TypeError, "ground_effect"),
     ({"ship": {"sea_state": 4}}, ValueError, "ship"),  # only with deck_profile="ship"

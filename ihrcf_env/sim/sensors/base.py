@@ -66,6 +66,7 @@ TAG_STATUS: tuple[str, ...] = (
     "detector missed the tag",
     "tag outside the camera's depth range",
     "tag occluded",
+    "camera frame lost",
 )
 _STATUS_CODE = {reason: i for i, reason in enumerate(TAG_STATUS)}
 
