@@ -82,6 +82,7 @@ def test_user_estimator_sensor_and_noise_model(registered: None, make_env: Any) 
     plain = make_env(ihrcf_env.HOVER_ID, camera_model="projected", estimators=("ihrcf",))
     obs, info = env.reset(seed=0)
     ref, ref_info = plain.reset(seed=0)
+    assert env.observation_space.contains(obs)
     assert obs["range_mean"]["valid"] == 1 and "range_mean_reason" in info
     np.testing.assert_allclose(obs["ranges"], np.minimum(ref["ranges"] + 1.0, 4.0), atol=1e-6)
     assert obs["altitude"].shape == (1,)

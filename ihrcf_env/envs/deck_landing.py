@@ -137,6 +137,7 @@ class DeckLandingEnv(gym.Env):
         self._tag_reason = ""
         cam = cfg.world.camera
         self._corner_bound = float(max(cam.width, cam.height)) if cam is not None else 0.0
+        self._max_range = float(cfg.world.tof.max_range)
         self._camera_name = next((n for n in CAMERA_SENSORS if cam is not None), "")
         #: the env's wind (None: calm air); its force is one of the world's disturbances
         self.wind: Wind | None = Wind(cfg.wind) if cfg.wind is not None else None
@@ -319,8 +320,8 @@ class DeckLandingEnv(gym.Env):
         if self._camera_name:
             age = w.time - w.sample_times[self._camera_name]
             obs["camera_age"] = np.array([min(max(age, 0.0), MAX_SENSOR_AGE)], np.float32)
-        obs["ranges"] = r["ranges"]
-        obs["ranges_valid"] = r["ranges_valid"]
+        obs["ranges"] = clip(r["ranges"], 0.0, self._max_range).astype(np.float32)
+        obs["ranges_valid"] = np.asarray(r["ranges_valid"], dtype=np.int8)
         obs["imu"] = {
             "quaternion": clip(r["quaternion"], -1.0, 1.0).astype(np.float32),
             "angular_velocity": clip(r["angular_velocity"], -50.0, 50.0).astype(np.float32),
