@@ -185,3 +185,11 @@ def test_custom_estimator_example_runs():
     assert out.returncode == 0, out.stderr[-2000:]
     assert "mytoy" in out.stdout
     assert re.search(r"valid on \d+ of 20 steps", out.stdout)
+
+
+def test_v2_table_has_the_wilson_interval() -> None:
+    from ihrcf_env.experiments.results import LandingRow, v2_markdown
+
+    row = LandingRow("projected", 20, 10, (0.3, 0.4), (4.0, 6.0), (0.05, 0.1), (9.0, 12.0), {"timeout": 10})
+    md = v2_markdown({("moderate", "scripted"): row})
+    assert "| moderate | scripted | 10/20 (30%-70%) |" in md and "timeout x10" in md

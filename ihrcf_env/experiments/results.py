@@ -19,6 +19,7 @@ episodes (said in the stamp). The Markdown is built by pure functions (:func:`re
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
 import math
 import os
@@ -29,6 +30,7 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -38,10 +40,14 @@ from ihrcf_env.core.metrics import (
     ESTIMATORS,
     LABELS,
     PAPER_TABLE2,
+    EpisodeResult,
     ErrorStats,
     table2_markdown,
     table_columns,
+    wilson_interval,
 )
+from ihrcf_env.envs.levels import LEVELS, TEST_SEEDS
+from ihrcf_env.experiments.episode import run_episodes
 
 #: Markers of the README block this command rewrites.
 HEADLINE_BEGIN = "<!-- results:headline -->"
@@ -61,17 +67,22 @@ class Plan:
     sizes: tuple[int, ...]
     landings: Mapping[str, int]
     seed: int = 0
+    #: episodes per (level, baseline) of DeckLanding-v2 on its test seeds (projected camera)
+    v2_episodes: int = 0
 
     def describe(self) -> str:
         landings = ", ".join(f"{n} {m}" for m, n in self.landings.items() if n)
         return (
             f"{self.name}: {self.frames} frames per hover run, {self.speed_steps} timed steps per speed "
-            f"configuration, scripted landings per camera model: {landings or 'none'}; seed {self.seed}"
+            f"configuration, scripted landings per camera model: {landings or 'none'}; seed {self.seed}; "
+            f"{self.v2_episodes} DeckLanding-v2 episodes per level and baseline"
         )
 
 
-FULL = Plan("full", 600, (1.0, 2.0), 300, (0, 128, 256, 512), {"projected": 30, "rendered": 10})
-QUICK = Plan("quick", 120, (1.0, 2.0), 60, (0, 512), {"projected": 4, "rendered": 1})
+FULL = Plan("full", 600, (1.0, 2.0), 300, (0, 128, 256, 512), {"projected": 30, "rendered": 10}, 0, 20)
+QUICK = Plan("quick", 120, (1.0, 2.0), 60, (0, 512), {"projected": 4, "rendered": 1}, 0, 2)
+#: The baselines of the DeckLanding-v2 table: name -> policy spec.
+V2_BASELINES: tuple[str, ...] = ("blind:0.3", "scripted")
 
 
 @dataclass(frozen=True)
@@ -118,6 +129,8 @@ class Results:
     raw_speed: list[SpeedRow] = field(default_factory=list)
     wrapped_speed: list[SpeedRow] = field(default_factory=list)
     landing: list[LandingRow] = field(default_factory=list)
+    #: (level, baseline) -> the row of DeckLanding-v2's baseline table
+    v2: dict[tuple[str, str], LandingRow] = field(default_factory=dict)
 
 
 # -- formatting (pure) ---------------------------------------------------------------------------
@@ -214,6 +227,24 @@ def landing_markdown(rows: Sequence[LandingRow]) -> str:
     return "\n".join(out)
 
 
+def v2_markdown(rows: Mapping[tuple[str, str], LandingRow]) -> str:
+    """One row per (level, baseline): success with its 95 % Wilson interval, touchdown figures."""
+    out = [
+        "| level | baseline | success (95 % interval) | vertical speed (m/s) | tilt (deg) "
+        "| offset from the tag (m) | failures |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for (level, baseline), r in rows.items():
+        lo, hi = wilson_interval(r.successes, r.episodes)
+        fail = ", ".join(f"{k} x{v}" for k, v in sorted(r.failures.items())) or "none"
+        out.append(
+            f"| {level} | {baseline} | {r.successes}/{r.episodes} ({lo:.0%}-{hi:.0%}) "
+            f"| {_pair(r.speed, '{:.3f}')} | {_pair(r.tilt_deg, '{:.2f}')} | {_pair(r.offset, '{:.3f}')} "
+            f"| {fail} |"
+        )
+    return "\n".join(out)
+
+
 def results_markdown(results: Results, stamp: Stamp) -> str:
     """The whole results page."""
     parts = [
@@ -265,6 +296,18 @@ def results_markdown(results: Results, stamp: Stamp) -> str:
             "mean / max over the episodes that touched down; time to land over successes.",
             "",
             landing_markdown(results.landing),
+        ]
+    if results.v2:
+        parts += [
+            "",
+            "## Baselines of DeckLanding-v2 (the benchmark protocol)",
+            "",
+            "`ihrcf_env/DeckLanding-v2` per level (see [tasks](tasks.md#decklanding-v2)), projected camera, "
+            "the protocol's test seeds from 100000 up; `blind:0.3` descends at 0.3 m/s with no lateral "
+            "command, `scripted` is the package's landing controller on the fused estimate. The same "
+            "figures for one level and policy: `ihrcf-evaluate --level L --policy P --episodes N`.",
+            "",
+            v2_markdown(results.v2),
         ]
     return "\n".join(parts) + "\n"
 
@@ -332,48 +375,59 @@ def _mean_max(values: Sequence[float]) -> tuple[float, float]:
     return (float(np.mean(values)), float(np.max(values))) if values else (math.nan, math.nan)
 
 
+def landing_row(camera_model: str, results: Sequence[EpisodeResult]) -> LandingRow:
+    """The table row of a set of landing episodes."""
+    touched = [r for r in results if r.touched_down]
+    failures: dict[str, int] = {}
+    for r in results:
+        if r.outcome != "success":
+            key = "timeout" if r.outcome == "timeout" else _failure(r.reason)
+            failures[key] = failures.get(key, 0) + 1
+    return LandingRow(
+        camera_model,
+        len(results),
+        sum(r.outcome == "success" for r in results),
+        _mean_max([float(r.speed) for r in touched if r.speed is not None]),
+        _mean_max([math.degrees(r.tilt) for r in touched if r.tilt is not None]),
+        _mean_max([float(r.offset) for r in touched if r.offset is not None]),
+        _mean_max([r.time for r in results if r.outcome == "success"]),
+        failures,
+    )
+
+
+def _policy(spec: str, env: gym.Env) -> Any:
+    from ihrcf_env.control.policies import BlindDescent, ScriptedLanding
+
+    if spec == "scripted":
+        return ScriptedLanding.from_env(env)
+    max_velocity = tuple(float(v) for v in env.unwrapped.max_velocity)  # type: ignore[attr-defined]
+    return BlindDescent(float(spec.removeprefix("blind:")), max_velocity)
+
+
 def run_landings(camera_model: str, episodes: int, seed: int = 0) -> LandingRow:
     """The scripted landing on ``ihrcf_env/DeckLanding-v1`` for seeds ``seed .. seed + episodes - 1``."""
-    from ihrcf_env.control.policies import ScriptedLanding
-
-    speeds, tilts, offsets, times = [], [], [], []
-    failures: dict[str, int] = {}
-    successes = 0
     env = gym.make(ihrcf_env.LANDING_V1_ID, camera_model=camera_model)
     try:
-        policy = ScriptedLanding.from_env(env)
-        for s in range(seed, seed + episodes):
-            obs, info = env.reset(seed=s)
-            policy.reset()
-            while True:
-                obs, _, terminated, truncated, info = env.step(policy.act(obs))
-                if terminated or truncated:
-                    break
-            outcome = str(info.get("outcome", "flying"))
-            if outcome == "success":
-                successes += 1
-                times.append(float(info["time"]))
-            else:
-                key = "timeout" if outcome == "flying" else _failure(str(info.get("crash_reason", "")))
-                failures[key] = failures.get(key, 0) + 1
-            td = info.get("touchdown")
-            if td is not None:
-                speeds.append(abs(float(td["relative_vertical_speed"])))
-                tilts.append(math.degrees(float(td["relative_tilt"])))
-                offsets.append(float(info["tag_offset"]))
+        results = run_episodes(env, _policy("scripted", env), episodes, seed)
     finally:
         env.close()
     print(f"landings {camera_model} done", flush=True)
-    return LandingRow(
-        camera_model,
-        episodes,
-        successes,
-        _mean_max(speeds),
-        _mean_max(tilts),
-        _mean_max(offsets),
-        _mean_max(times),
-        failures,
-    )
+    return landing_row(camera_model, results)
+
+
+def run_v2(episodes: int) -> dict[tuple[str, str], LandingRow]:
+    """The DeckLanding-v2 baselines per level on the protocol's test seeds (projected camera)."""
+    out: dict[tuple[str, str], LandingRow] = {}
+    for level in LEVELS:
+        env = gym.make(ihrcf_env.LANDING_V2_ID, camera_model="projected", level=level)
+        try:
+            for spec in V2_BASELINES:
+                results = run_episodes(env, _policy(spec, env), episodes, TEST_SEEDS.start)
+                out[(level, spec)] = landing_row("projected", results)
+                print(f"v2 {level} {spec} done", flush=True)
+        finally:
+            env.close()
+    return out
 
 
 def _failure(reason: str) -> str:
@@ -388,6 +442,8 @@ def run(plan: Plan) -> Results:
     res.accuracy = run_accuracy(plan)
     res.raw_speed, res.wrapped_speed = run_speed(plan)
     res.landing = [run_landings(m, n, plan.seed) for m, n in plan.landings.items() if n > 0]
+    if plan.v2_episodes > 0:
+        res.v2 = run_v2(plan.v2_episodes)
     return res
 
 
@@ -398,8 +454,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--readme", default="README.md", help="README whose headline block is rewritten")
     ap.add_argument("--no-readme", action="store_true", help="do not touch the README")
     ap.add_argument("--all-cores", action="store_true", help="do not pin the process to one core")
+    ap.add_argument(
+        "--v2-episodes",
+        type=int,
+        default=None,
+        help="DeckLanding-v2 episodes per level and baseline (100: the protocol)",
+    )
     args = ap.parse_args(argv)
     plan = QUICK if args.quick else FULL
+    if args.v2_episodes is not None:
+        if args.v2_episodes < 0:
+            ap.error("argument --v2-episodes: must be >= 0")
+        plan = dataclasses.replace(plan, v2_episodes=args.v2_episodes)
     pinned = ""
     if not args.all_cores and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
