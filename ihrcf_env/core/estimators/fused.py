@@ -24,18 +24,18 @@ from scipy.stats import chi2
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.estimators.atda import atda_choose, atda_frame_candidates
 from ihrcf_env.core.estimators.base import ImuSample, PoseEstimate, SensorFrame
+from ihrcf_env.core.estimators.fused_delay import imu_sample, predict_ahead
 from ihrcf_env.core.estimators.fused_measurements import Measurement, MeasurementBlocks
 from ihrcf_env.core.estimators.fused_params import FusedParams
 from ihrcf_env.core.estimators.ihrcf import IHRCFCorners, TouchPixels, ihrcf_measure
 from ihrcf_env.core.estimators.imm import Imm
-from ihrcf_env.core.frames import R_BODY_CAM, as_array, matrix_from_euler, matrix_from_quat
+from ihrcf_env.core.frames import R_BODY_CAM, as_array, matrix_from_euler
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 
 __all__ = ["FusedEstimator", "FusedParams"]
 
 #: E[ln X] for X ~ chi-square(1): the bias of the log-domain average of one-dof variance samples.
 _LOG_CHI2_1_MEAN = -1.2703628454614782
-_G_WORLD = np.array([0.0, 0.0, -GRAVITY])
 
 
 class FusedEstimator:
@@ -201,42 +201,19 @@ class FusedEstimator:
         arrival = frame.arrival_time
         if math.isnan(arrival) or arrival <= t:
             return self._output(R_wb, lost_reason or reason)
-        return self._predict_to_arrival(frame, arrival - t, R_wb, a_world, lost_reason or reason)
-
-    def _predict_to_arrival(
-        self,
-        frame: SensorFrame,
-        dt: float,
-        R_wb: NDArray[np.float64],
-        a_world: NDArray[np.float64] | None,
-        reason: str,
-    ) -> PoseEstimate:
-        """The output of the filters predicted ``dt`` s past the frame's time, to its arrival, on
-        the arrival's IMU sample (the filters themselves stay at the frame's time)."""
-        p = self.params
-        imu = _imu_sample(frame.arrival_imu) if frame.arrival_imu is not None else (R_wb, a_world)
-        if isinstance(imu, str):
-            return PoseEstimate.invalid(f"arrival {imu}")
-        R_now, a_now = imu
-        u = a_now
-        if a_now is not None and p.accel_hold == "trapezoid" and a_world is not None:
-            u = 0.5 * (a_now + a_world)
-        pos = att = None
-        if self._pos is not None:
-            r = self._pos.x[0:3]
-            q_value = p.imu_attitude_walk**2 * (float(r @ r) * np.eye(3) - np.outer(r, r))
-            pos = self._pos.predicted(dt, None if u is None else -u, q_value)
-        if self._att is not None:
-            att = self._att.predicted(dt)
-        self._ahead = (pos, att)
-        return self._output(R_now, reason, pos, att)
+        # a late frame: the output of copies of the filters predicted to its arrival
+        now = imu_sample(frame.arrival_imu) if frame.arrival_imu is not None else (R_wb, a_world)
+        if isinstance(now, str):
+            return PoseEstimate.invalid(f"arrival {now}")
+        self._ahead = predict_ahead(self._pos, self._att, p, arrival - t, a_world, now[1])
+        return self._output(now[0], lost_reason or reason, *self._ahead)
 
     # -- internals ----------------------------------------------------------------------------
     def _imu(self, imu: ImuSample | None) -> tuple[NDArray[np.float64], NDArray[np.float64] | None] | str:
         """(R_wb, drone acceleration in the world or None) of a sample, or why the frame is ignored."""
         if imu is None:  # no IMU: the last attitude (identity before any), no acceleration input
             return (self._R_wb if self._R_wb is not None else np.eye(3)), None
-        out = _imu_sample(imu)
+        out = imu_sample(imu)
         if not isinstance(out, str):
             self._R_wb = out[0]
         return out
@@ -440,14 +417,3 @@ class FusedEstimator:
         R_bd = R_wb.T @ matrix_from_euler(*att.x[0:3])
         p_bd = R_wb.T @ pos.x[0:3]
         return PoseEstimate.from_body_pose(R_bd, p_bd, math.sqrt(float(np.trace(pos.value_cov))))
-
-
-def _imu_sample(imu: ImuSample) -> tuple[NDArray[np.float64], NDArray[np.float64]] | str:
-    """(R_wb, drone acceleration in the world) of a sample, or why the frame is ignored."""
-    q, f = imu.quaternion, imu.specific_force
-    if not math.isfinite(float(q @ q) + float(f @ f) + float(imu.angular_velocity @ imu.angular_velocity)):
-        return "non-finite IMU sample: frame ignored"  # (or absurdly large: > 1e154)
-    if float(q @ q) < 1e-12:
-        return "zero IMU quaternion: frame ignored"
-    R_wb = matrix_from_quat(q)
-    return R_wb, R_wb @ f + _G_WORLD
