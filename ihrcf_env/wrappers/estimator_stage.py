@@ -143,13 +143,28 @@ class EstimatorStage:
         """The :class:`SensorFrame` of a raw observation at ``time`` (s); ``exposure``: the time (s)
         of its camera frame when earlier (a camera latency: see the module docstring)."""
         imu = observation["imu"]
-        ranges = observation["ranges"]
-        valid = np.asarray(observation["ranges_valid"]).astype(bool)
         sample = ImuSample(imu["quaternion"], imu["angular_velocity"], imu["linear_acceleration"])
-        if exposure is not None and exposure < time and self.compensate_latency:
-            return self._late_frame(observation, time, exposure, sample)
+        ranges, valid = observation["ranges"], observation["ranges_valid"]
+        if exposure is None or exposure >= time or not self.compensate_latency:
+            return self._frame(observation, time, sample, ranges, valid)
+        # a late frame: the IMU sample of the exposure's step, the ranges measured nearest to it
+        steps = self._history
+        at = min(steps, key=lambda s: abs(s.time - exposure)) if steps else None
+        near = min(steps, key=lambda s: abs(s.ranges_time - exposure)) if steps else None
+        ranges_time = time
+        if near is not None:
+            ranges, valid, ranges_time = near.ranges, near.ranges_valid, near.ranges_time
+        f = self._frame(observation, exposure, at.imu if at is not None else sample, ranges, valid)
+        return dataclasses.replace(f, ranges_time=ranges_time, arrival_time=time, arrival_imu=sample)
+
+    def _frame(
+        self, observation: Mapping[str, Any], time: float, imu: ImuSample, ranges: Any, valid: Any
+    ) -> SensorFrame:
+        """The frame of the observation's camera frame (detected once in its image, or its
+        corners) at ``time`` with ``imu`` and the ``ranges`` (m) / ``valid`` given."""
+        valid = np.asarray(valid).astype(bool)
         if "image" in observation:
-            return self.estimator.frame(observation["image"], ranges, valid, time=time, imu=sample)
+            return self.estimator.frame(observation["image"], ranges, valid, time=time, imu=imu)
         detected = bool(observation["tag_detected"])
         status = int(observation.get("tag_status", 0 if detected else 1))
         reason = TAG_STATUS[status] if 0 < status < len(TAG_STATUS) else "tag not detected"
@@ -159,38 +174,7 @@ class EstimatorStage:
             ranges=np.asarray(ranges, dtype=np.float64),
             ranges_valid=valid,
             corners_reason="" if detected else reason,
-            imu=sample,
-        )
-
-    def _late_frame(
-        self, observation: Mapping[str, Any], time: float, exposure: float, sample: ImuSample
-    ) -> SensorFrame:
-        """The frame of a camera frame exposed at ``exposure`` (s) that arrived at ``time``: the IMU
-        sample of the exposure's step, the ranges measured nearest to it, and the arrival's IMU."""
-        steps = self._history
-        at = min(steps, key=lambda s: abs(s.time - exposure)) if steps else None
-        near = min(steps, key=lambda s: abs(s.ranges_time - exposure)) if steps else None
-        imu = at.imu if at is not None else sample
-        ranges, valid, ranges_time = (
-            (near.ranges, near.ranges_valid, near.ranges_time)
-            if near is not None
-            else (observation["ranges"], observation["ranges_valid"], time)
-        )
-        late = {"ranges_time": ranges_time, "arrival_time": time, "arrival_imu": sample}
-        if "image" in observation:
-            f = self.estimator.frame(observation["image"], ranges, valid, time=exposure, imu=imu)
-            return dataclasses.replace(f, **late)
-        detected = bool(observation["tag_detected"])
-        status = int(observation.get("tag_status", 0 if detected else 1))
-        reason = TAG_STATUS[status] if 0 < status < len(TAG_STATUS) else "tag not detected"
-        return SensorFrame(
-            time=exposure,
-            corners=np.asarray(observation["tag_corners"], dtype=np.float64) if detected else None,
-            ranges=np.asarray(ranges, dtype=np.float64),
-            ranges_valid=np.asarray(valid, dtype=bool),
-            corners_reason="" if detected else reason,
             imu=imu,
-            **late,
         )
 
     def _record(self, observation: Mapping[str, Any], now: float) -> None:
