@@ -88,7 +88,7 @@ from ihrcf_env.sim.registry import (
     world_measurements,
 )
 from ihrcf_env.sim.sensors import TOF_PRESETS, CameraConfig, ToFConfig
-from ihrcf_env.sim.sensors.camera import CAMERA_QUALITIES
+from ihrcf_env.sim.sensors.camera import CAMERA_QUALITIES, PIPELINE_LATENCY
 from ihrcf_env.sim.sensors.imu import IMU_NOISE_PRESETS, IMUConfig, IMUNoise
 from ihrcf_env.sim.sensors.tof import VL53L1X
 from ihrcf_env.sim.world import ACTION_MODES, CAMERA_MODELS, CAMERA_OUTPUTS, WorldConfig
@@ -140,6 +140,8 @@ TASK_DEFAULTS: dict[str, dict[str, Any]] = {
         "wind": False,
         "autopilot": "classic",
         "ground_effect": False,
+        "camera_latency": 0.0,
+        "tof_hz": None,
     },
     "landing-v2": {
         "random_deck_start": True,
@@ -150,6 +152,8 @@ TASK_DEFAULTS: dict[str, dict[str, Any]] = {
         "start_yaw": math.pi,
         "autopilot": "wind_hold",
         "ground_effect": True,
+        "camera_latency": PIPELINE_LATENCY,
+        "tof_hz": 30.0,
     },
     "landing-v1": {
         "deck_profile": "sea_state",
@@ -162,6 +166,8 @@ TASK_DEFAULTS: dict[str, dict[str, Any]] = {
         "wind": True,
         "autopilot": "classic",
         "ground_effect": False,
+        "camera_latency": 0.0,
+        "tof_hz": None,
     },
 }
 #: Touchdown limits of the landing task v2: a drone holding position in a 12-15 m/s wind leans
@@ -490,6 +496,9 @@ def make_config(
     camera_model: str = "rendered",
     camera_output: str | None = None,
     camera_hz: int | None = None,
+    camera_latency: float | None = None,
+    tof_hz: float | None = None,
+    imu_hz: float | None = None,
     detector_model: str | os.PathLike[str] | DetectorModel | None = None,
     sensor_preset: str | None = None,
     camera_quality: str | None = None,
@@ -611,14 +620,18 @@ def make_config(
             fov=check_real("camera_fov", camera_fov, "rad", low=math.radians(5), high=math.radians(170)),
             distortion=distortion,
             quality=quality,
+            latency=pick("camera_latency", camera_latency),
         )
     tof_model = model_option(
         "tof_noise", tof_noise, preset["tof_noise"], tuple(TOF_PRESETS), VL53L1X, VL53L1X()
     )
     max_range = check_positive("tof_max_range", tof_max_range, "m", high=100.0)
-    tof = _built("tof_noise", ToFConfig, max_range=max_range, noise=tof_model)
-    imu = IMUConfig(
-        model_option("imu_noise", imu_noise, preset["imu_noise"], IMU_NOISE_PRESETS, IMUNoise, IMUNoise())
+    tof = _built("tof_noise", ToFConfig, max_range=max_range, noise=tof_model, rate_hz=pick("tof_hz", tof_hz))
+    imu = _built(
+        "imu_hz",
+        IMUConfig,
+        model_option("imu_noise", imu_noise, preset["imu_noise"], IMU_NOISE_PRESETS, IMUNoise, IMUNoise()),
+        rate_hz=imu_hz,
     )
     navigation = NavigationConfig(
         model_option(

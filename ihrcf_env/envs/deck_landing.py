@@ -13,7 +13,12 @@ key               shape / dtype            meaning
 ``tag_detected``  Discrete(2)              ``camera_output="corners"``: 1 = the tag was detected
 ``tag_status``    Discrete(len(TAG_STATUS))  ``camera_output="corners"``: why not (0: detected; the
                                            reasons in :data:`~ihrcf_env.sim.sensors.base.TAG_STATUS`)
-``camera_age``    (1,) float32, s          age of the camera frame shown (0 when it is new)
+``camera_age``    (1,) float32, s          age of the camera frame shown, since its exposure (0
+                                           when new without ``CameraConfig.latency``; 10 before
+                                           the first frame arrives)
+``camera_frame``  (1,) int64               with a camera latency only: frames delivered so far
+``tof_age``       (1,) float32, s          with ``ToFConfig.rate_hz`` only: age of the ranges
+``imu_age``       (1,) float32, s          with ``IMUConfig.rate_hz`` only: age of the IMU sample
 ``ranges``        (4,) float32, m          ToF ps1..ps4 along the optical axis, in [0, max_range]
 ``ranges_valid``  (4,) int8                1 = valid reading; invalid readings read max_range
 ``imu``           Dict                     ``quaternion`` (4,) x, y, z, w world-from-body;
@@ -319,7 +324,13 @@ class DeckLandingEnv(gym.Env):
             obs["tag_status"] = int(r["tag_status"])
         if self._camera_name:
             age = w.time - w.sample_times[self._camera_name]
+            age = MAX_SENSOR_AGE if math.isnan(age) else age  # no frame yet (camera latency)
             obs["camera_age"] = np.array([min(max(age, 0.0), MAX_SENSOR_AGE)], np.float32)
+            if w.camera_pipeline is not None:
+                obs["camera_frame"] = np.array([w.frame_counts[self._camera_name]], np.int64)
+        for name in w.clocks:  # sensors on their own clock: the age of the sample shown
+            age = min(max(w.time - w.sample_times[name], 0.0), MAX_SENSOR_AGE)
+            obs[f"{name}_age"] = np.array([age], np.float32)
         obs["ranges"] = clip(r["ranges"], 0.0, self._max_range).astype(np.float32)
         obs["ranges_valid"] = np.asarray(r["ranges_valid"], dtype=np.int8)
         obs["imu"] = {
@@ -466,6 +477,11 @@ def _observation_space(world: WorldConfig) -> spaces.Dict:
         obs["tag_status"] = spaces.Discrete(len(TAG_STATUS))
     if cam is not None:
         obs["camera_age"] = spaces.Box(np.float32(0.0), np.float32(MAX_SENSOR_AGE), (1,), np.float32)
+        if cam.latency > 0:  # frames delivered this episode (a new frame: the count changed)
+            obs["camera_frame"] = spaces.Box(0, np.iinfo(np.int64).max, (1,), np.int64)
+    for name, rate in (("tof", world.tof.rate_hz), ("imu", world.imu.rate_hz)):
+        if rate is not None:  # sensors on their own clock: the age of the sample shown
+            obs[f"{name}_age"] = spaces.Box(np.float32(0.0), np.float32(MAX_SENSOR_AGE), (1,), np.float32)
     obs["ranges"] = spaces.Box(np.float32(0.0), np.float32(world.tof.max_range), (4,), np.float32)
     obs["ranges_valid"] = spaces.MultiBinary(4)
     obs["imu"] = spaces.Dict(

@@ -35,6 +35,7 @@ from ihrcf_env.sim.registry import apply_faults
 from ihrcf_env.sim.sensors import IMU, BodyState, CameraConfig, DownCamera, Sensor, ToFArray, ToFConfig
 from ihrcf_env.sim.sensors.base import TAG_CAMERA
 from ihrcf_env.sim.sensors.imu import IMUConfig
+from ihrcf_env.sim.sensors.timing import DelayLine, SampleClock, no_frame_reading
 
 if TYPE_CHECKING:
     from ihrcf_env.core.detector_model import DetectorModel
@@ -115,6 +116,9 @@ class WorldConfig:
                 raise ValueError(f"camera_hz must be a positive integer (Hz) or None, got {hz!r}")
             if self.control_hz % hz != 0:
                 raise ValueError(f"camera_hz ({hz}) must divide control_hz ({self.control_hz}) evenly")
+        for what, rate in (("tof_hz", self.tof.rate_hz), ("imu_hz", self.imu.rate_hz)):
+            if rate is not None and rate > self.physics_hz:
+                raise ValueError(f"{what} ({rate:g} Hz) must not exceed physics_hz ({self.physics_hz} Hz)")
 
     @property
     def camera_every(self) -> int:
@@ -244,8 +248,20 @@ class World:
         self.disturbances: list[Disturbance] = []
         self.tick = 0
         self._held: dict[str, dict[str, NDArray]] = {}  # sensor -> its last reading
-        #: sensor name -> simulated time (s) of the reading shown (NaN: none yet this episode)
+        #: sensor name -> simulated time (s) of the reading shown (NaN: none yet this episode); for
+        #: a camera, the exposure time of the frame shown
         self.sample_times: dict[str, float] = dict.fromkeys(self.sensors, math.nan)
+        #: sensors on their own clock (``ToFConfig.rate_hz``, ``IMUConfig.rate_hz``): name -> clock
+        self.clocks: dict[str, SampleClock] = {
+            name: SampleClock(rate, cfg.physics_hz)
+            for name, rate in (("tof", cfg.tof.rate_hz), ("imu", cfg.imu.rate_hz))
+            if rate is not None
+        }
+        latency = cfg.camera.latency if cfg.camera is not None else 0.0
+        #: the camera's frames in flight (``CameraConfig.latency`` > 0), or None
+        self.camera_pipeline = DelayLine(latency, cfg.physics_hz) if latency > 0 else None
+        #: camera sensor -> frames delivered this episode
+        self.frame_counts: dict[str, int] = {n: 0 for n in CAMERA_SENSORS if n in self.sensors}
         self._rngs: dict[str, np.random.Generator] = {}  # stream name -> this episode's generator
         self._motor_cmd = [0.0] * 4
         self._acc_world = np.zeros(3)
@@ -296,6 +312,11 @@ class World:
         self.tick = 0
         self._held = {}
         self.sample_times = dict.fromkeys(self.sensors, math.nan)
+        for clock in self.clocks.values():
+            clock.reset()
+        if self.camera_pipeline is not None:
+            self.camera_pipeline.reset()
+        self.frame_counts = dict.fromkeys(self.frame_counts, 0)
         self.deck.set_trajectory(traj)
         deck_pos, _ = self.deck.pose()
         start = np.array([deck_pos[0] + offset_xy[0], deck_pos[1] + offset_xy[1], deck_pos[2] + altitude])
@@ -410,6 +431,7 @@ class World:
         body = quad.body
         get_pose, get_velocity = p.getBasePositionAndOrientation, p.getBaseVelocity
         half_thickness = self.config.deck.thickness / 2
+        due = self._due_samples() if self.clocks else None
         for _ in range(self.config.substeps):
             deck.drive(self.tick)
             pos, quat = get_pose(body, physicsClientId=cid)  # quad.state(), inlined
@@ -438,6 +460,8 @@ class World:
             prev_vel = vel
             p.stepSimulation(physicsClientId=cid)
             self.tick += 1
+            if due and self.tick in due:
+                self._sample_clocked(due[self.tick], vel)
             if first is None:
                 first = self._check_contact(approach_velocity=vel)
         v_now = p.getBaseVelocity(quad.body, physicsClientId=cid)[0]
@@ -491,8 +515,9 @@ class World:
         _, est = self.navigation.estimate(self.time, pos, vel)
         return np.asarray(est, dtype=np.float64)
 
-    def body_state(self) -> BodyState:
-        """The drone's true state now, as sensors see it."""
+    def body_state(self, acceleration: NDArray[np.float64] | None = None) -> BodyState:
+        """The drone's true state now, as sensors see it (``acceleration``, world m/s^2: over the
+        last physics step; default the one of the last control step's end)."""
         self._check_open()
         pos, quat, vel, omega = self.quad.state()
         return BodyState(
@@ -502,7 +527,7 @@ class World:
             quaternion=np.asarray(quat),
             velocity=np.asarray(vel),
             angular_velocity=np.asarray(omega),
-            acceleration=self._acc_world.copy(),
+            acceleration=(self._acc_world if acceleration is None else acceleration).copy(),
         )
 
     def read_sensors(
@@ -516,9 +541,12 @@ class World:
         Each sensor samples every ``update_interval`` control steps (its attribute, default 1; the
         camera's is ``control_hz / camera_hz``), counted from the episode's start; in between its
         last reading is repeated (fresh copies of the same arrays) and :attr:`sample_times` (s)
-        still says when it was taken. Noise is drawn from each sensor's own stream (see
-        :meth:`reset_random`), or from ``rng`` when given. Named explicitly, a sensor is always
-        read."""
+        still says when it was taken. A sensor on its own clock (:attr:`clocks`) shows its last
+        sample instead (taken by :meth:`step` at its own instants), and a camera with a latency
+        shows the last frame whose delivery time has come (:attr:`camera_pipeline`;
+        :attr:`sample_times` holds its exposure time, :attr:`frame_counts` counts the frames
+        delivered). Noise is drawn from each sensor's own stream (see :meth:`reset_random`), or
+        from ``rng`` when given. Named explicitly, a sensor is always read now."""
         state = self.body_state()
         control_dt = self.config.substeps * self.dt
         step = self.tick // self.config.substeps
@@ -527,27 +555,95 @@ class World:
         for name in names if names is not None else tuple(self.sensors):
             sensor = self.sensors[name]
             every = int(getattr(sensor, "update_interval", 1))
+            if held and name in self.clocks:
+                out.update(self._read_clocked(name, state, rng))
+                continue
+            if held and self.camera_pipeline is not None and name in self.frame_counts:
+                out.update(self._read_delayed(name, state, step % every == 0, control_dt * every, rng))
+                continue
             last = self._held.get(name)
             if held and last is not None and step % every != 0:
                 out.update({k: v.copy() for k, v in last.items()})
                 continue
-            if name == "camera":
-                self.deck.update_visuals()
-            gen = rng if rng is not None else self._rngs.get(name)
-            if gen is None:  # before the first reset_random: a fixed stream
-                gen = self._rngs[name] = SeedStreams(0).generator(f"sensor.{name}")
-            reading = sensor.read(state, control_dt * every, gen)
-            if self.corruptors:
-                reading = self._corrupt(reading, control_dt * every, rng)
-            if self.faults:
-                reading = apply_faults(
-                    self.faults, reading, state.time, control_dt * every, self._fault_rng(rng)
-                )
+            reading = self._take(name, state, control_dt * every, rng)
             out.update(reading)
             if held:
                 self._held[name] = dict(reading)
                 self.sample_times[name] = state.time
+                if name in self.frame_counts:
+                    self.frame_counts[name] += 1
         return out
+
+    def _take(
+        self, name: str, state: BodyState, dt: float, rng: np.random.Generator | None
+    ) -> Mapping[str, NDArray]:
+        """One reading of sensor ``name`` at ``state``, ``dt`` s after its previous one, with the
+        configured noise models applied."""
+        if name == "camera":
+            self.deck.update_visuals()
+        gen = rng if rng is not None else self._rngs.get(name)
+        if gen is None:  # before the first reset_random: a fixed stream
+            gen = self._rngs[name] = SeedStreams(0).generator(f"sensor.{name}")
+        reading = self.sensors[name].read(state, dt, gen)
+        if self.corruptors:
+            reading = self._corrupt(reading, dt, rng)
+        if self.faults:
+            reading = apply_faults(self.faults, reading, state.time, dt, self._fault_rng(rng))
+        return reading
+
+    def _read_delayed(
+        self, name: str, state: BodyState, exposing: bool, dt: float, rng: np.random.Generator | None
+    ) -> dict[str, NDArray]:
+        """The camera through its delay line: expose a frame now (``exposing``: a camera step, not
+        yet exposed at this tick), then show the last frame due."""
+        line = self.camera_pipeline
+        assert line is not None
+        if exposing and line.exposed_at != self.tick:
+            line.push(self.tick, self._take(name, state, dt, rng))
+        for tick, reading in line.deliver(self.tick):
+            self._held[name] = reading
+            self.sample_times[name] = tick * self.dt
+            self.frame_counts[name] += 1
+        last = self._held.get(name)
+        if last is None:
+            cam = self.config.camera
+            assert cam is not None
+            return no_frame_reading(name, cam.width, cam.height)
+        return {k: v.copy() for k, v in last.items()}
+
+    def _read_clocked(
+        self, name: str, state: BodyState, rng: np.random.Generator | None
+    ) -> dict[str, NDArray]:
+        """A sensor on its own clock: sampled now if a sample falls on this tick (or none was taken
+        yet this episode), else its last sample."""
+        clock = self.clocks[name]
+        if name not in self._held or clock.last_index(self.tick) >= clock.next:
+            self._store_clocked(name, state, rng)
+        return {k: v.copy() for k, v in self._held[name].items()}
+
+    def _store_clocked(self, name: str, state: BodyState, rng: np.random.Generator | None = None) -> None:
+        clock = self.clocks[name]
+        self._held[name] = dict(self._take(name, state, clock.period, rng))
+        self.sample_times[name] = state.time
+        clock.taken(self.tick)
+
+    def _due_samples(self) -> dict[int, list[str]]:
+        """Physics tick -> the sensors on their own clock that sample there, over the next control
+        period (after the current tick)."""
+        due: dict[int, list[str]] = {}
+        first, last = self.tick + 1, self.tick + self.config.substeps
+        for name, clock in self.clocks.items():
+            for tick in clock.pending(first, last):
+                due.setdefault(tick, []).append(name)
+        return due
+
+    def _sample_clocked(self, names: list[str], previous_velocity: tuple[float, ...]) -> None:
+        """Sample ``names`` now, mid control step (acceleration over the last physics step)."""
+        v_now = p.getBaseVelocity(self.quad.body, physicsClientId=self.client)[0]
+        acc = (np.asarray(v_now) - np.asarray(previous_velocity)) / self.dt
+        state = self.body_state(acc)
+        for name in names:
+            self._store_clocked(name, state)
 
     def _corrupt(
         self, reading: Mapping[str, NDArray], dt: float, rng: np.random.Generator | None
@@ -589,7 +685,8 @@ class World:
 
     @property
     def camera_time(self) -> float:
-        """Simulated time (s) of the camera frame last delivered (NaN: none yet this episode)."""
+        """Simulated exposure time (s) of the camera frame last delivered (NaN: none yet this
+        episode)."""
         for name in CAMERA_SENSORS:
             if name in self.sample_times:
                 return self.sample_times[name]

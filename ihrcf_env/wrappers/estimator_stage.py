@@ -4,16 +4,27 @@ One :class:`EstimatorStage` per wrapped env. It builds the estimators of an
 :class:`~ihrcf_env.envs.config.ObservationConfig` (calibration, names, fused parameters) and turns
 each raw observation into a :class:`~ihrcf_env.core.estimators.SensorFrame`: the tag corners (from
 ``tag_corners``, or detected once in ``image``), the ranges, the IMU sample and the frame's time.
-Everything it reads is in the raw observation: a camera frame is new when its ``camera_age`` is 0;
-a held frame (``camera_hz`` below the control rate) is not estimated twice. The clock is the
-wrapper's own (control steps since reset times the control period, the env's time to the bit).
+Everything it reads is in the raw observation: a camera frame is new when its ``camera_age`` is 0,
+or, with a camera latency, when ``camera_frame`` (frames delivered) changes; a held frame
+(``camera_hz`` below the control rate) is not estimated twice. The clock is the wrapper's own
+(control steps since reset times the control period, the env's time to the bit).
+
+Timestamps (camera latency, ``CameraConfig.latency`` > 0): a frame's time is its exposure (the
+observation's time minus ``camera_age``), its IMU sample the one observed at that step, its
+ranges the observed ones measured nearest to the exposure (``tof_age``: when the ToF runs on its
+own clock), and its ``arrival_time`` / ``arrival_imu`` the observation's (see
+:class:`~ihrcf_env.core.estimators.SensorFrame`): the fused filter fuses the frame at its exposure
+and predicts its output to the arrival. ``compensate_latency=False`` stamps frames with their
+arrival instead (as without latency). Each estimate's age is the age of the exposure behind it.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections import deque
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -28,7 +39,18 @@ from ihrcf_env.core.estimators import (
 )
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.sim.sensors.base import TAG_STATUS
+from ihrcf_env.sim.sensors.timing import NO_FRAME_YET
 from ihrcf_env.sim.world import WorldConfig
+
+
+class _Step(NamedTuple):
+    """What one observation shows of the fast sensors, for the frames exposed at its step."""
+
+    time: float  # s
+    imu: ImuSample
+    ranges: np.ndarray
+    ranges_valid: np.ndarray
+    ranges_time: float  # s
 
 
 def _rig(calibration: Calibration) -> SensorRig:
@@ -69,8 +91,11 @@ class EstimatorStage:
         sources: ordered mapping name -> :class:`DeckPoseSource`.
         last_estimates: name -> :class:`PoseEstimate` of the last observation (None before reset).
         last_frame: the last :class:`SensorFrame` fed to the estimators (None before reset).
-        ages: name -> age (s) of the camera frame behind each estimate shown.
+        ages: name -> age (s) since the exposure of the camera frame behind each estimate shown
+            (NaN before the first frame arrives).
         time: the wrapper's clock (s since reset).
+        compensate_latency: stamp frames with their exposure time (module docstring; default
+            True, no effect without a camera latency).
     """
 
     def __init__(
@@ -87,6 +112,11 @@ class EstimatorStage:
         )
         self.sources: dict[str, DeckPoseSource] = self.estimator.sources
         self._substeps, self._dt = world.substeps, 1.0 / world.physics_hz
+        self.latency = world.camera.latency if world.camera is not None else 0.0
+        self.compensate_latency = True
+        # the observations of the last latency + one camera period (+ margin), for the exposures
+        span = self.latency + world.camera_every / world.control_hz
+        self._steps_kept = math.ceil(span * world.control_hz) + 2
         self.reset()
 
     def reset(self) -> None:
@@ -96,6 +126,8 @@ class EstimatorStage:
         self.ages: dict[str, float] = {}
         self._steps = 0
         self._frame_time = math.nan  # s, time of the camera frame the estimates come from
+        self._frame_count = -1  # ``camera_frame`` of the last frame estimated
+        self._history: deque[_Step] = deque(maxlen=self._steps_kept)
 
     @property
     def time(self) -> float:
@@ -105,14 +137,34 @@ class EstimatorStage:
         """One control step has passed."""
         self._steps += 1
 
-    def frame(self, observation: Mapping[str, Any], time: float) -> SensorFrame:
-        """The :class:`SensorFrame` of a raw observation at ``time`` (s)."""
+    def frame(
+        self, observation: Mapping[str, Any], time: float, exposure: float | None = None
+    ) -> SensorFrame:
+        """The :class:`SensorFrame` of a raw observation at ``time`` (s); ``exposure``: the time (s)
+        of its camera frame when earlier (a camera latency: see the module docstring)."""
         imu = observation["imu"]
-        ranges = observation["ranges"]
-        valid = np.asarray(observation["ranges_valid"]).astype(bool)
         sample = ImuSample(imu["quaternion"], imu["angular_velocity"], imu["linear_acceleration"])
+        ranges, valid = observation["ranges"], observation["ranges_valid"]
+        if exposure is None or exposure >= time or not self.compensate_latency:
+            return self._frame(observation, time, sample, ranges, valid)
+        # a late frame: the IMU sample of the exposure's step, the ranges measured nearest to it
+        steps = self._history
+        at = min(steps, key=lambda s: abs(s.time - exposure)) if steps else None
+        near = min(steps, key=lambda s: abs(s.ranges_time - exposure)) if steps else None
+        ranges_time = time
+        if near is not None:
+            ranges, valid, ranges_time = near.ranges, near.ranges_valid, near.ranges_time
+        f = self._frame(observation, exposure, at.imu if at is not None else sample, ranges, valid)
+        return dataclasses.replace(f, ranges_time=ranges_time, arrival_time=time, arrival_imu=sample)
+
+    def _frame(
+        self, observation: Mapping[str, Any], time: float, imu: ImuSample, ranges: Any, valid: Any
+    ) -> SensorFrame:
+        """The frame of the observation's camera frame (detected once in its image, or its
+        corners) at ``time`` with ``imu`` and the ``ranges`` (m) / ``valid`` given."""
+        valid = np.asarray(valid).astype(bool)
         if "image" in observation:
-            return self.estimator.frame(observation["image"], ranges, valid, time=time, imu=sample)
+            return self.estimator.frame(observation["image"], ranges, valid, time=time, imu=imu)
         detected = bool(observation["tag_detected"])
         status = int(observation.get("tag_status", 0 if detected else 1))
         reason = TAG_STATUS[status] if 0 < status < len(TAG_STATUS) else "tag not detected"
@@ -122,20 +174,58 @@ class EstimatorStage:
             ranges=np.asarray(ranges, dtype=np.float64),
             ranges_valid=valid,
             corners_reason="" if detected else reason,
-            imu=sample,
+            imu=imu,
         )
+
+    def _record(self, observation: Mapping[str, Any], now: float) -> None:
+        """Keep what this observation shows of the IMU and the ranges (camera latency only)."""
+        imu = observation["imu"]
+        tof_age = observation.get("tof_age")
+        ranges_time = now if tof_age is None else self._on_tick(now - float(np.asarray(tof_age).ravel()[0]))
+        self._history.append(
+            _Step(
+                now,
+                ImuSample(imu["quaternion"], imu["angular_velocity"], imu["linear_acceleration"]),
+                np.asarray(observation["ranges"], dtype=np.float64).copy(),
+                np.asarray(observation["ranges_valid"]).astype(bool),
+                ranges_time,
+            )
+        )
+
+    def _on_tick(self, t: float) -> float:
+        """``t`` (s) rounded to the physics tick (the observation's ages are float32)."""
+        return round(t / self._dt) * self._dt
 
     def update(self, observation: Mapping[str, Any]) -> dict[str, PoseEstimate]:
         """The estimates for a raw observation taken now (:attr:`time`): recomputed on a new camera
-        frame (``camera_age`` 0, or no ``camera_age``), held on a repeated one."""
+        frame (``camera_age`` 0, a new ``camera_frame``, or no ``camera_age``), held on a repeated
+        one."""
         now = self.time
         age = observation.get("camera_age")
-        fresh = self.last_estimates is None or age is None or float(np.asarray(age).reshape(-1)[0]) == 0.0
+        count = observation.get("camera_frame")
+        if self.latency > 0:
+            self._record(observation, now)
+        exposure: float | None = None
+        if count is not None:  # a camera latency: frames counted, stamped with their exposure
+            n = int(np.asarray(count).ravel()[0])
+            fresh = self.last_estimates is None or n != self._frame_count
+            self._frame_count = n
+            if fresh and n > 0 and age is not None:
+                exposure = self._on_tick(now - float(np.asarray(age).ravel()[0]))
+        else:
+            fresh = self.last_estimates is None or age is None or float(np.asarray(age).reshape(-1)[0]) == 0.0
         if fresh:
-            frame = self.frame(observation, now)
+            if count is not None and exposure is None:  # no frame has arrived yet
+                frame = dataclasses.replace(
+                    self.frame(observation, now), corners=None, corners_reason=NO_FRAME_YET
+                )
+            else:
+                frame = self.frame(observation, now, exposure)
             self.last_estimates = self.estimator.update(frame)
             self.last_frame = frame
-            self._frame_time = now
+            self._frame_time = math.nan if count is not None and exposure is None else frame.time
+            if exposure is not None and not self.compensate_latency:
+                self._frame_time = exposure
         assert self.last_estimates is not None
         self.ages = dict.fromkeys(self.last_estimates, now - self._frame_time)
         return self.last_estimates

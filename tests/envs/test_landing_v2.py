@@ -24,6 +24,8 @@ def test_each_level_sets_its_bundle(name: str) -> None:
     assert (cfg.wind.mean_speed_min, cfg.wind.mean_speed_max) == (level.wind_min, level.wind_max)
     assert cfg.world.gains.wind_hold and cfg.world.ground_effect
     assert cfg.task.thresholds.success_tilt == pytest.approx(math.radians(20.0))
+    assert cfg.world.camera is not None and cfg.world.camera.latency > 0  # a real pipeline's delay
+    assert cfg.world.tof.rate_hz == 30.0  # the VL53L1X on its own clock
 
 
 def test_levels_are_graded_and_the_default_is_moderate() -> None:

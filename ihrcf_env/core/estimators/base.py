@@ -138,7 +138,8 @@ class SensorFrame:
     """Everything the estimators see at one instant (read-only arrays).
 
     Attributes:
-        time: sample time, s (simulation time in the env; NaN when unknown).
+        time: sample time, s (simulation time in the env; NaN when unknown): the camera's exposure
+            time, the instant the corners describe.
         corners: (4, 2) tag corners in OpenCV pixels (pixel centres at integers), OpenCV's aruco
             order, or None when the tag was not detected.
         corners_reason: why ``corners`` is None (default :data:`TAG_NOT_FOUND`); '' when detected.
@@ -147,6 +148,10 @@ class SensorFrame:
         imu: the IMU sample of this instant, or None.
         image: the camera image the corners came from (uint8), or None (e.g. a projected camera
             model, or a log without images). Estimators must not rely on it being present.
+        ranges_time: when the ranges were measured, s (NaN: at ``time``).
+        arrival_time: when the frame reached the estimators, s (NaN: at ``time``, no latency); an
+            estimator that can predicts its output to this time.
+        arrival_imu: the IMU sample at ``arrival_time`` (None: ``imu``).
     """
 
     time: float
@@ -156,9 +161,20 @@ class SensorFrame:
     corners_reason: str = ""
     imu: ImuSample | None = None
     image: NDArray[np.uint8] | None = None
+    ranges_time: float = math.nan
+    arrival_time: float = math.nan
+    arrival_imu: ImuSample | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "time", float(self.time))
+        for name in ("ranges_time", "arrival_time"):
+            value = float(getattr(self, name))
+            if math.isinf(value):
+                raise ValueError(f"{name} must be finite (s) or NaN (unknown), got {value!r}")
+            object.__setattr__(self, name, value)
+        if self.arrival_imu is not None and not isinstance(self.arrival_imu, ImuSample):
+            kind = type(self.arrival_imu).__name__
+            raise TypeError(f"arrival_imu must be an ImuSample or None, got {kind}")
         if self.corners is None:
             object.__setattr__(self, "corners_reason", str(self.corners_reason) or TAG_NOT_FOUND)
         else:

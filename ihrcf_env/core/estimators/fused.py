@@ -24,18 +24,18 @@ from scipy.stats import chi2
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.estimators.atda import atda_choose, atda_frame_candidates
 from ihrcf_env.core.estimators.base import ImuSample, PoseEstimate, SensorFrame
+from ihrcf_env.core.estimators.fused_delay import imu_sample, predict_ahead
 from ihrcf_env.core.estimators.fused_measurements import Measurement, MeasurementBlocks
 from ihrcf_env.core.estimators.fused_params import FusedParams
 from ihrcf_env.core.estimators.ihrcf import IHRCFCorners, TouchPixels, ihrcf_measure
 from ihrcf_env.core.estimators.imm import Imm
-from ihrcf_env.core.frames import as_array, matrix_from_euler, matrix_from_quat
+from ihrcf_env.core.frames import R_BODY_CAM, as_array, matrix_from_euler
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 
 __all__ = ["FusedEstimator", "FusedParams"]
 
 #: E[ln X] for X ~ chi-square(1): the bias of the log-domain average of one-dof variance samples.
 _LOG_CHI2_1_MEAN = -1.2703628454614782
-_G_WORLD = np.array([0.0, 0.0, -GRAVITY])
 
 
 class FusedEstimator:
@@ -107,6 +107,8 @@ class FusedEstimator:
         self._bias = np.zeros(2)
         self._bias_P = np.diag([self.params.range_offset_sigma**2, self.params.atda_depth_bias_sigma**2])
         self._converged = False  # both filters met the convergence rule since they were created
+        #: the filters predicted to the last frame's arrival time (a frame that arrived late), or None
+        self._ahead: tuple[Imm | None, Imm | None] | None = None
         #: What the last :meth:`update` did: accepted / rejected measurement blocks with their
         #: squared Mahalanobis distance, re-initialisations, range noise (m), 1-sigmas (m, rad).
         self.diagnostics: dict[str, Any] = {}
@@ -131,18 +133,26 @@ class FusedEstimator:
         axes: (velocity of the deck origin relative to the drone (3,) m/s, rate of change of the deck
         normal (3,) 1/s, by central differences over +-``horizon`` s of the Euler rates); None until
         the filter has converged (as the pose output's validity) or after it lost its state."""
-        if not self._converged or self._pos is None or self._att is None:
+        pos, att = self._ahead if self._ahead is not None else (self._pos, self._att)
+        if not self._converged or pos is None or att is None:
             return None
-        x_att = self._att.x
+        x_att = att.x
         angles, rates = x_att[0:3], x_att[3:6]
         ahead = matrix_from_euler(*(angles + horizon * rates))[:, 2]
         behind = matrix_from_euler(*(angles - horizon * rates))[:, 2]
-        return np.array(self._pos.x[3:6]), (ahead - behind) / (2.0 * horizon)
+        return np.array(pos.x[3:6]), (ahead - behind) / (2.0 * horizon)
 
     def update(self, frame: SensorFrame) -> PoseEstimate:
-        """Fuse ``frame`` (time non-decreasing) and return the filtered deck pose in the body frame."""
+        """Fuse ``frame`` (time non-decreasing) and return the filtered deck pose in the body frame.
+
+        Delays: the filter runs on the frames' (exposure) ``time``, each frame fused at its own time
+        with the IMU sample of that time; ranges measured at another ``ranges_time`` are moved to
+        ``time`` along the filter's relative velocity. A frame that arrived later
+        (``arrival_time``) is then predicted to its arrival on the IMU (``arrival_imu``): the
+        output is the pose at arrival, in the body frame of then."""
         p = self.params
         self.diagnostics = {"accepted": [], "rejected": [], "reinitialised": []}
+        self._ahead = None
         # time (NaN: one nominal interval after the last frame)
         if math.isnan(frame.time):
             t = (self._time + p.nominal_dt) if self._time is not None else 0.0
@@ -188,23 +198,25 @@ class FusedEstimator:
             if kf is not None and not kf.finite():
                 self._drop()
                 return PoseEstimate.invalid("numerical failure: filter reset")
-        return self._output(R_wb, lost_reason or reason)
+        arrival = frame.arrival_time
+        if math.isnan(arrival) or arrival <= t:
+            return self._output(R_wb, lost_reason or reason)
+        # a late frame: the output of copies of the filters predicted to its arrival
+        now = imu_sample(frame.arrival_imu) if frame.arrival_imu is not None else (R_wb, a_world)
+        if isinstance(now, str):
+            return PoseEstimate.invalid(f"arrival {now}")
+        self._ahead = predict_ahead(self._pos, self._att, p, arrival - t, a_world, now[1])
+        return self._output(now[0], lost_reason or reason, *self._ahead)
 
     # -- internals ----------------------------------------------------------------------------
     def _imu(self, imu: ImuSample | None) -> tuple[NDArray[np.float64], NDArray[np.float64] | None] | str:
         """(R_wb, drone acceleration in the world or None) of a sample, or why the frame is ignored."""
         if imu is None:  # no IMU: the last attitude (identity before any), no acceleration input
             return (self._R_wb if self._R_wb is not None else np.eye(3)), None
-        q, f = imu.quaternion, imu.specific_force
-        if not math.isfinite(
-            float(q @ q) + float(f @ f) + float(imu.angular_velocity @ imu.angular_velocity)
-        ):
-            return "non-finite IMU sample: frame ignored"  # (or absurdly large: > 1e154)
-        if float(q @ q) < 1e-12:
-            return "zero IMU quaternion: frame ignored"
-        R_wb = matrix_from_quat(q)
-        self._R_wb = R_wb
-        return R_wb, R_wb @ f + _G_WORLD
+        out = imu_sample(imu)
+        if not isinstance(out, str):
+            self._R_wb = out[0]
+        return out
 
     def _drop(self) -> None:
         self._pos = None
@@ -259,6 +271,10 @@ class FusedEstimator:
             return frame.corners_reason
         offset_state = p.range_offset_sigma > 0 and self.K is not None and p.use_atda_position
         ranges = frame.ranges - self._bias[0] if offset_state else frame.ranges
+        shift = t - frame.ranges_time  # ranges measured at another time: moved to t (NaN: at t)
+        if shift != 0.0 and not math.isnan(shift) and self._pos is not None:
+            v_cam = R_BODY_CAM.T @ (R_wb.T @ self._pos.x[3:6])  # depth rate of the deck, m/s
+            ranges = ranges + float(v_cam[2]) * shift
         # IHRCF up to its 3-D corners, then its own rigid fit
         corners, ihrcf_est = ihrcf_measure(
             frame, ranges, self.touch_pixels, self.rig, self.tag_size, self.max_residual
@@ -372,15 +388,21 @@ class FusedEstimator:
             return "every measurement rejected by the gate"
         return "" if ihrcf is not None else f"IHRCF: {ihrcf_reason}"
 
-    def _output(self, R_wb: NDArray[np.float64], reason: str) -> PoseEstimate:
+    def _output(
+        self, R_wb: NDArray[np.float64], reason: str, pos: Imm | None = None, att: Imm | None = None
+    ) -> PoseEstimate:
+        """The pose of the filters ``pos`` and ``att`` (default: the filters) in the body frame of
+        ``R_wb``."""
         p = self.params
-        if self._att is None or self._pos is None:
-            what = "not initialised" if self._att is None else "position not initialised"
+        pos = self._pos if pos is None else pos
+        att = self._att if att is None else att
+        if att is None or pos is None:
+            what = "not initialised" if att is None else "position not initialised"
             return PoseEstimate.invalid(f"{what}: {reason or 'no measurement yet'}")
-        pos_sigma, ang_sigma = self._pos.value_sigma(), self._att.value_sigma()
+        pos_sigma, ang_sigma = pos.value_sigma(), att.value_sigma()
         self.diagnostics.update(position_sigma=pos_sigma, angle_sigma=ang_sigma)
         if not self._converged:  # latched: afterwards only the timeouts end the validity
-            frames = min(self._pos.frames, self._att.frames)
+            frames = min(pos.frames, att.frames)
             why = ""
             if frames < p.min_updates:
                 why = f"{frames}/{p.min_updates} updates"
@@ -392,6 +414,6 @@ class FusedEstimator:
             if why:
                 return PoseEstimate.invalid(f"converging: {why}" + (f" ({reason})" if reason else ""))
             self._converged = True
-        R_bd = R_wb.T @ matrix_from_euler(*self._att.x[0:3])
-        p_bd = R_wb.T @ self._pos.x[0:3]
-        return PoseEstimate.from_body_pose(R_bd, p_bd, math.sqrt(float(np.trace(self._pos.value_cov))))
+        R_bd = R_wb.T @ matrix_from_euler(*att.x[0:3])
+        p_bd = R_wb.T @ pos.x[0:3]
+        return PoseEstimate.from_body_pose(R_bd, p_bd, math.sqrt(float(np.trace(pos.value_cov))))

@@ -8,6 +8,7 @@ its small helpers.
 
 from __future__ import annotations
 
+import copy
 import functools
 import math
 
@@ -202,6 +203,15 @@ class Imm:
         self.X = X
         self.Ps = 0.5 * (Ps + Ps.transpose(0, 2, 1))
         self._changed()
+
+    def predicted(
+        self, dt: float, u: NDArray[np.float64] | None = None, q_value: NDArray[np.float64] | None = None
+    ) -> Imm:
+        """A copy of this filter predicted ``dt`` s ahead (see :meth:`predict`); this one is unchanged
+        (the copy shares no array it modifies: :meth:`predict` and :meth:`update` replace them)."""
+        out = copy.copy(self)
+        out.predict(dt, u, q_value)
+        return out
 
     def update(
         self, z: NDArray[np.float64], rows: tuple[int, int], R: NDArray[np.float64], gate: float | None

@@ -19,6 +19,7 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
+from ihrcf_env.core.checks import check_real, set_field
 from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.rig import SensorRig, intrinsics_from_fov
 from ihrcf_env.sim.sensors.base import BodyState
@@ -35,6 +36,13 @@ from ihrcf_env.sim.sensors.imaging import (
 
 #: Camera qualities: ``"ideal"`` (today's clean render) and ``"realistic"``.
 CAMERA_QUALITIES: tuple[str, ...] = ("ideal", "realistic")
+#: Largest ``CameraConfig.latency`` accepted (s).
+MAX_LATENCY = 1.0
+#: A typical delay (s) from exposure to detected tag corners of a global-shutter camera with
+#: on-board AprilTag detection, the ``camera_latency`` of the realistic deck-landing task: exposure
+#: (a few ms, its middle is the frame's time), sensor readout and transfer (about one frame period
+#: of a 60 fps sensor, ~17 ms) and detection on an embedded CPU (~15-30 ms): 30-60 ms in total.
+PIPELINE_LATENCY = 0.045
 
 #: A pixel rectangle of the image, ``(x0, y0, width, height)``: columns ``x0 .. x0 + width - 1``,
 #: rows ``y0 .. y0 + height - 1`` (OpenCV convention: x right, y down, (0, 0) the top-left pixel).
@@ -121,8 +129,13 @@ class CameraConfig:
     distortion: tuple[float, float] = (0.0, 0.0)
     quality: str = "ideal"
     imaging: ImagingParams = field(default_factory=ImagingParams)
+    #: delay (s) from a frame's exposure to its delivery to the observation (exposure, readout,
+    #: transfer and tag detection); 0: delivered in the control step it is exposed. See
+    #: ``docs/sensors.md`` ("Timing and latency") and :data:`PIPELINE_LATENCY`.
+    latency: float = 0.0
 
     def __post_init__(self) -> None:
+        set_field(self, "latency", check_real("camera_latency", self.latency, "s", low=0.0, high=MAX_LATENCY))
         if self.quality not in CAMERA_QUALITIES:
             raise ValueError(f"camera quality must be one of {CAMERA_QUALITIES}, got {self.quality!r}")
         if not isinstance(self.imaging, ImagingParams):

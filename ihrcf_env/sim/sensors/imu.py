@@ -140,13 +140,23 @@ class IMUNoise:
         check_fields(self, lambda f: f"IMUNoise.{f}", bounds, IMU_NOISE_UNITS)
 
 
+#: Accepted ``IMUConfig.rate_hz`` (Hz).
+IMU_RATE_BOUNDS = (1.0, 10_000.0)
+
+
 @dataclass(frozen=True)
 class IMUConfig:
     """``noise``: a key of :data:`IMU_NOISE_PRESETS` or an :class:`IMUNoise` (custom figures)."""
 
     noise: str | IMUNoise = "ideal"
+    #: output data rate (Hz) on the IMU's own clock (the latest sample is shown); None: one sample
+    #: per control step
+    rate_hz: float | None = None
 
     def __post_init__(self) -> None:
+        if self.rate_hz is not None:
+            lo, hi = IMU_RATE_BOUNDS
+            set_field(self, "rate_hz", check_real("imu_hz", self.rate_hz, "Hz", low=lo, high=hi))
         if not isinstance(self.noise, IMUNoise) and self.noise not in IMU_NOISE_PRESETS:
             raise ValueError(
                 f"imu_noise must be one of {IMU_NOISE_PRESETS} or an IMUNoise, got {self.noise!r}"

@@ -147,6 +147,9 @@ class VL53L1X:
         return np.sqrt(self.sigma_floor**2 + (self.sigma_at_limit * self.snr_min / snr) ** 2)
 
 
+#: Accepted ``ToFConfig.rate_hz`` (Hz): the VL53L1X ranges at up to 50 Hz (timing budget 20 ms).
+TOF_RATE_BOUNDS = (1.0, 100.0)
+
 #: ToF presets: ``"ideal"`` (one noise-free ray) and ``"realistic"`` (:class:`VL53L1X` defaults).
 TOF_PRESETS: dict[str, VL53L1X | None] = {"ideal": None, "realistic": VL53L1X()}
 
@@ -158,10 +161,16 @@ class ToFConfig:
 
     max_range: float = 4.0
     noise: str | VL53L1X = "ideal"
+    #: ranging frequency (Hz) on the sensor's own clock (the VL53L1X's timing budget plus its
+    #: inter-measurement period: 20-50 Hz in practice); None: one reading per control step
+    rate_hz: float | None = None
 
     def __post_init__(self) -> None:
         lo, hi = MAX_RANGE_BOUNDS
         set_field(self, "max_range", check_real("tof max_range", self.max_range, "m", low=lo, high=hi))
+        if self.rate_hz is not None:
+            lo, hi = TOF_RATE_BOUNDS
+            set_field(self, "rate_hz", check_real("tof_hz", self.rate_hz, "Hz", low=lo, high=hi))
         if not isinstance(self.noise, VL53L1X) and self.noise not in TOF_PRESETS:
             raise ValueError(
                 f"tof_noise must be one of {sorted(TOF_PRESETS)} or a VL53L1X, got {self.noise!r}"
