@@ -143,7 +143,7 @@ class DeckLandingEnv(gym.Env):
         cam = cfg.world.camera
         self._corner_bound = float(max(cam.width, cam.height)) if cam is not None else 0.0
         self._max_range = float(cfg.world.tof.max_range)
-        self._camera_name = next((n for n in CAMERA_SENSORS if cam is not None), "")
+        self._camera_name = ""  # the camera sensor's name in the world, once it exists
         #: the env's wind (None: calm air); its force is one of the world's disturbances
         self.wind: Wind | None = Wind(cfg.wind) if cfg.wind is not None else None
 
