@@ -25,16 +25,8 @@ interval of the ratio over trajectories. Errors within a trajectory are strongly
 hovering drone keeps its corner errors in both modes), so the trajectories, not the frames, are
 the samples; the fused filter's MAE over a trajectory of 1-2 s is mostly its convergence transient
 seeded by the first ATDA attitudes, so a few trajectories decide it and its ratio needs many
-trajectories. Acceptance (issue 10): ratio within 1 +- 0.25 on every axis of every estimator,
-detection rates within 3 percentage points.
-
-Measured (``--trajectories 200 --frames 40 --replicas 3 --seed 1``, shipped model and calibration;
-2 x 8000 frames, 5-6.5 min per preset on one core): detection 54.5 / 54.6 % (ideal), 56.5 / 56.5 %
-(realistic); corner RMS against the projection 0.32 / 0.33 px; every MAE ratio within 0.96-1.14
-(IHRCF 0.97-1.01, ATDA 0.99-1.08, fused 0.96-1.14; largest: fused roll, realistic, 1.14); the
-ratios of the 95th percentiles within 0.91-1.16 (session 8). A first
-run with 60 trajectories (seed 0) had the fused filter's ideal-preset Y at 1.36 and pitch at 0.74:
-sampling noise of its convergence transients, gone at 200 trajectories.
+trajectories. Acceptance: ratio within 1 +- 0.25 on every axis of every estimator, detection
+rates within 3 percentage points.
 
 ``python -m ihrcf_env.experiments.camera_validation [--trajectories N] [--frames F] [--seed S]
 [--replicas R]`` prints the Markdown table (exit status 1 if a bound is missed).
