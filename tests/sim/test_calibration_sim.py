@@ -294,7 +294,7 @@ def test_estimator_loader_uses_the_shipped_file_and_names_bad_files(tmp_path: Pa
     short.write_text(json.dumps(data), encoding="utf-8")
     with pytest.raises(CalibrationError, match=r"short\.json: bad 'tables'.*ps3.*at least 4"):
         gym.make(HOVER_ID, calibration=short)
-    with pytest.raises(CalibrationError, match=r"nothere\.json.*not found.*python -m ihrcf_env\.calibrate"):
+    with pytest.raises(CalibrationError, match=r"nothere\.json.*not found.*ihrcf-calibrate"):
         gym.make(HOVER_ID, calibration=tmp_path / "nothere.json")
     # A camera config the shipped file was not made for: the error gives the command to make one.
     with pytest.raises(CalibrationError, match="--width 320 --height 240 --fov-deg 70"):
