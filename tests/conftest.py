@@ -1,5 +1,5 @@
 """Shared fixtures: envs and worlds that close themselves, counters of what an env may leak, and
-helpers several test files use (import them with ``from tests.conftest import ...``)."""
+helpers several test files use (import them with ``from conftest import ...``)."""
 
 from __future__ import annotations
 

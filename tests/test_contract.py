@@ -12,10 +12,10 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import connected_clients, temp_dirs
 from gymnasium.utils.env_checker import check_env
 
 import ihrcf_env
-from tests.conftest import connected_clients, temp_dirs
 
 #: The fast camera model for every id (the rendered one costs ~50 ms a frame).
 FAST = {"camera_model": "projected", "horizon_s": 30.0}

@@ -14,8 +14,7 @@ import warnings
 from pathlib import Path
 
 import pytest
-
-from tests.conftest import EXAMPLES, example
+from conftest import EXAMPLES, example
 
 
 def test_hover_and_track_prints_table2_and_saves(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

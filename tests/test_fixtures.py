@@ -7,10 +7,10 @@ from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
+from conftest import connected_clients
 
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
 from ihrcf_env.sim.world import World, WorldConfig
-from tests.conftest import connected_clients
 
 #: What the tests built, kept alive so that garbage collection cannot close it in their place.
 _KEPT: list[Any] = []

@@ -12,10 +12,10 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import calibration_fields
 
 from ihrcf_env.core.calibration import Calibration, CalibrationError, default_calibration_path
 from ihrcf_env.core.calibration._checks import check_keys, check_real_array
-from tests.conftest import calibration_fields
 
 HUGE = 10**400  # json.loads reads it as an int; float(HUGE) raises OverflowError
 

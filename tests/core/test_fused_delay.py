@@ -11,11 +11,11 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
+from test_fused import HZ, RIG, TAG, K, Pose, observe, touch_pixels
 
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.estimators import FusedEstimator, ImuSample, PoseEstimate, SensorFrame
 from ihrcf_env.core.frames import matrix_from_euler, quat_from_matrix
-from tests.core.test_fused import HZ, RIG, TAG, K, Pose, observe, touch_pixels
 
 DEG = math.pi / 180
 

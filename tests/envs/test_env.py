@@ -8,11 +8,11 @@ from collections.abc import Callable
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import descend, rollout, same, same_runs
 from gymnasium.utils.env_checker import check_env
 
 import ihrcf_env  # noqa: F401  (registers the env)
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
-from tests.conftest import descend, rollout, same, same_runs
 
 HOVER_ID = "ihrcf_env/DeckHoverRaw-v0"  # the raw env; the wrapped id is tested in test_wrapper.py
 SMALL = {"camera_width": 96, "camera_height": 96}

@@ -14,12 +14,12 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import descend
 
 import ihrcf_env
 from ihrcf_env.control.policies import ScriptedLanding
 from ihrcf_env.envs.landing_v1 import DeckLandingV1Env
 from ihrcf_env.sim.disturbances import Wind
-from tests.conftest import descend
 
 FAST = {"raw": True, "camera": False, "horizon_s": 60.0}
 DIVE = np.array([0.0, 0.0, -1.0, 0.0], np.float32)  # full-speed descent

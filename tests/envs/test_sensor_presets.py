@@ -9,13 +9,13 @@ import math
 
 import numpy as np
 import pytest
+from conftest import rollout, same_runs
 
 import ihrcf_env  # noqa: F401  (registers the env)
 from ihrcf_env.envs.config import SENSOR_PRESETS, make_config
 from ihrcf_env.sim.navigation import NavigationErrors
 from ihrcf_env.sim.sensors.imu import IMUNoise
 from ihrcf_env.sim.sensors.tof import VL53L1X
-from tests.conftest import rollout, same_runs
 
 RAW = "ihrcf_env/DeckHoverRaw-v0"
 SMALL = {"camera_width": 96, "camera_height": 96}

@@ -8,8 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from tests.conftest import example
+from conftest import example
 
 pytestmark = pytest.mark.rl
 

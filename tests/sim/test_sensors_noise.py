@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pybullet as p
 import pytest
+from conftest import temp_dirs
 
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.profiles import StaticProfile
@@ -13,7 +14,6 @@ from ihrcf_env.sim.disturbances import ConstantForce, Disturbance
 from ihrcf_env.sim.noise import Chain, Dropout, GaussianNoise, NoiseModel, NoNoise
 from ihrcf_env.sim.sensors import IMU, Sensor, ToFConfig
 from ihrcf_env.sim.world import World, WorldConfig
-from tests.conftest import temp_dirs
 
 N = 4000
 

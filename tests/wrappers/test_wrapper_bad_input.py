@@ -11,13 +11,13 @@ import gymnasium as gym
 import numpy as np
 import pybullet as p
 import pytest
+from conftest import calibration_fields
 
 import ihrcf_env  # noqa: F401  (registers the envs)
 from ihrcf_env.core.calibration import Calibration, CalibrationError, default_calibration_path
 from ihrcf_env.envs import deck_landing
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
 from ihrcf_env.wrappers.estimates import DeckPoseObservation
-from tests.conftest import calibration_fields
 
 HOVER_ID = "ihrcf_env/DeckHover-v0"
 
