@@ -13,7 +13,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import ihrcf_env
 from ihrcf_env.core.metrics import ErrorStats
 from ihrcf_env.experiments.results import (
     HEADLINE_BEGIN,
@@ -167,10 +166,6 @@ def test_the_docs_pages_exist():
 
 
 # -- the custom estimator example ----------------------------------------------------------------
-@pytest.mark.skipif(
-    not hasattr(ihrcf_env, "register_estimator"),
-    reason="ihrcf_env.register_estimator is not in this version of the package",
-)
 def test_custom_estimator_example_runs():
     path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
     env = {**os.environ, "PYTHONWARNINGS": "error::ResourceWarning", "PYTHONPATH": path}

@@ -5,7 +5,6 @@ Skipped until :func:`ihrcf_env.envs.config.make_config` takes ``faults``.
 
 from __future__ import annotations
 
-import inspect
 from collections.abc import Callable
 from typing import Any
 
@@ -15,11 +14,6 @@ import pytest
 
 from ihrcf_env.envs.config import make_config
 from ihrcf_env.sim.faults import REASON_FRAME_LOST
-
-pytestmark = pytest.mark.skipif(
-    "faults" not in inspect.signature(make_config).parameters,
-    reason="make_config does not take faults= yet",
-)
 
 RAW = "ihrcf_env/DeckHoverRaw-v0"
 OPTS: dict[str, Any] = {"camera_model": "projected"}

@@ -230,9 +230,6 @@ def test_camera_dropout_has_the_loss_rate_and_burst_length_asked() -> None:
     assert any(not r["image"].any() for r in blank) and any(r["image"].all() for r in blank)
 
 
-@pytest.mark.skipif(
-    REASON_FRAME_LOST not in TAG_STATUS, reason="TAG_STATUS has no 'camera frame lost' code yet"
-)
 def test_a_lost_frame_has_its_own_tag_status() -> None:
     out = run(CameraDropout(loss_rate=0.5, mean_burst=50.0), [tag_reading(CORNERS, "")] * 100)
     r = next(r for r in out if lost(r))
