@@ -127,6 +127,15 @@ SENSOR_PRESETS: dict[str, dict[str, str]] = {
         "autopilot_feedback": "estimated",
     },
 }
+#: The landing tasks' start and sensors: 1.5-3 m up, any yaw, a 1 m offset disc, realistic sensors.
+_LANDING_START: dict[str, Any] = {
+    "random_deck_start": True,
+    "sensor_preset": "realistic",
+    "start_altitude": 2.25,
+    "start_altitude_jitter": 0.75,
+    "start_offset": 1.0,
+    "start_yaw": math.pi,
+}
 #: The defaults that differ between the tasks (an option left at None takes its task's value).
 TASK_DEFAULTS: dict[str, dict[str, Any]] = {
     "hover": {
@@ -143,31 +152,22 @@ TASK_DEFAULTS: dict[str, dict[str, Any]] = {
         "camera_latency": 0.0,
         "tof_hz": None,
     },
-    "landing-v2": {
-        "random_deck_start": True,
-        "sensor_preset": "realistic",
-        "start_altitude": 2.25,
-        "start_altitude_jitter": 0.75,
-        "start_offset": 1.0,
-        "start_yaw": math.pi,
-        "autopilot": "wind_hold",
-        "ground_effect": True,
-        "camera_latency": PIPELINE_LATENCY,
-        "tof_hz": 30.0,
-    },
     "landing-v1": {
+        **_LANDING_START,
         "deck_profile": "sea_state",
-        "random_deck_start": True,
-        "sensor_preset": "realistic",
-        "start_altitude": 2.25,
-        "start_altitude_jitter": 0.75,
-        "start_offset": 1.0,
-        "start_yaw": math.pi,
         "wind": True,
         "autopilot": "classic",
         "ground_effect": False,
         "camera_latency": 0.0,
         "tof_hz": None,
+    },
+    # the deck and the wind come from the level (envs/levels.py)
+    "landing-v2": {
+        **_LANDING_START,
+        "autopilot": "wind_hold",
+        "ground_effect": True,
+        "camera_latency": PIPELINE_LATENCY,
+        "tof_hz": 30.0,
     },
 }
 #: Touchdown limits of the landing task v2: a drone holding position in a 12-15 m/s wind leans
