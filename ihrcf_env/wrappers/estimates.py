@@ -62,8 +62,6 @@ from ihrcf_env.core.estimators import (
 )
 from ihrcf_env.envs.config import (
     DeckLandingConfig,
-    fused_params_for_tof,
-    load_calibration,
     make_config,
     observation_options,
 )
@@ -208,18 +206,9 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         )
         gym.ObservationWrapper.__init__(self, env)
         world = base_config(env).world
-        cam = world.camera
-        if cam is None:
-            raise ValueError(
-                "camera=False leaves IHRCF and ATDA without an image: use camera=True, or raw=True "
-                "(gym.make) / the raw env for a camera-less simulation"
-            )
-        cal = load_calibration(calibration)
-        cal.check_matches(cam.width, cam.height, cam.fov, world.rig, distortion=cam.distortion)
-        self.calibration = cal
-        fused = opts.fused_params if opts.fused_params is not None else fused_params_for_tof(world.tof.model)
+        self.stage = EstimatorStage.for_world(world, calibration, opts)
+        self.calibration = self.stage.calibration
         names = opts.estimators
-        self.stage = EstimatorStage(world, cal, names, opts.max_residual, fused)
         self.estimator: DeckPoseEstimator = self.stage.estimator
         self.estimators: dict[str, DeckPoseSource] = self.stage.sources
         self.pose_keys: tuple[str, ...] = (*names, GROUND_TRUTH)

@@ -38,6 +38,7 @@ from ihrcf_env.core.estimators import (
     SensorFrame,
 )
 from ihrcf_env.core.rig import SensorRig
+from ihrcf_env.envs.config import ObservationConfig, fused_params_for_tof, load_calibration
 from ihrcf_env.sim.sensors.base import TAG_STATUS
 from ihrcf_env.sim.sensors.timing import NO_FRAME_YET
 from ihrcf_env.sim.world import WorldConfig
@@ -111,6 +112,7 @@ class EstimatorStage:
             calibration, deck.tag_size, deck.tag_id, max_residual, estimators, fused_params
         )
         self.sources: dict[str, DeckPoseSource] = self.estimator.sources
+        self.calibration = calibration
         self._substeps, self._dt = world.substeps, 1.0 / world.physics_hz
         self.latency = world.camera.latency if world.camera is not None else 0.0
         self.compensate_latency = True
@@ -118,6 +120,28 @@ class EstimatorStage:
         span = self.latency + world.camera_every / world.control_hz
         self._steps_kept = math.ceil(span * world.control_hz) + 2
         self.reset()
+
+    @classmethod
+    def for_world(cls, world: WorldConfig, calibration: object, options: ObservationConfig) -> EstimatorStage:
+        """The stage of an env's ``world`` for the wrapper options ``options``: ``calibration`` (as the
+        user gave it: None, a path or a Calibration) loaded and matched to the camera, the fused
+        parameters resolved from the ToF model when not given. ValueError without a camera."""
+        cam = world.camera
+        if cam is None:
+            raise ValueError(
+                "camera=False leaves IHRCF and ATDA without an image: use camera=True, or raw=True "
+                "(gym.make) / the raw env for a camera-less simulation"
+            )
+        cal = load_calibration(calibration)
+        cal.check_matches(cam.width, cam.height, cam.fov, world.rig, distortion=cam.distortion)
+        fused = (
+            options.fused_params
+            if options.fused_params is not None
+            else fused_params_for_tof(world.tof.model)
+        )
+        stage = cls(world, cal, options.estimators, options.max_residual, fused)
+        stage.calibration = cal
+        return stage
 
     def reset(self) -> None:
         self.estimator.reset()

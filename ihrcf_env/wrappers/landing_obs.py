@@ -60,7 +60,7 @@ from ihrcf_env.core.calibration import Calibration
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedEstimator, FusedParams
 from ihrcf_env.core.frames import matrix_from_euler, matrix_from_quat
-from ihrcf_env.envs.config import fused_params_for_tof, load_calibration, make_config, observation_options
+from ihrcf_env.envs.config import make_config, observation_options
 from ihrcf_env.wrappers.estimates import GROUND_TRUTH, base_config
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
 from ihrcf_env.wrappers.layout import Field, build_layout
@@ -181,14 +181,8 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         )
         gym.Wrapper.__init__(self, env)
         world = base_config(env).world
-        cam = world.camera
-        if cam is None:
-            raise ValueError("camera=False leaves the estimators without an image: use camera=True")
-        cal = load_calibration(calibration)
-        cal.check_matches(cam.width, cam.height, cam.fov, world.rig, distortion=cam.distortion)
-        fused = opts.fused_params if opts.fused_params is not None else fused_params_for_tof(world.tof.model)
+        self.stage = EstimatorStage.for_world(world, calibration, opts)
         names = opts.estimators
-        self.stage = EstimatorStage(world, cal, names, opts.max_residual, fused)
         self.estimators = self.stage.sources
         self.estimator_names: tuple[str, ...] = names
         self.pose_keys: tuple[str, ...] = (*names, GROUND_TRUTH)
