@@ -131,8 +131,7 @@ class TagDetector:
         when it is the whole image. (Near the border the tag's candidate group can hold large
         thresholded regions that a window would cut into other shapes;
         :class:`~ihrcf_env.sim.sensors.tag_window.WindowedTagCamera` passes the whole image
-        there.) Measured on rendered frames: 'subpix' within 3e-4 px, 'none' exact, 'contour' and
-        'apriltag' within 0.02 px (float32 line fits in other coordinates).
+        there.) ``tests/sim/test_render_window.py`` checks the agreement on rendered frames.
         """
         img = np.asarray(image)
         if img.dtype != np.uint8:

@@ -96,14 +96,7 @@ class CameraConfig:
     drawn in ``reset``; motion blur from the drone's velocity and angular velocity over the
     exposure; vignetting; read and shot noise; 8-bit quantisation.
 
-    Cost (:func:`~ihrcf_env.experiments.camera_realism.realism_cost_ms`, paper's 1 m hover,
-    512x512, 100 frames, the 2-core development machine with another job running): ideal 45.5 ms
-    per frame, realistic 48.6 ms, **+3.1 ms**
-    (+3.3 ms median; the post-processing alone 2.1 ms on a quiet core, 3.3 ms between renders; the
-    segmentation mask is free in TinyRenderer: 41.3 vs 41.9 ms without it).
-
-    Detection (:class:`~ihrcf_env.core.estimators.TagDetector`, paper's hover, 20 Hz): 400 of 400
-    frames (seed 0) and 200 of 200 for each of seeds 1-5.
+    Its per-frame cost: :func:`~ihrcf_env.experiments.camera_realism.realism_cost_ms`.
 
     Calibration: the realistic model changes radiometry and blur, never geometry. The projection
     (``intrinsics``, principal point), the ``distortion`` and its remap are the same, and the
@@ -111,10 +104,8 @@ class CameraConfig:
     kernel is centred (it spreads an edge symmetrically, it does not move it), and vignetting and
     exposure are smooth gains. A calibration made with the ideal camera (the shipped one:
     chessboard K and distortion for ATDA, range-to-pixel tables of the ToF spots for IHRCF)
-    therefore stays valid. Measured at the 1 m hover with the shipped calibration (400 frames,
-    seed 0, ideal ToF), mean absolute errors X/Y/Z: ATDA 1.02/0.51/1.58 mm realistic vs
-    1.02/0.51/1.59 mm ideal, IHRCF 0.40/0.36/0.07 mm in both; angles within 0.002 deg of the
-    ideal camera's. Sub-pixel corner refinement on the ~185 px tag averages the 2-4 DN noise out.
+    therefore stays valid (``tests/sim/test_camera_realism.py`` checks the estimators' errors with
+    both qualities).
     """
 
     width: int = 512

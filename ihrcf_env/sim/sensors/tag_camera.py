@@ -17,8 +17,7 @@ camera does (:func:`~ihrcf_env.sim.sensors.imaging.draw_episode`) and turns them
 ratio of each corner, and the drone's motion into the image motion during the exposure (the same
 formula as the rendered blur, with the scene depth on the optical axis from one more ray).
 
-Cost: 0.15 ms per read (ideal), 0.17 ms (realistic): 3000 reads at the 1 m hover on the 2-core
-development machine with other jobs running (the rendered camera + detector: ~20-90 ms at 512x512).
+It renders nothing, so a read costs a small fraction of a rendered frame (``docs/results.md``).
 """
 
 from __future__ import annotations

@@ -306,20 +306,8 @@ class WindowedTagCamera:
     on the full frame: OpenCV's adaptive threshold looks up to 11 px away (23 px window), its
     corner refinement 6 px; plus the projected-vs-detected corner difference (< 1 px).
 
-    Measured against rendering the full 512x512 frame and detecting in it: over 500 random poses
-    (0.55-3 m, tilts to 0.3 rad, any yaw, the tag anywhere in the image, near and across its
-    border; ideal, realistic, lens distortion) the same detections and the same corners within
-    3e-4 px (3e-5 px ideal); over 800 frames of the 1 m hover, within 3e-5 px but for one frame
-    where a texel-edge flip of the render (:func:`~ihrcf_env.sim.sensors.camera.window_projection`)
-    fell on a corner pixel and moved that corner 0.61 px.
-
-    Cost at the paper's 1 m hover (512x512, tag ~185 px, window ~19 % of the frame, the tag scene
-    used on every frame), one core of the 2-core development machine with other agents' jobs on
-    both cores (load 2-3; in brackets load 5, where everything takes ~2x): full render 46 ms
-    (92), window render 21 ms (44), with the tag scene 12 ms (28); full read + detection 54 ms
-    (105), :meth:`read` 18 ms (38) ideal; realistic 123 -> 43 ms at load 5. The wrapped env
-    (``keep_image=False, flatten=True``), interleaved step by step with the 512-image wrapped env
-    at load 5: 2.3x its steps/s ideal, 2.6x realistic (1.7x / 2.0x without the tag scene).
+    The windowed detections equal the full frame's (``tests/sim/test_render_window.py``); its
+    speed is in the generated results (``docs/results.md``).
     """
 
     name = TAG_CAMERA
