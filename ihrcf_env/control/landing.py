@@ -87,6 +87,8 @@ LANDING_BOUNDS: dict[str, tuple[float, float]] = {
     "heave_timeout": (0.0, 1e4),
     "max_deck_velocity": (0.0, 100.0),
     "commit_below": (0.0, 100.0),
+    "lean_tau": (0.0, 100.0),
+    "dead_reckon": (0.0, 100.0),
 }
 #: Fields for which ``inf`` (the default) switches the feature off.
 LANDING_OFF_AT_INF = frozenset({"heave_timeout", "max_deck_velocity", "commit_below"})
@@ -96,6 +98,7 @@ LANDING_UNITS = {
     **{k: "m/s" for k in ("approach_speed", "drop_speed", "touch_speed", "max_xy_speed", "max_deck_speed")},
     **{k: "m/s" for k in ("reacquire_speed", "max_deck_velocity")},
     **{k: "s" for k in ("settle_time", "tag_timeout", "drop_lag", "reacquire_after", "heave_timeout")},
+    **{k: "s" for k in ("lean_tau", "dead_reckon")},
     **{k: "rad" for k in ("commit_tilt", "max_tilt_now")},
     "k_xy": "1/s",
     "k_z": "1/s",
@@ -156,9 +159,24 @@ class LandingConfig:
     # drone is more than ``commit_below`` m under the hold height, the drop is committed (the
     # learner's own early descent is labelled as a drop, not as a climb back to the hold; inf: off).
     commit_below: float = math.inf
+    # Leaning into the wind (options for v2, all off by default). ``axis_centring``: centre the tag
+    # on the camera's optical axis rather than straight below (the drone holds upwind of the tag by
+    # its height times the tangent of its lean, low-passed with time constant ``lean_tau`` s, so the
+    # tag stays in the body-fixed camera's view; the offset shrinks to the legs' length times that
+    # tangent at touchdown). ``relative_tilt``: the commit gates compare the deck's predicted normal
+    # with the drone's (low-passed) up axis, not with the vertical. ``full_plane_tilt``: the ToF
+    # plane feeds the deck-normal filters only when all four beams hit one plane. ``dead_reckon``:
+    # in the drop, a lost tag's last position is carried for up to that many s, moved by the
+    # lateral commands (the autopilot tracks them), and centring goes on towards it (0: off).
+    axis_centring: bool = False
+    lean_tau: float = 1.0
+    relative_tilt: bool = False
+    full_plane_tilt: bool = False
+    dead_reckon: float = 0.0
 
     def __post_init__(self) -> None:
-        check_bool("LandingConfig.estimate_height", self.estimate_height)
+        for flag in ("estimate_height", "axis_centring", "relative_tilt", "full_plane_tilt"):
+            check_bool(f"LandingConfig.{flag}", getattr(self, flag))
         for attr, (low, high) in LANDING_BOUNDS.items():
             name = f"LandingConfig.{attr}"
             value = getattr(self, attr)
@@ -247,6 +265,10 @@ class LandingController:
         self.seen_tag = False
         self.height: float | None = None
         self.commit_time: float | None = None
+        self.lean = np.zeros(2)  # low-passed horizontal components of the drone's up axis (level frame)
+        self.lean_z = 1.0
+        self.lean_ready = False
+        self.last_tag: NDArray[np.float64] | None = None  # dead-reckoned tag position (level, m)
 
     # -- sensing ---------------------------------------------------------------------------
     def measure(self, obs: Mapping[str, Any]) -> Measurement:
@@ -348,12 +370,21 @@ class LandingController:
         if self.since_range > c.heave_timeout:
             self.heave.reset()  # no ranges for a while: forget the heave (do not coast on its rate)
         self.heave.update(deck_z, dt)
-        n = m.tag_normal if m.tag_normal is not None else m.tof_normal
+        up = m.rotation_level[:, 2]
+        if not self.lean_ready or c.lean_tau <= 0.0:
+            self.lean, self.lean_z, self.lean_ready = up[:2].copy(), float(up[2]), True
+        else:
+            k = min(1.0, dt / c.lean_tau)
+            self.lean += k * (up[:2] - self.lean)
+            self.lean_z += k * (float(up[2]) - self.lean_z)
+        tof_n = m.tof_normal if (m.tof_full or not c.full_plane_tilt) else None
+        n = m.tag_normal if m.tag_normal is not None else tof_n
         self.nx.update(None if n is None else float(n[0]), dt)
         self.ny.update(None if n is None else float(n[1]), dt)
         if m.tag_xy is not None:
             self.seen_tag = True
             self.since_tag = 0.0
+            self.last_tag = np.array(m.tag_xy, dtype=np.float64)
         else:
             self.since_tag += dt
 
@@ -371,7 +402,13 @@ class LandingController:
         extrapolated ``horizon`` seconds ahead from the filtered deck normal."""
         if self.nx.x is None or self.ny.x is None:
             return None
-        return _tilt(self.nx.x + self.nx.v * horizon, self.ny.x + self.ny.v * horizon)
+        nx, ny = self.nx.x + self.nx.v * horizon, self.ny.x + self.ny.v * horizon
+        if not self.cfg.relative_tilt:
+            return _tilt(nx, ny)
+        nz = math.sqrt(max(0.0, 1.0 - nx * nx - ny * ny))
+        u = np.array([self.lean[0], self.lean[1], self.lean_z])
+        cos = (nx * u[0] + ny * u[1] + nz * u[2]) / max(float(np.linalg.norm(u)), 1e-9)
+        return math.acos(max(-1.0, min(1.0, cos)))
 
     def drop_duration(self) -> float:
         """Expected time (s) from the commit to touchdown."""
@@ -395,10 +432,21 @@ class LandingController:
         heave_ok = abs(self.deck_velocity) < c.max_deck_speed
         return tilt_ok and heave_ok
 
+    def axis_point(self) -> NDArray[np.float64]:
+        """Where the camera's (low-passed) optical axis meets the deck plane, horizontally, relative
+        to the drone (m, level frame); zero unless ``axis_centring``."""
+        h = self.height
+        if not self.cfg.axis_centring or h is None or self.lean_z <= 0.1:
+            return np.zeros(2)
+        depth = max(h + float(self.rig.camera_position[2]), 0.0)  # the camera sits below the centre
+        return -self.lean * depth / self.lean_z
+
     def _centring(self, tag_xy: NDArray[np.float64]) -> tuple[float, float]:
-        """Horizontal velocity (m/s, level frame) towards the tag centre, clipped."""
+        """Horizontal velocity (m/s, level frame) that brings the tag under the camera's axis
+        (straight below without ``axis_centring``), clipped."""
         c = self.cfg
-        vx, vy = (float(np.clip(c.k_xy * v, -c.max_xy_speed, c.max_xy_speed)) for v in tag_xy)
+        err = np.asarray(tag_xy, dtype=np.float64) - self.axis_point()
+        vx, vy = (float(np.clip(c.k_xy * v, -c.max_xy_speed, c.max_xy_speed)) for v in err)
         return vx, vy
 
     def act(self, obs: Mapping[str, Any]) -> NDArray[np.float32]:
@@ -429,7 +477,8 @@ class LandingController:
                 lost = m.tag_xy is None and self.since_tag > c.reacquire_after
                 if c.reacquire_speed > 0 and lost and h < c.hold_height + c.reacquire_height:
                     vz = c.reacquire_speed  # climb until the tag is back in view
-            centred = m.tag_xy is not None and float(np.hypot(*m.tag_xy)) < c.centred_tolerance
+            off_axis = None if m.tag_xy is None else float(np.hypot(*(m.tag_xy - self.axis_point())))
+            centred = off_axis is not None and off_axis < c.centred_tolerance
             near = h is not None and abs(h - c.hold_height) < c.height_tolerance
             if self.phase == "approach" and near:
                 self.phase = "hold"
@@ -450,7 +499,16 @@ class LandingController:
             vz = self.deck_velocity - speed
             if m.tag_xy is not None:  # keep centring while the tag is still in view
                 vx, vy = self._centring(m.tag_xy)
+            elif self.last_tag is not None and self.since_tag <= c.dead_reckon:
+                vx, vy = self._centring(self.last_tag)
 
+        if c.axis_centring and self.lean_z > 0.1 and (m.tag_xy is not None or self.phase == "drop"):
+            # the axis point moves as the height changes: feed its motion forward
+            rate = vz - self.deck_velocity  # commanded rate of the height above the deck (m/s)
+            vx += float(self.lean[0]) / self.lean_z * rate
+            vy += float(self.lean[1]) / self.lean_z * rate
         cmd = np.clip(np.array([vx, vy, vz, yaw_rate]) / self.max_velocity, -1.0, 1.0)
+        if self.last_tag is not None:  # the tag moves against the drone's commanded motion
+            self.last_tag -= cmd[:2] * self.max_velocity[:2] * self.dt
         self.z_cmd += float(cmd[2] * self.max_velocity[2]) * self.dt  # the autopilot's altitude set-point
         return cmd.astype(np.float32)

@@ -15,6 +15,7 @@ so the same code runs on a vector built from a real drone's sensing.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from typing import Any, Protocol
@@ -43,6 +44,25 @@ V1_LANDING_CONFIG = LandingConfig(
     heave_timeout=0.5,
     max_deck_velocity=0.3,
 )
+
+#: The landing controller's tunables on v2 (:data:`V1_LANDING_CONFIG` plus the options for leaning
+#: into a 8-15 m/s wind): the tag held on the camera's axis rather than straight below, the commit
+#: gated on the tilt relative to the drone's own lean (v2 allows 20 deg at touchdown) with gates
+#: for that limit, deck normals from the ToF only when all four beams are on the deck, a looser
+#: centring tolerance in gusts, and a lost tag dead-reckoned through the last part of the drop.
+V2_LANDING_CONFIG = dataclasses.replace(
+    V1_LANDING_CONFIG,
+    axis_centring=True,
+    relative_tilt=True,
+    full_plane_tilt=True,
+    dead_reckon=2.0,
+    commit_tilt=math.radians(17.0),
+    max_tilt_now=math.radians(19.0),
+    centred_tolerance=0.08,
+    hold_height=1.0,
+)
+#: The scripted landing's tunables per landing task.
+LANDING_CONFIGS: dict[str, LandingConfig] = {"landing-v1": V1_LANDING_CONFIG, "landing-v2": V2_LANDING_CONFIG}
 
 
 class Policy(Protocol):
@@ -142,6 +162,8 @@ class ScriptedLanding:
         (``obs_slices`` / ``obs_scales``), control rate, action scale and rig; ``config`` as in the
         constructor. AttributeError if ``env`` has no v1 observation layout."""
         base = env.unwrapped
+        if config is None:
+            config = LANDING_CONFIGS.get(str(getattr(base, "task_name", "")), V1_LANDING_CONFIG)
         return cls(
             env.get_wrapper_attr("obs_slices"),
             env.get_wrapper_attr("obs_scales"),

@@ -146,6 +146,7 @@ TASK_DEFAULTS: dict[str, dict[str, Any]] = {
         "start_altitude_jitter": 0.05,
         "start_offset": 0.1,
         "start_yaw": 0.2,
+        "start_trimmed": False,
         "wind": False,
         "autopilot": "classic",
         "ground_effect": False,
@@ -155,6 +156,7 @@ TASK_DEFAULTS: dict[str, dict[str, Any]] = {
     "landing-v1": {
         **_LANDING_START,
         "deck_profile": "sea_state",
+        "start_trimmed": False,
         "wind": True,
         "autopilot": "classic",
         "ground_effect": False,
@@ -164,6 +166,7 @@ TASK_DEFAULTS: dict[str, dict[str, Any]] = {
     # the deck and the wind come from the level (envs/levels.py)
     "landing-v2": {
         **_LANDING_START,
+        "start_trimmed": True,
         "autopilot": "wind_hold",
         "ground_effect": True,
         "camera_latency": PIPELINE_LATENCY,
@@ -512,6 +515,7 @@ def make_config(
     start_altitude_jitter: float | None = None,
     start_offset: float | None = None,
     start_yaw: float | None = None,
+    start_trimmed: bool | None = None,
     max_velocity: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0),
     arena_half_width: float = 5.0,
     arena_ceiling: float = 6.0,
@@ -693,6 +697,7 @@ def make_config(
             pick("start_altitude_jitter", start_altitude_jitter),
             pick("start_offset", start_offset),
             pick("start_yaw", start_yaw),
+            pick("start_trimmed", start_trimmed),
         ),
         arena=Arena(arena_half_width, arena_ceiling),
         deck=DeckMotion(

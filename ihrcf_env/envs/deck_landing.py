@@ -187,6 +187,8 @@ class DeckLandingEnv(gym.Env):
         p.restoreState(stateId=self._state_id, physicsClientId=self.world.client)
         self.world.reset(profile, self.config.task.deck.horizon_s, altitude=alt, offset_xy=off, yaw=yaw)
         self.world.reset_random(streams)
+        if self.config.task.start.trimmed:
+            self.world.trim(keep_view=self._trim_keeps_view())
         self._profile = profile
         self._episode_over = False
         self._last_touchdown = None
@@ -280,6 +282,11 @@ class DeckLandingEnv(gym.Env):
             )
         require_gui_display()
         DeckLandingEnv._gui_owner = self
+
+    def _trim_keeps_view(self) -> bool:
+        """With ``start_trimmed``: move the trimmed drone so the camera still looks at the drawn
+        point (the landing tasks, whose start keeps the tag in view)."""
+        return False
 
     def _draw_start(
         self, options: dict[str, Any], rng: np.random.Generator

@@ -114,6 +114,9 @@ class DeckLandingV1Env(DeckLandingEnv):
             off = (r * math.cos(phi), r * math.sin(phi))
         return alt, off, yaw, deck_time
 
+    def _trim_keeps_view(self) -> bool:
+        return self.goal.start_in_view and self.config.world.camera is not None
+
     # -- episode -----------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict, dict]:
         obs, info = super().reset(seed=seed, options=options)

@@ -52,13 +52,16 @@ MAX_COMMAND = 20.0
 class StartDistribution:
     """Seeded start of an episode relative to the deck frame origin: altitude uniform in
     ``altitude +- altitude_jitter`` (m), horizontal offset uniform in ``+-offset`` per world axis
-    (m; the landing task draws it over a disc), yaw uniform in ``+-yaw`` (rad). Options
-    ``start_altitude``, ``start_altitude_jitter``, ``start_offset``, ``start_yaw``."""
+    (m; the landing task draws it over a disc), yaw uniform in ``+-yaw`` (rad); ``trimmed``: the
+    drone starts as an autopilot already holding position in the wind would be, leaning into it
+    (:meth:`~ihrcf_env.sim.world.World.trim`). Options ``start_altitude``,
+    ``start_altitude_jitter``, ``start_offset``, ``start_yaw``, ``start_trimmed``."""
 
     altitude: float = 1.0
     altitude_jitter: float = 0.05
     offset: float = 0.1
     yaw: float = 0.2
+    trimmed: bool = False
 
     def __post_init__(self) -> None:
         set_field(self, "altitude", check_real("start_altitude", self.altitude, "m", low=0.0, high=MAX_ARENA))
@@ -66,6 +69,7 @@ class StartDistribution:
         set_field(self, "altitude_jitter", jitter)
         set_field(self, "offset", check_non_negative("start_offset", self.offset, "m", high=MAX_ARENA))
         set_field(self, "yaw", check_real("start_yaw", self.yaw, "rad", low=0.0, high=math.pi))
+        set_field(self, "trimmed", check_bool("start_trimmed", self.trimmed))
         if self.lowest < MIN_START_ALTITUDE:
             raise ValueError(
                 f"start_altitude - start_altitude_jitter = {self.altitude:g} - {self.altitude_jitter:g} m "

@@ -29,7 +29,7 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
 
-from ihrcf_env.control.policies import V1_LANDING_CONFIG, Policy, ScriptedLanding
+from ihrcf_env.control.policies import LANDING_CONFIGS, V1_LANDING_CONFIG, Policy, ScriptedLanding
 from ihrcf_env.rl.curves import CsvLog
 from ihrcf_env.rl.sb3 import norm_extractors
 
@@ -178,7 +178,8 @@ def warm_start(
     commit_below: float = 0.1,
 ) -> list[Round]:
     """:func:`dagger` with the scripted landing as the expert (its layout read from one
-    ``make_env()`` env, closed after; :data:`~ihrcf_env.control.policies.V1_LANDING_CONFIG` with
+    ``make_env()`` env, closed after; the task's tunables
+    (:data:`~ihrcf_env.control.policies.LANDING_CONFIGS`) with
     ``commit_below``: the learner cannot see the expert's wait-or-drop state, so once it has
     descended ``commit_below`` m under the hold height the expert labels a drop, not a climb back),
     one row per round in ``csv_path`` (:data:`DAGGER_FIELDS`) and a printed line."""
@@ -207,7 +208,9 @@ def warm_start(
         )
 
     try:
-        config = dataclasses.replace(V1_LANDING_CONFIG, commit_below=commit_below)
+        task = str(getattr(probe.unwrapped, "task_name", ""))
+        base = LANDING_CONFIGS.get(task, V1_LANDING_CONFIG)
+        config = dataclasses.replace(base, commit_below=commit_below)
         expert = functools.partial(ScriptedLanding.from_env, probe, config=config)
         return dagger(model, venv, expert, rounds, episodes, seed, noise, log=write)
     finally:

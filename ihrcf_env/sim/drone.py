@@ -366,6 +366,31 @@ class VelocityController:
         self._saturated = False  # the tilt limit clipped the last command
         self._f_cmd = (0.0, 0.0)  # m/s^2, the last horizontal acceleration command (after the clip)
 
+    def trim(self, acceleration: NDArray[np.float64]) -> None:
+        """Start as if the loop had converged on a constant disturbance ``acceleration`` (m/s^2,
+        world; force over mass): the wind-holding loop's observer estimate (at most ``i_limit``),
+        or the classic loop's horizontal integral (within its clamp); the thrust model at the
+        thrust that balances it."""
+        g, m = self.gains, self.quad.params.mass
+        ax, ay, az = (float(v) for v in acceleration[:3])
+        if g.wind_hold and g.dob_tau > 0.0:
+            n = math.hypot(ax, ay)
+            k = min(1.0, g.i_limit / n) if n > 0 else 1.0
+            self.disturbance = [ax * k, ay * k]
+            self._v_prev = (0.0, 0.0)
+        elif g.ki_pos > 0.0 and g.wind_hold:
+            i0, i1 = -ax / g.ki_pos, -ay / g.ki_pos
+            cap, n = g.i_limit / g.ki_pos, math.hypot(i0, i1)
+            k = min(1.0, cap / n) if n > 0 else 1.0
+            self.integral[0], self.integral[1] = i0 * k, i1 * k
+        elif g.ki_pos > 0.0:
+            c = CLASSIC_I_CLAMP
+            self.integral[0] = min(c, max(-c, -ax / g.ki_pos))
+            self.integral[1] = min(c, max(-c, -ay / g.ki_pos))
+        thrust = m * math.sqrt(ax * ax + ay * ay + (GRAVITY - az) ** 2)
+        self._thrust_model = thrust
+        self._a_model = (-ax, -ay)
+
     def compute(
         self,
         setpoint: tuple[float, float, float, float],

@@ -21,7 +21,7 @@ import pybullet as p
 from numpy.typing import NDArray
 
 from ihrcf_env.core.constants import GRAVITY
-from ihrcf_env.core.frames import matrix_from_quat, relative_pose
+from ihrcf_env.core.frames import matrix_from_quat, quat_from_matrix, relative_pose
 from ihrcf_env.core.profiles import MotionProfile
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.core.seeding import SeedStreams
@@ -355,6 +355,56 @@ class World:
             pos, _, vel, _ = self.quad.state()
             est, _ = nav.estimate(self.time, pos, vel)
             self.controller.reset(np.asarray(est), self.controller.yaw_ref)
+
+    def trim(self, keep_view: bool = False) -> NDArray[np.float64]:
+        """Put the drone (placed by :meth:`reset`, after :meth:`reset_random`) in the state of an
+        autopilot already holding position in the disturbances: leaning so that its thrust balances
+        their force at rest at this instant (world, at zero velocity), rotors at that thrust, and the
+        autopilot's disturbance estimate (or, on the classic loop, its integral) converged to it.
+        With ``keep_view`` the drone is moved upwind so that the point the camera looked at before
+        the trim (straight below, at the deck origin's height) lies on the tilted camera's optical
+        axis. Returns the shift (world, m; zero without ``keep_view``)."""
+        self._check_open()
+        pos, quat, _, _ = self.quad.state()
+        t = self.time
+        f = np.zeros(3)
+        for d in self.disturbances:
+            f += np.asarray(disturbance_force(d, t, pos, (0.0, 0.0, 0.0)), dtype=np.float64)
+        m = self.config.quad.mass
+        thrust = np.array([-f[0], -f[1], m * GRAVITY - f[2]])
+        norm = float(np.linalg.norm(thrust))
+        if norm <= 0.0 or not np.isfinite(norm):
+            return np.zeros(3)
+        z = thrust / norm
+        R = matrix_from_quat(np.asarray(quat, dtype=np.float64))
+        yaw = math.atan2(R[1, 0], R[0, 0])
+        xc = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+        y = np.cross(z, xc)
+        y /= np.linalg.norm(y)
+        x = np.cross(y, z)
+        R_new = np.column_stack([x, y, z])
+        shift = np.zeros(3)
+        if keep_view:
+            depth = float(pos[2]) - float(self.deck.pose()[0][2])
+            cam = R_new @ np.asarray(self.config.rig.camera_position, dtype=np.float64)
+            axis = -z  # the camera looks along the body's -z
+            depth_cam = depth + float(cam[2])
+            # where the axis meets the plane depth_cam below the camera, relative to the drone
+            hit = cam[:2] + axis[:2] * depth_cam / max(-float(axis[2]), 1e-6)
+            shift[:2] = -hit
+        new_pos = np.asarray(pos, dtype=np.float64) + shift
+        q_new = [float(v) for v in quat_from_matrix(R_new)]
+        p.resetBasePositionAndOrientation(
+            self.quad.body, new_pos.tolist(), q_new, physicsClientId=self.client
+        )
+        p.resetBaseVelocity(self.quad.body, [0, 0, 0], [0, 0, 0], physicsClientId=self.client)
+        w = math.sqrt(norm / 4.0 / self.config.quad.kf)
+        self.quad.rotor_speed = [w] * 4
+        self._motor_cmd = list(self.quad.rotor_speed)
+        ctrl = self.controller
+        ctrl.p_ref = [ctrl.p_ref[0] + float(shift[0]), ctrl.p_ref[1] + float(shift[1]), ctrl.p_ref[2]]
+        ctrl.trim(f / m)
+        return shift
 
     def close(self) -> None:
         """Disconnect the client (and any a sensor holds: the tag window's tag scene) and remove

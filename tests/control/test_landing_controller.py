@@ -94,3 +94,64 @@ def test_commit_below_turns_a_descent_under_the_hold_into_a_drop() -> None:
     assert teacher.phase == "approach"
     teacher.act(_obs(0.35, (0.0, 0.0, 0.0)))
     assert teacher.phase == "drop" and teacher.commit_time is not None
+
+
+def _leaning(ctrl: LandingController, lean: float, height: float, tag_x: float | None) -> np.ndarray:
+    """One step of a drone leaning ``lean`` rad towards +x (level frame) ``height`` m above a level
+    deck, the tag's centre at (``tag_x``, 0) (None: not seen): the action."""
+    c, s = math.cos(lean), math.sin(lean)
+    R_lb = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])  # body z towards +x
+    q = ctrl.sensors @ R_lb.T
+    d = R_lb @ np.array([0.0, 0.0, -1.0])
+    ranges = (-height - q[:, 2]) / d[2]
+    tag = None if tag_x is None else np.array([tag_x, 0.0, -height])
+    normal = None if tag_x is None else np.array([0.0, 0.0, 1.0])
+    yaw = None if tag_x is None else 0.0
+    m = ctrl.measure_level(R_lb, 0.0, tag, yaw, normal, ranges, np.ones(4, bool))
+    return ctrl.act_measured(m)
+
+
+def test_axis_centring_holds_the_tag_on_the_leaning_camera_axis() -> None:
+    lean, h = math.radians(15.0), 0.65
+    depth = h + SensorRig().camera_position[2]
+    on_axis = -depth * math.tan(lean)  # the camera looks downwind of the drone
+    plain = LandingController(config=LandingConfig(k_yaw=0.0))
+    axis = LandingController(config=LandingConfig(k_yaw=0.0, axis_centring=True))
+    # the classic controller centres the tag straight below; the lean-aware one on the axis
+    assert _leaning(plain, lean, h, 0.0)[0] == pytest.approx(0.0, abs=1e-6)
+    assert _leaning(axis, lean, h, on_axis)[0] == pytest.approx(0.0, abs=1e-6)
+    assert axis.axis_point() == pytest.approx([on_axis, 0.0], abs=1e-9)
+    axis.reset()
+    assert _leaning(axis, lean, h, 0.0)[0] > 0.1  # tag straight below: move upwind (+x)
+
+
+def test_relative_tilt_compares_the_deck_with_the_drone_lean() -> None:
+    lean, h = math.radians(15.0), 0.65
+    level = LandingController(config=LandingConfig(k_yaw=0.0))
+    relative = LandingController(config=LandingConfig(k_yaw=0.0, relative_tilt=True))
+    for ctrl in (level, relative):
+        for _ in range(3):
+            _leaning(ctrl, lean, h, 0.0)
+    assert level.predicted_tilt(0.0) == pytest.approx(0.0, abs=1e-6)  # a level deck
+    assert relative.predicted_tilt(0.0) == pytest.approx(lean, abs=1e-6)  # 15 deg from the drone's up
+
+
+def test_dead_reckoning_carries_a_lost_tag_through_the_drop() -> None:
+    ctrl = LandingController(config=LandingConfig(k_yaw=0.0, dead_reckon=1.0))
+    _leaning(ctrl, 0.0, 0.65, 0.2)
+    ctrl.phase = "drop"
+    a = _leaning(ctrl, 0.0, 0.5, None)
+    assert a[0] > 0.0  # still towards the tag's last position
+    assert ctrl.last_tag is not None and 0.0 < ctrl.last_tag[0] < 0.2  # moved by the command
+    for _ in range(int(1.2 / ctrl.dt)):  # beyond dead_reckon: no lateral command
+        a = _leaning(ctrl, 0.0, 0.5, None)
+    assert a[0] == 0.0
+    assert LandingController(config=LandingConfig(k_yaw=0.0)).cfg.dead_reckon == 0.0  # off by default
+
+
+@pytest.mark.parametrize("flag", ["axis_centring", "relative_tilt", "full_plane_tilt"])
+def test_lean_options_are_checked_by_name(flag: str) -> None:
+    with pytest.raises((TypeError, ValueError), match=flag):
+        LandingConfig(**{flag: "yes"})
+    with pytest.raises(ValueError, match="lean_tau"):
+        LandingConfig(lean_tau=-1.0)

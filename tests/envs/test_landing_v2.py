@@ -62,3 +62,24 @@ def test_a_calm_episode_runs_with_its_wind_and_ship(make_env: Any) -> None:
     for _ in range(10):
         obs, reward, terminated, truncated, info = env.step(np.zeros(4, np.float32))
         assert np.isfinite(obs).all() and math.isfinite(reward)
+
+
+def test_v2_starts_trimmed_in_its_wind_and_earlier_tasks_level(make_env: Any) -> None:
+    """v2's drone starts as an autopilot already holding position in the wind would be: leaning
+    into it (drag over weight), its camera still looking at the drawn start point."""
+    assert make_config(task="landing-v2", raw=True).task.start.trimmed
+    for task in ("hover", "landing-v1"):
+        assert not make_config(task=task, raw=True).task.start.trimmed
+    env = make_env(ihrcf_env.LANDING_V2_ID, camera_model="projected", level="moderate")
+    _, info = env.reset(seed=TEST_SEEDS[0])
+    q = np.asarray(info["drone_quaternion_world"])
+    up_z = 1.0 - 2.0 * (q[0] ** 2 + q[1] ** 2)  # world z of the body z axis
+    assert math.degrees(math.acos(up_z)) > 8.0  # 8-12 m/s: a lean of roughly 10-17 deg
+    untrimmed = make_env(ihrcf_env.LANDING_V2_ID, camera_model="projected", start_trimmed=False)
+    _, info = untrimmed.reset(seed=TEST_SEEDS[0])
+    assert np.asarray(info["drone_quaternion_world"])[:2] == pytest.approx([0.0, 0.0], abs=1e-9)
+
+
+def test_bad_start_trimmed_is_named() -> None:
+    with pytest.raises((TypeError, ValueError), match="start_trimmed"):
+        make_config(task="landing-v2", raw=True, start_trimmed="yes")
