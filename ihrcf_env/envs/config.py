@@ -194,6 +194,13 @@ AUTOPILOTS: tuple[str, ...] = ("classic", "wind_hold")
 MAX_RESIDUAL = 1.0
 
 
+def level_faults(faults: Mapping[str, Any] | None, has_camera: bool) -> Mapping[str, Any] | None:
+    """A level's default ``faults``, less the camera's when the world has no camera."""
+    if faults is None or has_camera:
+        return faults
+    return {k: v for k, v in faults.items() if k != "camera_dropout"}
+
+
 def fused_params_for_tof(model: VL53L1X | None) -> FusedParams:
     """The fused filter's parameters for the env's ToF model: with the VL53L1X model (per-sensor
     constant offsets of sigma ``offset_sigma``) a common-mode range-offset state of prior sigma
@@ -673,7 +680,7 @@ def make_config(
         extra_sensors=extra,
         measurement_noise=check_measurement_noise(measurement_noise, extra),
         faults=check_faults(
-            faults,
+            level_faults(defaults.get("faults"), cam is not None) if faults is None else faults,
             world_measurements(cam_output if cam is not None else None, extra),
             {"tof_max_range": max_range},
         ),
