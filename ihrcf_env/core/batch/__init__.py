@@ -1,0 +1,24 @@
+"""Batched (vectorised) versions of the single-frame deck-pose estimators: one call evaluates N
+independent frames given as arrays with a leading axis N (pure numpy, no per-frame Python loop).
+
+Each function reproduces its single-frame counterpart in :mod:`ihrcf_env.core.geometry` and
+:mod:`ihrcf_env.core.estimators` frame by frame (same validity, same reason text, numbers equal to
+floating-point rounding): ``geometry`` (plane, homography, rigid fit, Euler angles), ``tables``
+(the range -> pixel table), ``result`` (the batched :class:`~ihrcf_env.core.estimators.base.PoseEstimate`
+and its reason table), ``ihrcf`` (IHRCF) and ``pnp`` (ATDA's square-tag PnP).
+"""
+
+from ihrcf_env.core.batch.ihrcf import IHRCFBatch, ihrcf_batch
+from ihrcf_env.core.batch.pnp import atda_batch
+from ihrcf_env.core.batch.result import REASONS, BatchPoses
+from ihrcf_env.core.batch.tables import BatchTable, batch_table
+
+__all__ = [
+    "REASONS",
+    "BatchPoses",
+    "BatchTable",
+    "IHRCFBatch",
+    "atda_batch",
+    "batch_table",
+    "ihrcf_batch",
+]
