@@ -119,7 +119,9 @@ def test_atda_batch_keeps_one_prior_per_row() -> None:
     for step in range(3):
         out = batch.update(corners, det if step == 1 else np.ones(6, bool))
         for i, est in enumerate(singles):
-            s = est.update(SensorFrame(0.0, corners[i] if (step != 1 or det[i]) else None, np.ones(4), np.ones(4, bool)))
+            s = est.update(
+                SensorFrame(0.0, corners[i] if (step != 1 or det[i]) else None, np.ones(4), np.ones(4, bool))
+            )
             assert s.valid == out.valid[i]
             if s.valid:
                 assert rotation_angle(s.rotation, out.rotation[i]) < 1e-3

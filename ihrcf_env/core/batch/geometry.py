@@ -118,7 +118,11 @@ def collinear_batch(pts: F64, tol: float) -> NDArray[np.bool_]:
 
 def _product(m: F64, n: F64) -> F64:
     """3x3 products (N, 3, 3) summed in the single kernel's order."""
-    return m[:, :, 0, None] * n[:, None, 0, :] + m[:, :, 1, None] * n[:, None, 1, :] + m[:, :, 2, None] * n[:, None, 2, :]
+    return (
+        m[:, :, 0, None] * n[:, None, 0, :]
+        + m[:, :, 1, None] * n[:, None, 1, :]
+        + m[:, :, 2, None] * n[:, None, 2, :]
+    )
 
 
 def _det_terms(m: F64) -> tuple[F64, F64, F64]:
@@ -208,7 +212,7 @@ def rigid_fit_batch(P: F64, Q: F64) -> tuple[F64, F64, F64, NDArray[np.bool_]]:
     """:func:`~ihrcf_env.core.geometry.rigid_fit` (Kabsch without scale, det +1) per row: ``Q ~ R P + t``
     for ``P`` (N, k, 3) or (k, 3) (shared) and ``Q`` (N, k, 3). Returns R (N, 3, 3), t (N, 3), RMS
     residual (N,) and (N,) success (False where P is collinear: :data:`RIGID_ERROR`)."""
-    n_env, k = Q.shape[0], Q.shape[1]
+    k = Q.shape[1]
     P = np.broadcast_to(P, Q.shape)
     cp, cq = _seq_sum(P, 1) / k, _seq_sum(Q, 1) / k
     Pc, Qc = P - cp[:, None, :], Q - cq[:, None, :]

@@ -93,7 +93,9 @@ def ihrcf_measure_batch(
     with np.errstate(invalid="ignore"):
         valid = rv & np.isfinite(r) & (r > 0)
     first_failure(code, valid.sum(axis=1) < 3, rs.FEW_RANGES)
-    touch = np.concatenate([np.broadcast_to(sensor_xy, (n_env, 4, 2)), np.where(valid, r, 0.0)[:, :, None]], 2)
+    touch = np.concatenate(
+        [np.broadcast_to(sensor_xy, (n_env, 4, 2)), np.where(valid, r, 0.0)[:, :, None]], 2
+    )
     normal, offset, pcode = fit_plane_batch(touch, valid)
     first_failure(code, pcode == 1, rs.PLANE_COINCIDENT)
     first_failure(code, pcode == 2, rs.PLANE_COLLINEAR)

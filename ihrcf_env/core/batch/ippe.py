@@ -45,16 +45,15 @@ def project(K: F64, dist: F64, X: F64) -> tuple[F64, F64]:
     xd = x * rad + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
     yd = y * rad + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
     px = np.stack([fx * xd + s * yd + cx, fy * yd + cy], axis=-1)
-    # d(xd, yd) / d(x, y)
+    # d(pixel)/dX = [[fx, s], [0, fy]] @ d(xd, yd)/d(x, y) @ d(x, y)/dX,
+    # with d(x, y)/dX = [[1, 0, -x], [0, 1, -y]] / z
     a = rad + x * x * drad + 2.0 * p1 * y + 6.0 * p2 * x
     b = x * y * drad + 2.0 * p1 * x + 2.0 * p2 * y
     d_ = rad + y * y * drad + 6.0 * p1 * y + 2.0 * p2 * x
-    # d(x, y) / dX = [[1/z, 0, -x/z], [0, 1/z, -y/z]]
-    zero = np.zeros_like(x)
-    dxy = np.stack([np.stack([iz, zero, -x * iz], -1), np.stack([zero, iz, -y * iz], -1)], -2)
-    ddist = np.stack([np.stack([a, b], -1), np.stack([b, d_], -1)], -2)
-    dpix_dd = np.array([[fx, s], [0.0, fy]])
-    J = np.einsum("ij,...jk,...kl->...il", dpix_dd, ddist, dxy)
+    m00, m01, m10, m11 = (fx * a + s * b) * iz, (fx * b + s * d_) * iz, fy * b * iz, fy * d_ * iz
+    J = np.stack(
+        [np.stack([m00, m01, -(m00 * x + m01 * y)], -1), np.stack([m10, m11, -(m10 * x + m11 * y)], -1)], -2
+    )
     return px, J
 
 
@@ -138,7 +137,9 @@ def ippe_square(xn: F64, tag_size: float) -> tuple[F64, F64, NDArray[np.bool_]]:
         R = np.stack(Rs, axis=1)
         ok &= np.isfinite(R).all(axis=(1, 2, 3))
         R = np.where(ok[:, None, None, None], R, np.eye(3))
-        t = np.stack([_translation(R[:, i], obj, np.where(ok[:, None, None], xn, obj[:, :2])) for i in (0, 1)], 1)
+        t = np.stack(
+            [_translation(R[:, i], obj, np.where(ok[:, None, None], xn, obj[:, :2])) for i in (0, 1)], 1
+        )
     ok &= np.isfinite(t).all(axis=(1, 2))
     return R, t, ok
 
@@ -147,4 +148,3 @@ def reprojection(K: F64, dist: F64, R: F64, t: F64, obj: F64, corners: F64) -> F
     """Reprojection residuals (..., 4, 2), px, of poses R (..., 3, 3), t (..., 3) of ``obj`` (4, 3)."""
     X = np.einsum("...ij,kj->...ki", R, obj) + t[..., None, :]
     return project(K, dist, X)[0] - corners
-

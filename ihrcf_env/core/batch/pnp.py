@@ -4,7 +4,7 @@ Per frame: both closed-form IPPE poses (:func:`~ihrcf_env.core.batch.ippe.ippe_s
 polished by Levenberg-Marquardt on the four corners' reprojection error (the distorted camera
 model), then ATDA's choice: the lower RMS reprojection error, or of the two the one nearer a prior
 rotation when their errors are within :data:`~ihrcf_env.core.estimators.atda.AMBIGUITY_RATIO`.
-The LM runs to convergence (steps below ~1e-12 of the pose), so its result is the local minimum
+The LM runs to convergence (steps below ~1e-10 of the pose), so its result is the local minimum
 itself; ``cv2.solvePnPRefineLM`` stops on its own criteria, near it.
 """
 
@@ -47,10 +47,8 @@ def _residual(K: F64, dist: F64, R: F64, t: F64, obj: F64, px: F64) -> tuple[F64
     with np.errstate(all="ignore"):
         proj, J3 = project(K, dist, X)  # (M, 4, 2), (M, 4, 2, 3)
     r = (proj - px).reshape(len(R), 8)
-    a0, a1, a2 = RX[..., 0], RX[..., 1], RX[..., 2]
-    z = np.zeros_like(a0)
-    neg_skew = np.stack([np.stack([z, a2, -a1], -1), np.stack([-a2, z, a0], -1), np.stack([a1, -a0, z], -1)], -2)
-    J = np.concatenate([J3 @ neg_skew, J3], axis=-1).reshape(len(R), 8, 6)
+    # a left rotation increment w moves RX by w x RX: d(pixel)/dw = rows g of J3 crossed as RX x g
+    J = np.concatenate([np.cross(RX[:, :, None, :], J3), J3], axis=-1).reshape(len(R), 8, 6)
     return r, J, np.einsum("mi,mi->m", r, r)
 
 
@@ -58,11 +56,11 @@ def refine_lm(
     K: F64, dist: F64, R: F64, t: F64, obj: F64, px: F64, max_iter: int = 50
 ) -> tuple[F64, F64, F64]:
     """Levenberg-Marquardt (Marquardt scaling) of poses R (M, 3, 3), t (M, 3) minimising the squared
-    reprojection error of ``obj`` (4, 3) on pixels ``px`` (M, 4, 2), until every step is below 1e-12
+    reprojection error of ``obj`` (4, 3) on pixels ``px`` (M, 4, 2), until every step is below 1e-10
     of the pose (or ``max_iter``). Returns the polished R, t and RMS reprojection errors (M,), px."""
     R, t = R.copy(), t.copy()
     r, J, cost = _residual(K, dist, R, t, obj, px)
-    lam = np.full(len(R), 1e-3)
+    lam = np.full(len(R), 1e-6)
     active = np.isfinite(cost)
     for _ in range(max_iter):
         idx = np.flatnonzero(active)
@@ -79,11 +77,17 @@ def refine_lm(
         r_new, J_new, cost_new = _residual(K, dist, R_new, t_new, obj, px[idx])
         better = cost_new <= cost[idx]
         acc = idx[better]
-        R[acc], t[acc], r[acc], J[acc], cost[acc] = R_new[better], t_new[better], r_new[better], J_new[better], cost_new[better]
+        R[acc], t[acc], r[acc], J[acc], cost[acc] = (
+            R_new[better],
+            t_new[better],
+            r_new[better],
+            J_new[better],
+            cost_new[better],
+        )
         lam[idx] = np.where(better, np.maximum(lam[idx] / 10.0, 1e-12), lam[idx] * 10.0)
         size = np.abs(step).max(axis=1)
         scale = 1.0 + np.abs(t[idx]).max(axis=1)
-        done = (better & (size <= 1e-12 * scale)) | (lam[idx] > 1e12) | ~np.isfinite(size)
+        done = (size <= 1e-10 * scale) | (lam[idx] > 1e8) | ~np.isfinite(size)
         active[idx[done]] = False
     return R, t, np.sqrt(cost / 4.0)
 
@@ -114,7 +118,8 @@ def pnp_candidates(
     rig: SensorRig,
     refine: bool = True,
 ) -> PnPCandidates:
-    """:func:`~ihrcf_env.core.estimators.atda.atda_candidates` of N frames; arguments as :func:`atda_batch`."""
+    """:func:`~ihrcf_env.core.estimators.atda.atda_candidates` of N frames (arguments as
+    :func:`atda_batch`)."""
     corners = np.asarray(corners_px, dtype=np.float64)
     if corners.ndim != 3 or corners.shape[1:] != (4, 2):
         raise ValueError(f"corners_px must have shape (N, 4, 2), got {corners.shape}")
@@ -139,7 +144,9 @@ def pnp_candidates(
     else:
         err = refine_lm(Km, d, R_all, t_all, obj, px2, max_iter=0)[2]
     R2, t2, err2 = R_all.reshape(n_env, 2, 3, 3), t_all.reshape(n_env, 2, 3), err.reshape(n_env, 2)
-    usable = np.isfinite(err2) & np.isfinite(t2).all(axis=2) & np.isfinite(R2).all(axis=(2, 3)) & (t2[..., 2] > 0)
+    usable = (
+        np.isfinite(err2) & np.isfinite(t2).all(axis=2) & np.isfinite(R2).all(axis=(2, 3)) & (t2[..., 2] > 0)
+    )
     usable &= (code == rs.OK)[:, None]
     first_failure(code, ~usable.any(axis=1), rs.TAG_BEHIND)
     R_bd = np.einsum("ij,nsjk,kl->nsil", R_BODY_CAM, R2, _R_MARKER_DECK)
@@ -158,7 +165,9 @@ def pnp_candidates(
     )
 
 
-def pnp_choose(cands: PnPCandidates, prior_rotation: ArrayLike | None = None, has_prior: ArrayLike | None = None) -> BatchPoses:
+def pnp_choose(
+    cands: PnPCandidates, prior_rotation: ArrayLike | None = None, has_prior: ArrayLike | None = None
+) -> BatchPoses:
     """:func:`~ihrcf_env.core.estimators.atda.atda_choose` per frame: the lower error, or the
     candidate nearer ``prior_rotation`` (N, 3, 3) where ``has_prior`` (N,) and the two errors are
     within :data:`AMBIGUITY_RATIO`."""
@@ -202,7 +211,9 @@ def atda_batch(
     Returns:
         A :class:`BatchPoses` whose residual is the RMS reprojection error (px).
     """
-    return pnp_choose(pnp_candidates(corners_px, detected, K, dist, tag_size, rig, refine), prior_rotation, has_prior)
+    return pnp_choose(
+        pnp_candidates(corners_px, detected, K, dist, tag_size, rig, refine), prior_rotation, has_prior
+    )
 
 
 class ATDABatch:
@@ -210,7 +221,13 @@ class ATDABatch:
     each keeps its last valid rotation as its prior. Arguments as :func:`atda_batch`."""
 
     def __init__(
-        self, n: int, K: ArrayLike, dist: ArrayLike | None, tag_size: float, rig: SensorRig, refine: bool = True
+        self,
+        n: int,
+        K: ArrayLike,
+        dist: ArrayLike | None,
+        tag_size: float,
+        rig: SensorRig,
+        refine: bool = True,
     ) -> None:
         self.K = as_array(K, (3, 3), "K").copy()
         self.dist = distortion5(dist)
@@ -229,7 +246,15 @@ class ATDABatch:
     def update(self, corners_px: ArrayLike, detected: ArrayLike) -> BatchPoses:
         """Estimates of the N frames; valid rows become the new priors."""
         out = atda_batch(
-            corners_px, detected, self.K, self.dist, self.tag_size, self.rig, self.prior, self.has_prior, self.refine
+            corners_px,
+            detected,
+            self.K,
+            self.dist,
+            self.tag_size,
+            self.rig,
+            self.prior,
+            self.has_prior,
+            self.refine,
         )
         self.prior[out.valid] = out.rotation[out.valid]
         self.has_prior |= out.valid

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ihrcf_env.core.batch.geometry import (
     HOMOGRAPHY_ERRORS,
@@ -71,9 +71,9 @@ REASONS: tuple[str, ...] = (
 )
 
 
-def first_failure(code: NDArray[np.int8], failed: NDArray[np.bool_], reason: int) -> None:
+def first_failure(code: NDArray[np.int8], failed: ArrayLike, reason: int) -> None:
     """Set ``code`` to ``reason`` in place where ``failed`` and no earlier check failed."""
-    code[(code == OK) & failed] = reason
+    code[(code == OK) & np.asarray(failed, dtype=bool)] = reason
 
 
 @dataclass(frozen=True, eq=False)

@@ -54,7 +54,7 @@ class BatchTable:
         return uv, inside
 
 
-def batch_table(touch_pixels: RangePixelTable | BatchTable | _Single) -> BatchTouchPixels:
+def batch_table(touch_pixels: RangePixelTable | BatchTable | _Single | BatchTouchPixels) -> BatchTouchPixels:
     """A batched touch-pixel table: :class:`BatchTable` of a :class:`RangePixelTable`, a
     :class:`BatchTable` as is, or any single-frame table (ranges (4,) -> ((4, 2), (4,))) called once
     per row (a fallback for tests and custom tables, not vectorised)."""
