@@ -60,6 +60,8 @@ V2_LANDING_CONFIG = dataclasses.replace(
     max_tilt_now=math.radians(19.0),
     centred_tolerance=0.08,
     hold_height=1.0,
+    touch_speed=0.2,
+    height_tolerance=0.12,
 )
 #: The scripted landing's tunables per landing task.
 LANDING_CONFIGS: dict[str, LandingConfig] = {"landing-v1": V1_LANDING_CONFIG, "landing-v2": V2_LANDING_CONFIG}

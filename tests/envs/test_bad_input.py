@@ -484,6 +484,7 @@ BAD_OPTIONS = [
     ({"wind": {"gale": 3.0}}, ValueError, "wind"),
     ({"start_offset": [0.1]}, TypeError, "start_offset"),
     ({"start_yaw": math.nan}, ValueError, "start_yaw"),
+    ({"start_trimmed": "yes"}, TypeError, "start_trimmed"),
     ({"max_velocity": ("1", 1, 1, 1)}, TypeError, "max_velocity"),
     ({"max_velocity": (True, 1, 1, 1)}, TypeError, "max_velocity"),
     ({"max_velocity": (1, 1, 1)}, TypeError, "max_velocity"),
