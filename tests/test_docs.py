@@ -183,8 +183,9 @@ def test_custom_estimator_example_runs():
 
 
 def test_v2_table_has_the_wilson_interval() -> None:
-    from ihrcf_env.experiments.results import LandingRow, v2_markdown
+    from ihrcf_env.experiments.benchmark_v2 import Job, table_markdown
+    from ihrcf_env.experiments.results import LandingRow
 
     row = LandingRow("projected", 20, 10, (0.3, 0.4), (4.0, 6.0), (0.05, 0.1), (9.0, 12.0), {"timeout": 10})
-    md = v2_markdown({("moderate", "scripted"): row})
-    assert "| moderate | scripted | 10/20 (30%-70%) |" in md and "timeout x10" in md
+    md = table_markdown({Job("moderate", "out/ppo/best.zip", "rendered", 20): row})
+    assert "| moderate | best.zip | rendered | 10/20 (30%-70%) |" in md and "timeout x10" in md

@@ -19,7 +19,6 @@ episodes (said in the stamp). The Markdown is built by pure functions (:func:`re
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import datetime
 import math
 import os
@@ -44,9 +43,7 @@ from ihrcf_env.core.metrics import (
     ErrorStats,
     table2_markdown,
     table_columns,
-    wilson_interval,
 )
-from ihrcf_env.envs.levels import LEVELS, TEST_SEEDS
 from ihrcf_env.experiments.episode import run_episodes
 
 #: Markers of the README block this command rewrites.
@@ -67,22 +64,17 @@ class Plan:
     sizes: tuple[int, ...]
     landings: Mapping[str, int]
     seed: int = 0
-    #: episodes per (level, baseline) of DeckLanding-v2 on its test seeds (projected camera)
-    v2_episodes: int = 0
 
     def describe(self) -> str:
         landings = ", ".join(f"{n} {m}" for m, n in self.landings.items() if n)
         return (
             f"{self.name}: {self.frames} frames per hover run, {self.speed_steps} timed steps per speed "
-            f"configuration, scripted landings per camera model: {landings or 'none'}; seed {self.seed}; "
-            f"{self.v2_episodes} DeckLanding-v2 episodes per level and baseline"
+            f"configuration, scripted landings per camera model: {landings or 'none'}; seed {self.seed}"
         )
 
 
-FULL = Plan("full", 600, (1.0, 2.0), 300, (0, 128, 256, 512), {"projected": 30, "rendered": 10}, 0, 20)
-QUICK = Plan("quick", 120, (1.0, 2.0), 60, (0, 512), {"projected": 4, "rendered": 1}, 0, 2)
-#: The baselines of the DeckLanding-v2 table: name -> policy spec.
-V2_BASELINES: tuple[str, ...] = ("blind:0.3", "scripted")
+FULL = Plan("full", 600, (1.0, 2.0), 300, (0, 128, 256, 512), {"projected": 30, "rendered": 10}, 0)
+QUICK = Plan("quick", 120, (1.0, 2.0), 60, (0, 512), {"projected": 4, "rendered": 1}, 0)
 
 
 @dataclass(frozen=True)
@@ -129,8 +121,6 @@ class Results:
     raw_speed: list[SpeedRow] = field(default_factory=list)
     wrapped_speed: list[SpeedRow] = field(default_factory=list)
     landing: list[LandingRow] = field(default_factory=list)
-    #: (level, baseline) -> the row of DeckLanding-v2's baseline table
-    v2: dict[tuple[str, str], LandingRow] = field(default_factory=dict)
 
 
 # -- formatting (pure) ---------------------------------------------------------------------------
@@ -142,7 +132,8 @@ def _mm_deg(values: Sequence[float]) -> list[str]:
     return out
 
 
-def _pair(p: tuple[float, float], fmt: str) -> str:
+def pair(p: tuple[float, float], fmt: str) -> str:
+    """A (mean, max) pair formatted with ``fmt`` (``-`` for a missing value)."""
     return " / ".join("-" if not math.isfinite(v) else fmt.format(v) for v in p)
 
 
@@ -220,26 +211,8 @@ def landing_markdown(rows: Sequence[LandingRow]) -> str:
     for r in rows:
         fail = ", ".join(f"{k} x{v}" for k, v in sorted(r.failures.items())) or "none"
         out.append(
-            f"| {r.camera_model} | {r.successes}/{r.episodes} | {_pair(r.speed, '{:.3f}')} "
-            f"| {_pair(r.tilt_deg, '{:.2f}')} | {_pair(r.offset, '{:.3f}')} | {_pair(r.time, '{:.1f}')} "
-            f"| {fail} |"
-        )
-    return "\n".join(out)
-
-
-def v2_markdown(rows: Mapping[tuple[str, str], LandingRow]) -> str:
-    """One row per (level, baseline): success with its 95 % Wilson interval, touchdown figures."""
-    out = [
-        "| level | baseline | success (95 % interval) | vertical speed (m/s) | tilt (deg) "
-        "| offset from the tag (m) | failures |",
-        "|---|---|---|---|---|---|---|",
-    ]
-    for (level, baseline), r in rows.items():
-        lo, hi = wilson_interval(r.successes, r.episodes)
-        fail = ", ".join(f"{k} x{v}" for k, v in sorted(r.failures.items())) or "none"
-        out.append(
-            f"| {level} | {baseline} | {r.successes}/{r.episodes} ({lo:.0%}-{hi:.0%}) "
-            f"| {_pair(r.speed, '{:.3f}')} | {_pair(r.tilt_deg, '{:.2f}')} | {_pair(r.offset, '{:.3f}')} "
+            f"| {r.camera_model} | {r.successes}/{r.episodes} | {pair(r.speed, '{:.3f}')} "
+            f"| {pair(r.tilt_deg, '{:.2f}')} | {pair(r.offset, '{:.3f}')} | {pair(r.time, '{:.1f}')} "
             f"| {fail} |"
         )
     return "\n".join(out)
@@ -297,18 +270,11 @@ def results_markdown(results: Results, stamp: Stamp) -> str:
             "",
             landing_markdown(results.landing),
         ]
-    if results.v2:
-        parts += [
-            "",
-            "## Baselines of DeckLanding-v2 (the benchmark protocol)",
-            "",
-            "`ihrcf_env/DeckLanding-v2` per level (see [tasks](tasks.md#decklanding-v2)), projected camera, "
-            "the protocol's test seeds from 100000 up; `blind:0.3` descends at 0.3 m/s with no lateral "
-            "command, `scripted` is the package's landing controller on the fused estimate. The same "
-            "figures for one level and policy: `ihrcf-evaluate --level L --policy P --episodes N`.",
-            "",
-            v2_markdown(results.v2),
-        ]
+    parts += [
+        "",
+        "The baselines of `ihrcf_env/DeckLanding-v2` (the benchmark protocol) have their own page, "
+        "[benchmark-v2](benchmark-v2.md), generated by `python -m ihrcf_env.experiments.benchmark_v2`.",
+    ]
     return "\n".join(parts) + "\n"
 
 
@@ -415,21 +381,6 @@ def run_landings(camera_model: str, episodes: int, seed: int = 0) -> LandingRow:
     return landing_row(camera_model, results)
 
 
-def run_v2(episodes: int) -> dict[tuple[str, str], LandingRow]:
-    """The DeckLanding-v2 baselines per level on the protocol's test seeds (projected camera)."""
-    out: dict[tuple[str, str], LandingRow] = {}
-    for level in LEVELS:
-        env = gym.make(ihrcf_env.LANDING_V2_ID, camera_model="projected", level=level)
-        try:
-            for spec in V2_BASELINES:
-                results = run_episodes(env, _policy(spec, env), episodes, TEST_SEEDS.start)
-                out[(level, spec)] = landing_row("projected", results)
-                print(f"v2 {level} {spec} done", flush=True)
-        finally:
-            env.close()
-    return out
-
-
 def _failure(reason: str) -> str:
     """A crash reason without its numbers (alike failures group together)."""
     words = [w for w in reason.replace("(", " ").replace(")", " ").split() if not any(c.isdigit() for c in w)]
@@ -442,8 +393,6 @@ def run(plan: Plan) -> Results:
     res.accuracy = run_accuracy(plan)
     res.raw_speed, res.wrapped_speed = run_speed(plan)
     res.landing = [run_landings(m, n, plan.seed) for m, n in plan.landings.items() if n > 0]
-    if plan.v2_episodes > 0:
-        res.v2 = run_v2(plan.v2_episodes)
     return res
 
 
@@ -454,18 +403,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--readme", default="README.md", help="README whose headline block is rewritten")
     ap.add_argument("--no-readme", action="store_true", help="do not touch the README")
     ap.add_argument("--all-cores", action="store_true", help="do not pin the process to one core")
-    ap.add_argument(
-        "--v2-episodes",
-        type=int,
-        default=None,
-        help="DeckLanding-v2 episodes per level and baseline (100: the protocol)",
-    )
     args = ap.parse_args(argv)
     plan = QUICK if args.quick else FULL
-    if args.v2_episodes is not None:
-        if args.v2_episodes < 0:
-            ap.error("argument --v2-episodes: must be >= 0")
-        plan = dataclasses.replace(plan, v2_episodes=args.v2_episodes)
     pinned = ""
     if not args.all_cores and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})

@@ -39,9 +39,9 @@ CAMERA_QUALITIES: tuple[str, ...] = ("ideal", "realistic")
 #: Largest ``CameraConfig.latency`` accepted (s).
 MAX_LATENCY = 1.0
 #: A typical delay (s) from exposure to detected tag corners of a global-shutter camera with
-#: on-board AprilTag detection, the ``camera_latency`` of the realistic deck-landing task: exposure
-#: (a few ms, its middle is the frame's time), sensor readout and transfer (about one frame period
-#: of a 60 fps sensor, ~17 ms) and detection on an embedded CPU (~15-30 ms): 30-60 ms in total.
+#: on-board AprilTag detection on an embedded computer (exposure, readout and transfer, detection),
+#: the ``camera_latency`` of ``DeckLanding-v2``; the published figures behind it are in
+#: ``docs/sensors.md`` ("Timing and latency").
 PIPELINE_LATENCY = 0.045
 
 #: A pixel rectangle of the image, ``(x0, y0, width, height)``: columns ``x0 .. x0 + width - 1``,

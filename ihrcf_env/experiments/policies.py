@@ -1,0 +1,149 @@
+"""Policies by name for evaluation: ``scripted``, ``blind:VZ`` or a saved stable-baselines3 model.
+
+:func:`make_policy` turns a POLICY spec into a :class:`~ihrcf_env.control.policies.Policy` for an
+env; :func:`make_env_for` builds the env a saved policy was trained on (with ``deck_motion=True`` if
+its observation needs it). stable-baselines3 (the ``[rl]`` extra) is imported only for a ``.zip``.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from ihrcf_env import LANDING_V1_ID
+from ihrcf_env.control.policies import BlindDescent, Policy, ScriptedLanding
+
+SB3_ALGOS = ("PPO", "SAC", "TD3", "A2C", "DDPG")
+
+
+class PolicyError(ValueError):
+    """A POLICY argument that cannot be used (the message names ``--policy``)."""
+
+
+class SB3Policy:
+    """A saved stable-baselines3 model as a :class:`~ihrcf_env.control.policies.Policy`."""
+
+    def __init__(self, model: Any) -> None:
+        self.model = model
+
+    def reset(self) -> None:
+        pass
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        action, _ = self.model.predict(obs, deterministic=True)
+        return np.asarray(action, dtype=np.float32)
+
+
+def _brief(space: Any) -> str:
+    """A short description of a space: ``Box(50,)`` or ``Dict(keys...)``."""
+    if isinstance(space, gym.spaces.Box):
+        return f"Box{space.shape}"
+    if isinstance(space, gym.spaces.Dict):
+        return f"Dict({', '.join(space.spaces)})"
+    return type(space).__name__
+
+
+def load_sb3(path: str, algo: str, env: gym.Env) -> SB3Policy:
+    """Load ``path`` with stable-baselines3's ``algo`` class and check its spaces against ``env``'s."""
+    try:
+        sb3 = importlib.import_module("stable_baselines3")
+    except ImportError:
+        raise PolicyError(
+            f"--policy {path!r} is a stable-baselines3 model, but stable-baselines3 is not installed "
+            "(pip install 'ihrcf_env[rl]' or pip install stable-baselines3)"
+        ) from None
+    cls = getattr(sb3, algo)
+    try:
+        model = cls.load(path, device="cpu")
+    except Exception as e:  # a zip that is not an SB3 model of this class
+        raise PolicyError(
+            f"--policy {path!r}: cannot be loaded as a stable-baselines3 {algo} model: {e}"
+        ) from None
+    space, want = model.observation_space, env.observation_space
+    same = (
+        isinstance(space, gym.spaces.Box)
+        and isinstance(want, gym.spaces.Box)
+        and space.shape == want.shape
+        and np.allclose(space.low, want.low)
+        and np.allclose(space.high, want.high)
+    )
+    if not same:
+        raise PolicyError(
+            f"--policy {path!r}: its observation space {_brief(space)} does not match the env's "
+            f"{_brief(want)} (another env id, estimator set, privileged observation or --deck-motion?)"
+        )
+    if getattr(model.action_space, "shape", None) != env.action_space.shape:
+        raise PolicyError(
+            f"--policy {path!r}: its action space {model.action_space} does not match the env's "
+            f"{env.action_space}"
+        )
+    return SB3Policy(model)
+
+
+def with_deck_motion(
+    env_id: str, kwargs: dict[str, Any], spec: str, algo: str
+) -> tuple[gym.Env, Policy] | None:
+    """(env, policy) with ``deck_motion=True`` if a saved policy fits that observation, else None."""
+    if not spec.endswith(".zip"):
+        return None
+    try:
+        env = gym.make(env_id, **kwargs, deck_motion=True)
+    except (TypeError, ValueError):  # an env without that option
+        return None
+    try:
+        return env, make_policy(spec, env, algo)
+    except PolicyError:
+        env.close()
+        return None
+
+
+def make_policy(spec: str, env: gym.Env, algo: str = "PPO") -> Policy:
+    """The policy of a POLICY argument (see DESCRIPTION) for ``env``; PolicyError naming
+    ``--policy`` if it cannot be."""
+    base: Any = env.unwrapped
+    max_velocity = tuple(float(v) for v in getattr(base, "max_velocity", np.ones(4)))
+    if getattr(getattr(base, "config", None), "action_mode", "velocity") != "velocity":
+        raise PolicyError(f"--policy {spec!r}: the baselines need action_mode='velocity'")
+    if spec == "scripted":
+        try:
+            return ScriptedLanding.from_env(env, estimator="fused")
+        except AttributeError:
+            raise PolicyError(
+                "--policy scripted needs the v1 observation (obs_slices/obs_scales): use --env-id "
+                + LANDING_V1_ID
+            ) from None
+    if spec.startswith("blind:"):
+        text = spec.removeprefix("blind:")
+        try:
+            vz = float(text)
+        except ValueError:
+            raise PolicyError(f"--policy {spec!r}: VZ must be a number of m/s, e.g. blind:0.3") from None
+        try:
+            return BlindDescent(vz, max_velocity)
+        except (TypeError, ValueError) as e:
+            raise PolicyError(f"--policy {spec!r}: {e}") from None
+    if spec.endswith(".zip") or os.path.exists(spec):
+        if not os.path.isfile(spec):
+            raise PolicyError(f"--policy {spec!r}: no such file")
+        return load_sb3(spec, algo, env)
+    raise PolicyError(
+        f"--policy {spec!r}: not 'scripted', 'blind:VZ' or a saved stable-baselines3 model (.zip)"
+    )
+
+
+def make_env_for(env_id: str, kwargs: dict[str, Any], spec: str, algo: str = "PPO") -> tuple[gym.Env, Policy]:
+    """``gym.make(env_id, **kwargs)`` and the policy of ``spec`` on it; a saved policy trained with
+    the deck motion in its observation gets ``deck_motion=True``. PolicyError if it cannot be."""
+    pair = with_deck_motion(env_id, kwargs, spec, algo)
+    if pair is not None:
+        return pair
+    env = gym.make(env_id, **kwargs)
+    try:
+        return env, make_policy(spec, env, algo)
+    except Exception:
+        env.close()
+        raise
