@@ -30,7 +30,7 @@ key               shape / dtype            meaning
 
 Camera (``camera_model``): ``"rendered"`` (default) renders with TinyRenderer; with
 ``camera_output="corners"`` it renders only the window around the tag's projection and detects the
-tag there (same corners as the full frame within 0.05 px). ``"projected"`` renders nothing: the tag
+tag there (the full frame's corners, see ``docs/camera-models.md``). ``"projected"`` renders nothing: the tag
 corners are projected through the true camera and a detector model fitted on rendered frames
 (``ihrcf-fit-detector``) adds the detector's noise and failures. ``camera_hz``
 (default: the control rate, must divide it) delivers a frame every ``control_hz / camera_hz`` steps;

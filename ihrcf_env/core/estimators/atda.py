@@ -1,29 +1,10 @@
 """ATDA: the AprilTag + PnP deck-pose baseline.
 
-ATDA (:func:`atda_estimate`), measured on exact projected corners plus Gaussian pixel noise (300 poses,
-0.4 m tag, f = 443 px, random yaw, mean rotation error / mean position error):
-
-===============================  =======================  ======================  ====================
-case                             IPPE_SQUARE, lowest err  + solvePnPRefineLM      IHRCF (exact ranges)
-===============================  =======================  ======================  ====================
-1 m, tilt < 0.05, noise 0.2 px   1.40 deg / 1.5 mm        0.36 deg / 0.8 mm       --
-1 m, tilt < 0.05, noise 0.5 px   2.97 deg / 3.4 mm        0.90 deg / 2.0 mm       --
-2 m, tilt < 0.05, noise 0.5 px   6.51 deg / 11.1 mm       3.82 deg / 7.9 mm       --
-1 m, tilt < 0.2,  noise 0.5 px   --                       0.83 deg / 2.0 mm       0.10 deg / 0.7 mm
-2 m, tilt < 0.2,  noise 0.5 px   --                       2.82 deg / 8.0 mm       0.19 deg / 1.4 mm
-===============================  =======================  ======================  ====================
-
-IPPE's closed-form solution leaves an RMS reprojection error 1.4-2.4x the corner noise; LM polishing of
-*both* IPPE solutions removes most of it (after polishing, the two usually coincide), so
-``refine=True`` is the default. A prior (e.g. the previous rotation perturbed by 1.5 deg) chosen
-when the two polished errors are within :data:`AMBIGUITY_RATIO` changed the mean error by < 0.5 deg
-(3 m, 0.5 px noise: 7.95 -> 7.57 deg) and by nothing at 1-2 m. End to end on rendered images
-(tilt < 0.2 rad, SUBPIX corners, exact ranges; 20 poses): ATDA 0.8 / 4.1 / 12.8 mm and 0.11 / 0.31 /
-0.73 deg mean at 1 / 2 / 3 m (almost all of it depth: at 3 m the mean error is (0.2, 0.0, -12.8) mm,
-i.e. the tag is seen ~0.4 % too small, SUBPIX corners sitting slightly inside the tag); IHRCF
-0.05 / 0.12 / 0.23 mm and 0.06 / 0.11 / 0.17 deg. Detection + both estimators take ~3 ms per
-512x512 frame.
-
+ATDA (:func:`atda_estimate`) solves the square tag's four corners by IPPE (both planar solutions),
+polishes both with Levenberg-Marquardt (``refine=True``: IPPE's closed form leaves a reprojection
+error above the corner noise) and keeps the lower reprojection error; when the two are within
+:data:`AMBIGUITY_RATIO` a prior rotation (the previous estimate) decides. Its measured accuracy
+against IHRCF is in ``docs/estimators.md`` ("ATDA").
 
 The corner order returned by OpenCV on a ``generateImageMarker`` texture laid on the deck with its
 top edge towards deck +x and its left edge towards deck +y matches :func:`tag_corners_deck`

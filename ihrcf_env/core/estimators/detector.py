@@ -1,28 +1,8 @@
 """AprilTag 36h11 corner detection with OpenCV's aruco module.
 
-Corner detection (:class:`TagDetector`), measured on synthetic 512x512 images (f = 443 px, 0.4 m tag
-at 1-4 m, i.e. 184-43 px across, tilts up to 0.3 rad, random yaw; tag rendered with
-``cv2.aruco.generateImageMarker`` + a one-cell white quiet zone, ``cv2.warpPerspective`` at 4x
-supersampling and ``INTER_AREA`` down-sampling, compared with the analytic pinhole projection of
-:func:`ihrcf_env.core.rig.tag_corners_deck`; OpenCV 5.0.0, 15-20 poses per row):
-
-=========================  ============================  ==================  ================
-refinement                 mean corner error, clean      same, noise s.d. 3  time per frame
-=========================  ============================  ==================  ================
-CORNER_REFINE_NONE         0.62-0.70 px                  0.67-0.70 px        1.4-3 ms
-CORNER_REFINE_CONTOUR      0.67-0.72 px                  0.68 px             1.4-3 ms
-CORNER_REFINE_SUBPIX       0.17-0.22 px (bias < 0.01)    0.19-0.23 px        1.3-3 ms
-CORNER_REFINE_APRILTAG     0.59-0.62 px raw              0.60-0.62 px        1.2-3.6 ms clean,
-                                                                             64-86 ms noisy
-=========================  ============================  ==================  ================
-
-The APRILTAG mode has a systematic offset of (+0.42, +0.42) px (measured: 0.41-0.44 in every
-configuration, independent of the supersampling factor 1-8, while SUBPIX/NONE/CONTOUR show < 0.05 px
-mean offset on the same images, so the renderer is consistent with OpenCV's pixel-centre convention).
-FIELD-NOTES says +0.5 px; subtracting 0.5 leaves 0.10-0.16 px, subtracting the measured 0.42 leaves
-0.04-0.10 px. Because APRILTAG costs 30x more on noisy images, the default is SUBPIX with
-``cornerRefinementMinAccuracy = 0.01`` and 100 iterations (0.17 vs 0.174 px with the defaults);
-``refine="apriltag"`` is available and subtracts :data:`APRILTAG_CORNER_OFFSET_PX`.
+:class:`TagDetector` uses sub-pixel corner refinement (``refine="subpix"``) by default; the
+refinement modes' measured corner errors and costs, and the offset of the ``"apriltag"`` mode
+(:data:`APRILTAG_CORNER_OFFSET_PX`), are in ``docs/estimators.md`` ("Tag detection").
 """
 
 from __future__ import annotations
@@ -31,7 +11,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-#: Measured offset (px, both axes) of CORNER_REFINE_APRILTAG corners w.r.t. OpenCV's pixel-centre convention.
+#: Offset (px, both axes) of CORNER_REFINE_APRILTAG corners from OpenCV's pixel-centre convention.
 APRILTAG_CORNER_OFFSET_PX: float = 0.42
 
 
@@ -46,7 +26,7 @@ _REFINE_METHODS: dict[str, int] = {
 class TagDetector:
     """AprilTag 36h11 detector (``cv2.aruco.ArucoDetector``) returning one tag's corners.
 
-    ``refine`` is one of 'none', 'subpix' (default, see the module docstring for the measurements),
+    ``refine`` is one of 'none', 'subpix' (default, see the module docstring),
     'contour', 'apriltag'. With 'apriltag' the corners are shifted by ``-apriltag_offset`` px on
     both axes to OpenCV's pixel-centre convention.
     """

@@ -520,11 +520,9 @@ def window_projection(proj: Sequence[float], width: int, height: int, window: Wi
 
     Equal to the crop of the full render up to TinyRenderer's float32 arithmetic, which computes
     every pixel's barycentric coordinates from the (differently rounded) screen coordinates of
-    the window: measured on 4.3 million tag-window pixels at random poses, 4 differed, each a
-    texture lookup on the other side of a texel edge (a black/white flip inside the tag); random
-    windows of untextured regions: 0 of 1.8 million; segmentation masks alike; z-buffer values
-    differ by one float ulp on ~0.4 % of the pixels. A flip at a corner of the tag's black square
-    moves that detected corner (up to 0.6 px measured, 1 frame in ~1000; see
+    the window: rarely a texture lookup lands on the other side of a texel edge (a black/white
+    flip inside the tag), and a flip at a corner of the tag's black square moves that detected
+    corner (figures in ``docs/camera-models.md``; see
     :class:`~ihrcf_env.sim.sensors.tag_window.WindowedTagCamera`).
     """
     x0, y0, w, h = window
