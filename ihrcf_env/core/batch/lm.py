@@ -209,9 +209,8 @@ def refine_lm(
                 if n_active == 0:
                     break
                 keep = active
-                rows, Rw, tw, cost, pu, pv, A, g, lam, it = (
-                    a[keep] for a in (rows, Rw, tw, cost, pu, pv, A, g, lam, it)
-                )
+                rows, it = rows[keep], it[keep]
+                Rw, tw, cost, pu, pv, A, g, lam = (a[keep] for a in (Rw, tw, cost, pu, pv, A, g, lam))
                 active = active[keep]
         else:
             R_out[rows], t_out[rows], cost_out[rows], iters[rows] = Rw, tw, cost, it
