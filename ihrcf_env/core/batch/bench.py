@@ -5,7 +5,8 @@ Frames are random deck poses (1-3 m, tilt up to 0.3 rad, any yaw) seen through t
 calibration's camera, with 0.3 px corner noise and 3 mm range noise; the table printed gives
 microseconds per frame and the single / batched ratio for each N. The single ATDA is the cv2 path
 (:func:`~ihrcf_env.core.estimators.atda.atda_estimate`); the row ``atda-n1`` times the batched code
-called once per frame (:func:`~ihrcf_env.core.batch.single.atda_single`) against it.
+called once per frame (:func:`~ihrcf_env.core.batch.single.atda_single`) against it (at N = 1
+only: both are per frame).
 """
 
 from __future__ import annotations

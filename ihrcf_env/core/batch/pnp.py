@@ -4,8 +4,9 @@ Per frame: both closed-form IPPE poses (:func:`~ihrcf_env.core.batch.ippe.ippe_s
 polished by Levenberg-Marquardt on the four corners' reprojection error (the distorted camera
 model), then ATDA's choice: the lower RMS reprojection error, or of the two the one nearer a prior
 rotation when their errors are within :data:`~ihrcf_env.core.estimators.atda.AMBIGUITY_RATIO`.
-The LM runs to convergence (steps below ~1e-10 of the pose), so its result is the local minimum
-itself; ``cv2.solvePnPRefineLM`` stops on its own criteria, near it.
+The LM (:func:`~ihrcf_env.core.batch.lm.refine_lm`) runs the lower-error solution to convergence
+(its result is the local minimum itself; ``cv2.solvePnPRefineLM`` stops on its own criteria, near
+it); the other stops once it is clearly worse or has reached the same pose (flip pairs).
 """
 
 from __future__ import annotations
