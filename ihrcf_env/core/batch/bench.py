@@ -3,7 +3,10 @@
 
 Frames are random deck poses (1-3 m, tilt up to 0.3 rad, any yaw) seen through the packaged
 calibration's camera, with 0.3 px corner noise and 3 mm range noise; the table printed gives
-microseconds per frame and the single / batched ratio for each N.
+microseconds per frame and the single / batched ratio for each N. The single ATDA is the cv2 path
+(:func:`~ihrcf_env.core.estimators.atda.atda_estimate`); the row ``atda-n1`` times the batched code
+called once per frame (:func:`~ihrcf_env.core.batch.single.atda_single`) against it (at N = 1
+only: both are per frame).
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from numpy.typing import NDArray
 
 from ihrcf_env.core.batch.ihrcf import ihrcf_batch
 from ihrcf_env.core.batch.pnp import atda_batch
+from ihrcf_env.core.batch.single import atda_single as atda_n1
 from ihrcf_env.core.batch.tables import BatchTable
 from ihrcf_env.core.calibration import Calibration, default_calibration_path
 from ihrcf_env.core.estimators.atda import atda_estimate
@@ -60,7 +64,8 @@ def _best_time(fn: Callable[[], object], repeats: int) -> float:
 
 
 def run(repeats: int = 5) -> list[tuple[str, int, float, float]]:
-    """(estimator, N, single us/frame, batched us/frame) for IHRCF and ATDA at each N of :data:`SIZES`."""
+    """(estimator, N, single us/frame, batched us/frame) for IHRCF, ATDA and ATDA's batched code at
+    N = 1 at each N of :data:`SIZES` (single and batched timings interleaved)."""
     cal = Calibration.load(default_calibration_path())
     rig = SensorRig()
     table = BatchTable(cal.tables)
@@ -78,13 +83,20 @@ def run(repeats: int = 5) -> list[tuple[str, int, float, float]]:
             for i in range(len(c)):
                 atda_estimate(c[i], cal.K, cal.dist, TAG, rig)
 
+        def atda_batched_n1(c=c) -> None:
+            for i in range(len(c)):
+                atda_n1(c[i], cal.K, cal.dist, TAG, rig)
+
         cases = (
             ("ihrcf", ihrcf_single, lambda c=c, r=r, v=v, d=d: ihrcf_batch(c, r, v, d, table, rig, TAG)),
             ("atda", atda_single, lambda c=c, d=d: atda_batch(c, d, cal.K, cal.dist, TAG, rig)),
+            ("atda-n1", atda_single, atda_batched_n1),
         )
-        for name, single, batched in cases:
-            ts = _best_time(single, repeats) / n * 1e6
-            tb = _best_time(batched, repeats) / n * 1e6
+        for name, single, batched in cases if n == 1 else cases[:2]:
+            ts, tb = math.inf, math.inf
+            for _ in range(repeats):  # interleaved: a loaded machine slows both alike
+                ts = min(ts, _best_time(single, 1) / n * 1e6)
+                tb = min(tb, _best_time(batched, 1) / n * 1e6)
             rows.append((name, n, ts, tb))
     return rows
 

@@ -4,8 +4,9 @@ Per frame: both closed-form IPPE poses (:func:`~ihrcf_env.core.batch.ippe.ippe_s
 polished by Levenberg-Marquardt on the four corners' reprojection error (the distorted camera
 model), then ATDA's choice: the lower RMS reprojection error, or of the two the one nearer a prior
 rotation when their errors are within :data:`~ihrcf_env.core.estimators.atda.AMBIGUITY_RATIO`.
-The LM runs to convergence (steps below ~1e-10 of the pose), so its result is the local minimum
-itself; ``cv2.solvePnPRefineLM`` stops on its own criteria, near it.
+The LM (:func:`~ihrcf_env.core.batch.lm.refine_lm`) runs the lower-error solution to convergence
+(its result is the local minimum itself; ``cv2.solvePnPRefineLM`` stops on its own criteria, near
+it); the other stops once it is clearly worse or has reached the same pose (flip pairs).
 """
 
 from __future__ import annotations
@@ -17,79 +18,22 @@ from numpy.typing import ArrayLike, NDArray
 
 from ihrcf_env.core.batch import result as rs
 from ihrcf_env.core.batch.geometry import collinear_batch
-from ihrcf_env.core.batch.ippe import distortion5, ippe_square, marker_points, project, undistort
+from ihrcf_env.core.batch.ippe import distortion5, ippe_square, marker_points, undistort
+from ihrcf_env.core.batch.lm import refine_lm
 from ihrcf_env.core.batch.result import BatchPoses, assemble, first_failure
-from ihrcf_env.core.estimators.atda import _R_MARKER_DECK, AMBIGUITY_RATIO
 from ihrcf_env.core.estimators.base import DEGENERATE_REL_TOL
 from ihrcf_env.core.frames import R_BODY_CAM, as_array
 from ihrcf_env.core.rig import SensorRig
 
 F64 = NDArray[np.float64]
 
-
-def _exp(w: F64) -> F64:
-    """Rotation matrices (M, 3, 3) of rotation vectors w (M, 3) (Rodrigues)."""
-    th = np.sqrt(np.einsum("mi,mi->m", w, w))
-    small = th < 1e-8
-    ths = np.where(small, 1.0, th)
-    a = np.where(small, 1.0 - th * th / 6.0, np.sin(ths) / ths)
-    b = np.where(small, 0.5 - th * th / 24.0, (1.0 - np.cos(ths)) / (ths * ths))
-    W = np.zeros((len(w), 3, 3))
-    W[:, 0, 1], W[:, 0, 2], W[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
-    W[:, 1, 0], W[:, 2, 0], W[:, 2, 1] = w[:, 2], -w[:, 1], w[:, 0]
-    return np.eye(3) + a[:, None, None] * W + b[:, None, None] * (W @ W)
-
-
-def _residual(K: F64, dist: F64, R: F64, t: F64, obj: F64, px: F64) -> tuple[F64, F64, F64]:
-    """Residuals (M, 8) px, Jacobians (M, 8, 6) w.r.t. (left rotation increment, t), and costs (M,)."""
-    RX = np.einsum("mij,kj->mki", R, obj)
-    X = RX + t[:, None, :]
-    with np.errstate(all="ignore"):
-        proj, J3 = project(K, dist, X)  # (M, 4, 2), (M, 4, 2, 3)
-    r = (proj - px).reshape(len(R), 8)
-    # a left rotation increment w moves RX by w x RX: d(pixel)/dw = rows g of J3 crossed as RX x g
-    J = np.concatenate([np.cross(RX[:, :, None, :], J3), J3], axis=-1).reshape(len(R), 8, 6)
-    return r, J, np.einsum("mi,mi->m", r, r)
-
-
-def refine_lm(
-    K: F64, dist: F64, R: F64, t: F64, obj: F64, px: F64, max_iter: int = 50
-) -> tuple[F64, F64, F64]:
-    """Levenberg-Marquardt (Marquardt scaling) of poses R (M, 3, 3), t (M, 3) minimising the squared
-    reprojection error of ``obj`` (4, 3) on pixels ``px`` (M, 4, 2), until every step is below 1e-10
-    of the pose (or ``max_iter``). Returns the polished R, t and RMS reprojection errors (M,), px."""
-    R, t = R.copy(), t.copy()
-    r, J, cost = _residual(K, dist, R, t, obj, px)
-    lam = np.full(len(R), 1e-6)
-    active = np.isfinite(cost)
-    for _ in range(max_iter):
-        idx = np.flatnonzero(active)
-        if idx.size == 0:
-            break
-        Ji, ri = J[idx], r[idx]
-        A = np.einsum("mki,mkj->mij", Ji, Ji)
-        g = np.einsum("mki,mk->mi", Ji, ri)
-        Ad = A + lam[idx, None, None] * (np.eye(6) * np.diagonal(A, axis1=1, axis2=2)[:, None, :])
-        with np.errstate(all="ignore"):
-            step = -np.linalg.solve(Ad + 1e-300 * np.eye(6), g[..., None])[..., 0]
-        R_new = _exp(step[:, :3]) @ R[idx]
-        t_new = t[idx] + step[:, 3:]
-        r_new, J_new, cost_new = _residual(K, dist, R_new, t_new, obj, px[idx])
-        better = cost_new <= cost[idx]
-        acc = idx[better]
-        R[acc], t[acc], r[acc], J[acc], cost[acc] = (
-            R_new[better],
-            t_new[better],
-            r_new[better],
-            J_new[better],
-            cost_new[better],
-        )
-        lam[idx] = np.where(better, np.maximum(lam[idx] / 10.0, 1e-12), lam[idx] * 10.0)
-        size = np.abs(step).max(axis=1)
-        scale = 1.0 + np.abs(t[idx]).max(axis=1)
-        done = (size <= 1e-10 * scale) | (lam[idx] > 1e8) | ~np.isfinite(size)
-        active[idx[done]] = False
-    return R, t, np.sqrt(cost / 4.0)
+#: :data:`ihrcf_env.core.estimators.atda.AMBIGUITY_RATIO` (repeated here so that the estimators can
+#: import this package; a test checks they are equal).
+AMBIGUITY_RATIO: float = 2.0
+#: Marker-frame -> deck-frame axes of :mod:`ihrcf_env.core.estimators.atda`, transposed.
+R_MARKER_DECK: F64 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+#: Fixed-point undistortion iterations of the IPPE starting points (OpenCV's undistortPoints uses 5).
+UNDISTORT_ITERATIONS = 5
 
 
 @dataclass(frozen=True, eq=False)
@@ -135,21 +79,20 @@ def pnp_candidates(
     obj = marker_points(tag_size)
     px = np.where((code == rs.OK)[:, None, None], corners, obj[:, :2] * 1000.0 + 100.0)
     first_failure(code, collinear_batch(px, DEGENERATE_REL_TOL), rs.DEGENERATE_TAG)
-    R0, t0, ok = ippe_square(undistort(Km, d, px), tag_size)
+    R0, t0, ok = ippe_square(undistort(Km, d, px, UNDISTORT_ITERATIONS), tag_size)
     first_failure(code, ~ok, rs.PNP_NO_SOLUTION)
     R_all, t_all = R0.reshape(-1, 3, 3), t0.reshape(-1, 3)
     px2 = np.repeat(px, 2, axis=0)
-    if refine:
-        R_all, t_all, err = refine_lm(Km, d, R_all, t_all, obj, px2)
-    else:
-        err = refine_lm(Km, d, R_all, t_all, obj, px2, max_iter=0)[2]
+    R_all, t_all, err, _ = refine_lm(
+        Km, d, R_all, t_all, obj, px2, max_iter=None if refine else 0, flip_pairs=True
+    )
     R2, t2, err2 = R_all.reshape(n_env, 2, 3, 3), t_all.reshape(n_env, 2, 3), err.reshape(n_env, 2)
     usable = (
         np.isfinite(err2) & np.isfinite(t2).all(axis=2) & np.isfinite(R2).all(axis=(2, 3)) & (t2[..., 2] > 0)
     )
     usable &= (code == rs.OK)[:, None]
     first_failure(code, ~usable.any(axis=1), rs.TAG_BEHIND)
-    R_bd = np.einsum("ij,nsjk,kl->nsil", R_BODY_CAM, R2, _R_MARKER_DECK)
+    R_bd = np.einsum("ij,nsjk,kl->nsil", R_BODY_CAM, R2, R_MARKER_DECK)
     p_bd = t2 @ R_BODY_CAM.T + rig.camera_position_array
     # lower error first (a stable sort, unusable solutions last)
     key = np.where(usable, err2, np.inf)
