@@ -18,8 +18,9 @@ from test_fused import RIG, TAG, K, NoisyImu, Pose, observe, paper_like_deck, st
 from test_fused_delay import heaving_deck, imu_at, swaying_drone
 
 from ihrcf_env.core.batch.fused import BatchFused
+from ihrcf_env.core.batch.result import FEW_RANGES
 from ihrcf_env.core.batch.fused_frames import stack_atda_candidates, stack_frames
-from ihrcf_env.core.estimators import FusedEstimator, FusedParams, SensorFrame
+from ihrcf_env.core.estimators import FusedEstimator, FusedParams, ImuSample, SensorFrame
 from ihrcf_env.core.estimators.atda import atda_candidates
 
 HZ = 20.0
@@ -67,7 +68,7 @@ def history(env: int, steps: int = STEPS) -> tuple[list[SensorFrame | None], set
             det = False
         if env == 3 and 60 <= k < 90:  # tag lost 1.5 s > lost_timeout
             det = False
-        if env == 5 and k in (70, 71, 72, 130):  # outliers
+        if env == 5 and k in (70, 71, 72, 73, 130):  # outliers
             corners = corners + np.array([25.0, -15.0])
         frame = SensorFrame(
             t,
@@ -77,6 +78,8 @@ def history(env: int, steps: int = STEPS) -> tuple[list[SensorFrame | None], set
             corners_reason="" if det else "tag occluded",
             imu=None if (env == 5 and k % 17 == 5) else imu,
         )
+        if env == 5 and k == 110:  # a broken IMU sample
+            frame = dataclasses.replace(frame, imu=ImuSample(imu.quaternion, imu.angular_velocity, [np.nan] * 3))
         if env == 5 and k % 23 == 7:
             frame = dataclasses.replace(frame, time=math.nan)
         if env == 5 and k == 150:  # time going backwards
@@ -87,7 +90,7 @@ def history(env: int, steps: int = STEPS) -> tuple[list[SensorFrame | None], set
                 time=t - latency,
                 ranges_time=t - latency - 0.02,
                 arrival_time=t,
-                arrival_imu=imu_at(t, drone),
+                arrival_imu=imu_at(t, drone) if k != 100 else ImuSample(np.zeros(4), np.zeros(3), np.zeros(3)),
             )
         frames.append(frame)
     resets = {150} if env == 3 else ({200} if env == 0 else set())
@@ -114,6 +117,8 @@ def test_batched_fused_equals_single_filters(config: str) -> None:
     worst = 0.0
     valid_rows = 0
     reasons_seen: set[str] = set()
+    events = {"rejected": 0, "reinitialised": 0}
+    few_ranges = 0
     for k in range(STEPS):
         resets = np.array([k in hist[e][1] for e in range(n)])
         for e in np.flatnonzero(resets):
@@ -131,7 +136,10 @@ def test_batched_fused_equals_single_filters(config: str) -> None:
             b = out.estimate(e)
             assert s.valid == b.valid, (config, k, e, s.reason, b.reason)
             assert s.reason == b.reason, (config, k, e)
-            reasons_seen.add(s.reason.split(":")[0])
+            reasons_seen.add(s.reason)
+            few_ranges += int(out.ihrcf_code[e]) == FEW_RANGES
+            for key in events:
+                events[key] += bool(singles[e].diagnostics.get(key))
             diff = max(
                 np.abs(s.position - b.position).max(),
                 np.abs(s.rotation - b.rotation).max(),
@@ -146,5 +154,12 @@ def test_batched_fused_equals_single_filters(config: str) -> None:
             worst = max(worst, diff)
             valid_rows += s.valid
             assert abs(singles[e].range_sigma - batch.range_sigma[e]) < TOL
-    print(f"{config}: max |single - batched| = {worst:.3g} over {valid_rows} valid outputs; reasons {sorted(reasons_seen)}")
+    print(f"{config}: max |single - batched| = {worst:.3g} over {valid_rows} valid outputs; {events}")
+    text = " | ".join(reasons_seen)
+    for part in (
+        "tag lost for", "tag occluded", "time went backwards", "converging: ", "not initialised",
+        "non-finite IMU sample", "arrival zero IMU quaternion",
+    ):  # fmt: skip
+        assert part in text, part
+    assert events["rejected"] > 0 and few_ranges > 0
     assert valid_rows > n * STEPS * 0.4
