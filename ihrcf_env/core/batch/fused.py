@@ -20,7 +20,7 @@ from scipy.stats import chi2
 from ihrcf_env.core.batch import fused_result as fr
 from ihrcf_env.core.batch.fused_blocks import BlocksBatch
 from ihrcf_env.core.batch.fused_frames import BatchFrames
-from ihrcf_env.core.batch.fused_measure import measure
+from ihrcf_env.core.batch.fused_measure import MeasureParts, measure
 from ihrcf_env.core.batch.fused_result import BatchFusedOutput
 from ihrcf_env.core.batch.geometry import euler_batch, matrix_from_euler_batch
 from ihrcf_env.core.batch.imm import BatchImm
@@ -29,6 +29,7 @@ from ihrcf_env.core.batch.tables import BatchTable
 from ihrcf_env.core.calibration.tables import RangePixelTable
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.estimators.fused_params import FusedParams
+from ihrcf_env.core.estimators.ihrcf import TouchPixels
 from ihrcf_env.core.frames import as_array
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 
@@ -70,7 +71,7 @@ class BatchFused:
     def __init__(
         self,
         n: int,
-        touch_pixels: object,
+        touch_pixels: RangePixelTable | BatchTable | TouchPixels,
         rig: SensorRig,
         tag_size: float,
         K: ArrayLike | None = None,
@@ -86,7 +87,9 @@ class BatchFused:
         self.n = int(n)
         self.touch_pixels = touch_pixels
         #: a RangePixelTable evaluated as a BatchTable; any other table as given (see batch_table)
-        self.table = BatchTable(touch_pixels) if isinstance(touch_pixels, RangePixelTable) else touch_pixels
+        self.table: BatchTable | TouchPixels = (
+            BatchTable(touch_pixels) if isinstance(touch_pixels, RangePixelTable) else touch_pixels
+        )
         self.rig = rig
         self.tag_size = float(tag_size)
         self.K = None if K is None else as_array(K, (3, 3), "K").copy()
@@ -323,7 +326,9 @@ class BatchFused:
         outer[i[c2]] = fr.CONVERGING_POSITION
         num[i[c2]] = np.column_stack([pos_sigma[c2], np.full(c2.sum(), p.valid_position_sigma)])
         outer[i[c3]] = fr.CONVERGING_ANGLE
-        num[i[c3]] = np.column_stack([np.degrees(ang_sigma[c3]), np.full(c3.sum(), math.degrees(p.valid_angle_sigma))])
+        num[i[c3]] = np.column_stack(
+            [np.degrees(ang_sigma[c3]), np.full(c3.sum(), math.degrees(p.valid_angle_sigma))]
+        )
         ok = ~(c1 | c2 | c3)
         i = i[ok]
         self.converged[i] = True
@@ -334,7 +339,17 @@ class BatchFused:
         o["position"][i] = np.einsum("nji,nj->ni", R, pos.x(i)[:, 0:3])
         o["residual"][i] = np.sqrt(np.trace(pos.value_cov(i), axis1=1, axis2=2))
 
-    def _store(self, act, frames, outer, outer_num, inner, inner_num, parts) -> BatchFusedOutput:  # type: ignore[no-untyped-def]
+    def _store(
+        self,
+        act: NDArray[np.bool_],
+        frames: BatchFrames,
+        outer: NDArray[np.int8],
+        outer_num: F64,
+        inner: NDArray[np.int8],
+        inner_num: F64,
+        parts: MeasureParts,
+    ) -> BatchFusedOutput:
+        """Rows ``act`` of the held outputs set from this step; the output of every row."""
         o = self._out
         valid = act & (outer == fr.OK)
         invalid = act & ~valid

@@ -95,9 +95,7 @@ class BlocksBatch:
             return euler, self._diag(tilt_var, tilt_var, yaw_var)
         return euler[:, :2], self._diag(tilt_var, tilt_var)
 
-    def ihrcf_position(
-        self, p_bd: F64, used: NDArray[np.bool_], R_wb: F64, sigma_r: F64
-    ) -> tuple[F64, F64]:
+    def ihrcf_position(self, p_bd: F64, used: NDArray[np.bool_], R_wb: F64, sigma_r: F64) -> tuple[F64, F64]:
         p = self.params
         X = self.cam_point(p_bd)
         C, tilt_var = self.plane(used, sigma_r)

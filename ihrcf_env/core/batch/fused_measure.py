@@ -115,15 +115,17 @@ def measure(
             prior[alive] = _filtered_R_bd(att, D[alive], R_wb)
             has |= alive
         if atda is None:
-            cands = pnp_candidates(frames.corners[D], np.ones(D.size, bool), bf.K, bf.dist, bf.tag_size, bf.rig)
+            cands = pnp_candidates(
+                frames.corners[D], np.ones(D.size, bool), bf.K, bf.dist, bf.tag_size, bf.rig
+            )
         else:
             cands = _rows_of(atda, D)
         est = pnp_choose(cands, prior, has)
         at_valid[D] = est.valid
         parts.atda_code[D] = est.code
         at_R[D], at_p[D] = est.rotation, est.position
-        v = D[est.valid]
-        bf.atda_prior[v], bf.has_prior[v] = est.rotation[est.valid], True
+        took = D[est.valid]
+        bf.atda_prior[took], bf.has_prior[took] = est.rotation[est.valid], True
     fail = det & ~ih_valid & ~at_valid
     parts.inner[fail] = fr.BOTH_FAILED
     cont = det & ~fail
@@ -155,7 +157,11 @@ def measure(
     i = np.flatnonzero(cont & ~new_att & ih_valid)
     if i.size:
         yaw = not p.refit
-        A(i, *blocks.ihrcf_attitude(ih_R[i], ih_p[i], used[i], R_wb[i], sigma_r[i], yaw), (0, 3 if yaw else 2))
+        A(
+            i,
+            *blocks.ihrcf_attitude(ih_R[i], ih_p[i], used[i], R_wb[i], sigma_r[i], yaw),
+            (0, 3 if yaw else 2),
+        )
     # 2. refit on the updated normal, its yaw, then the positions
     hv = cont & ih_valid
     ref_ok = np.zeros(n, dtype=bool)
@@ -222,7 +228,9 @@ def _range_offset(bf: BatchFused, i: Rows, p_ihrcf: F64, used: NDArray[np.bool_]
     X, Y = blocks.cam_point(p_ihrcf[i]), blocks.cam_point(p_atda[i])
     d = blocks.depth_scale(Y[:, 2])
     m = used[i].sum(axis=1)
-    var = bf.range_sigma[i] ** 2 / np.maximum(m, 1) + (p.atda_depth_sigma * d * d) ** 2 + p.ihrcf_depth_floor**2
+    var = (
+        bf.range_sigma[i] ** 2 / np.maximum(m, 1) + (p.atda_depth_sigma * d * d) ** 2 + p.ihrcf_depth_floor**2
+    )
     bias, P = bf.bias[i], bf.bias_P[i]
     H = np.array([1.0, -1.0])
     nu = (X[:, 2] - Y[:, 2]) - bias @ H + bias[:, 0]
@@ -233,4 +241,3 @@ def _range_offset(bf: BatchFused, i: Rows, p_ihrcf: F64, used: NDArray[np.bool_]
     bf.bias[i] = bias + Kg * nu[:, None]
     P = P - Kg[:, :, None] * (H @ P)[:, None, :]
     bf.bias_P[i] = 0.5 * (P + P.transpose(0, 2, 1))
-

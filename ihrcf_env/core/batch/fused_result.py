@@ -159,6 +159,4 @@ class BatchFusedOutput:
         """Row ``i`` as a :class:`PoseEstimate`."""
         if not self.valid[i]:
             return PoseEstimate.invalid(self.reason(i))
-        return PoseEstimate(
-            self.position[i], self.euler[i], self.rotation[i], True, float(self.residual[i])
-        )
+        return PoseEstimate(self.position[i], self.euler[i], self.rotation[i], True, float(self.residual[i]))

@@ -76,7 +76,7 @@ def _spd_inverse(S: F64) -> tuple[F64, F64, NDArray[np.bool_]]:
             adj = np.stack([np.stack([d, -b], -1), np.stack([-b, a], -1)], -2)
             inv = adj / det[..., None, None]
         else:
-            inv = np.linalg.inv(np.where(np.isfinite(S), S, 0.0) + 0.0)
+            inv = np.asarray(np.linalg.inv(np.where(np.isfinite(S), S, 0.0)), dtype=np.float64)
             det = np.linalg.det(S)
         ok = np.isfinite(det) & (det > 0.0)
         logdet = np.log(np.where(ok, det, 1.0))
@@ -193,11 +193,13 @@ class BatchImm:
             mean = W @ D
             X = ref[:, None, :] + mean
             G = Ps + D[:, :, :, None] * D[:, :, None, :]
-            Ps = (W @ G.reshape(len(i), m, 81)).reshape(len(i), m, 9, 9) - mean[:, :, :, None] * mean[:, :, None, :]
+            Ps = (W @ G.reshape(len(i), m, 81)).reshape(len(i), m, 9, 9) - mean[:, :, :, None] * mean[
+                :, :, None, :
+            ]
             mu = c / c.sum(axis=1, keepdims=True)
         X = X @ Ft
         if u is not None:
-            has = np.isfinite(u).all(axis=1)
+            has: NDArray[np.bool_] = np.asarray(np.isfinite(u).all(axis=1))
             uu = np.where(has[:, None], u, 0.0)
             d = dt[:, None]
             X[:, :, 0:3] += np.where(has[:, None], 0.5 * d * d * uu, 0.0)[:, None, :]
@@ -212,7 +214,9 @@ class BatchImm:
         self.mu[i] = mu
 
     # -- measurement update ----------------------------------------------------------------------
-    def update(self, i: Rows, z: F64, rows: tuple[int, int], R: F64, gate: F64) -> tuple[NDArray[np.bool_], F64]:
+    def update(
+        self, i: Rows, z: F64, rows: tuple[int, int], R: F64, gate: F64
+    ) -> tuple[NDArray[np.bool_], F64]:
         """:meth:`Imm.update` of rows ``i``: values ``rows`` measured as ``z`` (len(i), k) with
         covariance ``R`` (len(i), k, k), gated at ``gate`` (len(i),; inf: not gated). Returns
         (accepted, squared Mahalanobis distance), each (len(i),)."""
@@ -249,7 +253,6 @@ class BatchImm:
             w = np.maximum(w / w.sum(axis=1, keepdims=True), 1e-12)
             self.mu[j] = w / w.sum(axis=1, keepdims=True)
         return ok, d2
-
 
     def assign(self, i: Rows, other: BatchImm) -> None:
         """Rows ``i`` of this bank set to those of ``other`` (same models)."""
