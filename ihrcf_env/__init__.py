@@ -54,9 +54,25 @@ _ENTRY = {
     LANDING_V1_ID: "ihrcf_env.wrappers.landing_obs:make_deck_landing_v1",
     LANDING_V2_ID: "ihrcf_env.wrappers.landing_obs:make_deck_landing_v2",
 }
+
+
+def _vector(env_id: str) -> Any:
+    """``gym.make_vec``'s entry point of ``env_id`` (:mod:`ihrcf_env.wrappers.vector`)."""
+
+    def make(num_envs: int = 1, **options: Any) -> Any:
+        from ihrcf_env.wrappers.vector import DeckLandingVectorEnv
+
+        return DeckLandingVectorEnv(env_id, num_envs, **options)
+
+    return make
+
+
+#: The ids with a native vector env (``gym.make_vec(id, num_envs=N)``).
+VECTOR_IDS: tuple[str, ...] = (LANDING_V1_ID, LANDING_V2_ID)
 for _id, _entry in _ENTRY.items():
     if _id not in registry:
-        register(id=_id, entry_point=_entry, max_episode_steps=600)
+        vec = _vector(_id) if _id in VECTOR_IDS else None
+        register(id=_id, entry_point=_entry, vector_entry_point=vec, max_episode_steps=600)
 for _old, _new in DEPRECATED_IDS.items():
     if _old not in registry:
         register(id=_old, entry_point=_deprecated(_old, _new, _ENTRY[_new]), max_episode_steps=600)

@@ -1,0 +1,137 @@
+"""The landing tasks as one Gymnasium vector env: ``gym.make_vec(id, num_envs=N)``.
+
+:class:`DeckLandingVectorEnv` holds N envs of one registered id in this process (each with its own
+physics client) and steps them together with Gymnasium 1.x semantics: batched observations,
+rewards, ``terminated`` and ``truncated`` arrays, ``info`` as Gymnasium vector envs give it (each
+key an array over the envs, with a boolean ``_key`` mask), and next-step autoreset (an env that
+ended is reset by the following ``step``, which returns its first observation with reward 0).
+Sub-env ``i`` of ``reset(seed=s)`` is the single env reset with seed ``s + i``, so it reproduces
+``gym.make(id)`` step for step. It is the ids' ``vector_entry_point`` (``gym.make_vec`` uses it
+unless ``vectorization_mode`` says otherwise).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+from numpy.typing import NDArray
+
+from ihrcf_env.core.checks import check_int
+
+#: Largest ``num_envs`` (each env holds a physics client).
+MAX_ENVS = 1024
+#: Options the vector env does not take (a GUI is one per process; the vector env does not render).
+UNSUPPORTED_OPTIONS = ("render_mode",)
+
+
+class DeckLandingVectorEnv(VectorEnv):
+    """``num_envs`` envs of ``env_id`` with the ``options`` of ``gym.make`` (module docstring)."""
+
+    metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+
+    def __init__(self, env_id: str, num_envs: int = 1, **options: Any) -> None:
+        self._envs: list[gym.Env] = []
+        n = check_int("num_envs", num_envs, low=1, high=MAX_ENVS)
+        bad = sorted(set(options) & set(UNSUPPORTED_OPTIONS))
+        if bad:
+            raise ValueError(f"{bad[0]}: not supported by the vector env (make single envs to render)")
+        try:
+            for _ in range(n):
+                self._envs.append(gym.make(env_id, **options))
+        except BaseException:
+            self.close_extras()
+            raise
+        first = self._envs[0]
+        self.env_id = env_id
+        self.num_envs = n
+        self.single_observation_space = first.observation_space
+        self.single_action_space = first.action_space
+        self.observation_space = batch_space(self.single_observation_space, n)
+        self.action_space = batch_space(self.single_action_space, n)
+        self.spec = first.spec
+        self._autoreset = np.zeros(n, dtype=bool)
+        self._closed_envs = False
+
+    @property
+    def envs(self) -> tuple[gym.Env, ...]:
+        """The sub-envs (read-only: step them through the vector env)."""
+        return tuple(self._envs)
+
+    def _seeds(self, seed: int | Sequence[int | None] | None) -> list[int | None]:
+        n = self.num_envs
+        if seed is None:
+            return [None] * n
+        if isinstance(seed, int | np.integer) and not isinstance(seed, bool):
+            s = check_int("seed", seed, low=0, high=2**63 - n)
+            return [s + i for i in range(n)]
+        if isinstance(seed, Sequence) and not isinstance(seed, str):
+            if len(seed) != n:
+                raise ValueError(f"seed: a sequence of {n} seeds (one per env), got {len(seed)}")
+            return [None if s is None else check_int(f"seed[{i}]", s, low=0) for i, s in enumerate(seed)]
+        raise TypeError(f"seed must be an int >= 0, a sequence of {n} of them or None, got {seed!r}")
+
+    def reset(
+        self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[NDArray[Any], dict[str, Any]]:
+        """Reset every env (``reset(seed=s)``: env ``i`` with seed ``s + i``; ``options`` to each)."""
+        self._check_open()
+        seeds = self._seeds(seed)
+        infos: dict[str, Any] = {}
+        obs = []
+        for i, (env, s) in enumerate(zip(self._envs, seeds, strict=True)):
+            o, info = env.reset(seed=s, options=options)
+            obs.append(o)
+            infos = self._add_info(infos, info, i)
+        self._autoreset[:] = False
+        return np.stack(obs), infos
+
+    def step(
+        self, actions: Any
+    ) -> tuple[NDArray[Any], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
+        """Step every env with its row of ``actions`` (shape ``(num_envs, *single action shape)``);
+        an env that ended at the previous step is reset instead (next-step autoreset)."""
+        self._check_open()
+        a = np.asarray(actions)
+        want = (self.num_envs, *self.single_action_space.shape)  # type: ignore[misc]
+        if a.shape != want:
+            raise ValueError(f"actions: shape {want} (num_envs, action), got {a.shape}")
+        if a.dtype.kind not in "fiu":
+            raise TypeError(f"actions: real numbers, got dtype {a.dtype}")
+        n = self.num_envs
+        rewards = np.zeros(n, dtype=np.float64)
+        terminated = np.zeros(n, dtype=bool)
+        truncated = np.zeros(n, dtype=bool)
+        infos: dict[str, Any] = {}
+        obs = []
+        for i, env in enumerate(self._envs):
+            if self._autoreset[i]:
+                o, info = env.reset()
+            else:
+                o, r, terminated[i], truncated[i], info = env.step(a[i])
+                rewards[i] = float(r)
+            obs.append(o)
+            infos = self._add_info(infos, info, i)
+        self._autoreset = terminated | truncated
+        return np.stack(obs), rewards, terminated, truncated, infos
+
+    def close_extras(self, **kwargs: Any) -> None:
+        """Close every sub-env (their physics clients)."""
+        envs, self._envs = self._envs, []
+        for env in envs:
+            env.close()
+        self._closed_envs = True
+
+    def _check_open(self) -> None:
+        if getattr(self, "_closed_envs", True) or not self._envs:
+            raise RuntimeError("vector env is closed (close() was called): make a new one with gym.make_vec")
+
+
+def vector_entry_point(env_id: str) -> Callable[..., DeckLandingVectorEnv]:
+    """The ``vector_entry_point`` of ``env_id``: ``(num_envs, **options) -> DeckLandingVectorEnv``."""
+    return functools.partial(DeckLandingVectorEnv, env_id)
