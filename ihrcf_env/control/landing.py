@@ -173,9 +173,17 @@ class LandingConfig:
     relative_tilt: bool = False
     full_plane_tilt: bool = False
     dead_reckon: float = 0.0
+    # ``dead_reckon_nav``: the lost tag moves against the drone's measured horizontal velocity
+    # (:attr:`Measurement.velocity_xy`, e.g. the autopilot's) rather than its commands, so gusts
+    # that push the drone are accounted for.
+    dead_reckon_nav: bool = False
+    # ``trust_full_plane``: with ``estimate_height``, the ToF height is kept when all four beams lie
+    # on one plane even if the estimate disagrees (a diverging estimate must not steer the drop).
+    trust_full_plane: bool = False
 
     def __post_init__(self) -> None:
-        for flag in ("estimate_height", "axis_centring", "relative_tilt", "full_plane_tilt"):
+        flags = ("axis_centring", "relative_tilt", "full_plane_tilt", "dead_reckon_nav", "trust_full_plane")
+        for flag in ("estimate_height", *flags):
             check_bool(f"LandingConfig.{flag}", getattr(self, flag))
         for attr, (low, high) in LANDING_BOUNDS.items():
             name = f"LandingConfig.{attr}"
@@ -206,6 +214,7 @@ class Measurement:
     accel_z: float  # world vertical acceleration (m/s^2, gravity removed)
     tag_height: float | None = None  # height of the body origin above the deck origin (estimate)
     velocity_z: float | None = None  # the drone's world vertical velocity (m/s), e.g. the autopilot's
+    velocity_xy: NDArray[np.float64] | None = None  # its horizontal velocity (m/s, level frame)
 
 
 def _tilt(nx: float, ny: float) -> float:
@@ -300,6 +309,7 @@ class LandingController:
         ranges: Any,
         ranges_valid: Any,
         velocity_z: float | None = None,
+        velocity_xy: Any = None,
     ) -> Measurement:
         """The :class:`Measurement` of quantities already in the level heading frame: ``R_lb``
         (level-from-body), the world vertical acceleration ``accel_z`` (m/s^2, gravity removed),
@@ -307,7 +317,8 @@ class LandingController:
         estimate), and the ToF ``ranges`` (m) with their validity; ``velocity_z`` (m/s, optional):
         the drone's vertical velocity from its navigation, flown on instead of the integrated
         accelerometer (whose offset, up to ~0.5 m/s^2 on a BMI088, the altitude filter only learns
-        over tens of seconds)."""
+        over tens of seconds); ``velocity_xy`` (m/s, level frame, optional): its horizontal
+        velocity, which dead-reckons a lost tag when ``dead_reckon_nav``."""
         tag_xy = tag_height = None
         if tag_level is not None:
             tag_xy = tag_level[:2]
@@ -338,6 +349,7 @@ class LandingController:
             accel_z,
             tag_height,
             velocity_z,
+            None if velocity_xy is None else np.asarray(velocity_xy, dtype=np.float64)[:2],
         )
 
     def _update_state(self, m: Measurement) -> None:
@@ -360,7 +372,8 @@ class LandingController:
         self.prev_accel_z = m.accel_z
         tof_height = m.tof_height
         if c.estimate_height and tof_height is not None and m.tag_height is not None:
-            if abs(tof_height - m.tag_height) > c.tof_agreement:
+            full = c.trust_full_plane and m.tof_full  # four beams on one plane: on the deck
+            if abs(tof_height - m.tag_height) > c.tof_agreement and not full:
                 tof_height = None  # beams straddling the deck's edge (or off it): trust the estimate
         self.height = tof_height
         if self.height is None and c.estimate_height:
@@ -387,6 +400,8 @@ class LandingController:
             self.last_tag = np.array(m.tag_xy, dtype=np.float64)
         else:
             self.since_tag += dt
+            if self.last_tag is not None and c.dead_reckon_nav and m.velocity_xy is not None:
+                self.last_tag -= m.velocity_xy * dt  # the drone's motion over the last step
 
     # -- decisions -------------------------------------------------------------------------
     @property
@@ -508,7 +523,7 @@ class LandingController:
             vx += float(self.lean[0]) / self.lean_z * rate
             vy += float(self.lean[1]) / self.lean_z * rate
         cmd = np.clip(np.array([vx, vy, vz, yaw_rate]) / self.max_velocity, -1.0, 1.0)
-        if self.last_tag is not None:  # the tag moves against the drone's commanded motion
-            self.last_tag -= cmd[:2] * self.max_velocity[:2] * self.dt
+        if self.last_tag is not None and not (c.dead_reckon_nav and m.velocity_xy is not None):
+            self.last_tag -= cmd[:2] * self.max_velocity[:2] * self.dt  # against the commanded motion
         self.z_cmd += float(cmd[2] * self.max_velocity[2]) * self.dt  # the autopilot's altitude set-point
         return cmd.astype(np.float32)

@@ -49,13 +49,17 @@ V1_LANDING_CONFIG = LandingConfig(
 #: into a 8-15 m/s wind): the tag held on the camera's axis rather than straight below, the commit
 #: gated on the tilt relative to the drone's own lean (v2 allows 20 deg at touchdown) with gates
 #: for that limit, deck normals from the ToF only when all four beams are on the deck, a looser
-#: centring tolerance in gusts, and a lost tag dead-reckoned through the last part of the drop.
+#: centring tolerance in gusts, a lost tag dead-reckoned on the autopilot's velocity through the
+#: last part of the drop, and the ToF height kept over a disagreeing estimate when all four beams
+#: lie on the deck.
 V2_LANDING_CONFIG = dataclasses.replace(
     V1_LANDING_CONFIG,
     axis_centring=True,
     relative_tilt=True,
     full_plane_tilt=True,
     dead_reckon=2.0,
+    dead_reckon_nav=True,
+    trust_full_plane=True,
     commit_tilt=math.radians(17.0),
     max_tilt_now=math.radians(19.0),
     centred_tolerance=0.08,
@@ -207,5 +211,6 @@ class ScriptedLanding:
             self._get(obs, "ranges"),
             self._get(obs, "ranges_valid") > 0.5,
             float(self._get(obs, "nav_velocity")[2]) if self.use_nav_velocity else None,
+            self._get(obs, "nav_velocity")[:2] if self.use_nav_velocity else None,
         )
         return self.controller.act_measured(m)

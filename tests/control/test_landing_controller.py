@@ -155,3 +155,33 @@ def test_lean_options_are_checked_by_name(flag: str) -> None:
         LandingConfig(**{flag: "yes"})
     with pytest.raises(ValueError, match="lean_tau"):
         LandingConfig(lean_tau=-1.0)
+
+
+def test_dead_reckoning_on_the_measured_velocity() -> None:
+    """With ``dead_reckon_nav`` the lost tag moves against the drone's measured velocity (a gust
+    that pushes it), not against its commands."""
+    ctrl = LandingController(config=LandingConfig(k_yaw=0.0, dead_reckon=1.0, dead_reckon_nav=True))
+    _leaning(ctrl, 0.0, 0.65, 0.2)
+    ctrl.phase = "drop"
+    assert ctrl.last_tag is not None
+    before = ctrl.last_tag.copy()
+    R = np.eye(3)
+    ranges = np.full(4, 0.5 + ctrl.sensors[0, 2])
+    m = ctrl.measure_level(R, 0.0, None, None, None, ranges, np.ones(4, bool), velocity_xy=(0.4, -0.2))
+    ctrl.act_measured(m)
+    assert ctrl.last_tag is not None
+    np.testing.assert_allclose(ctrl.last_tag - before, [-0.4 * ctrl.dt, 0.2 * ctrl.dt], atol=1e-12)
+
+
+def test_a_full_tof_plane_outvotes_a_disagreeing_estimate() -> None:
+    """``estimate_height`` flies on the estimate when it disagrees with the ranges (beams across
+    the deck's edge); with ``trust_full_plane`` four beams on one plane keep the ranges' height."""
+    for trust, expected in ((False, 0.9), (True, 0.5)):
+        cfg = LandingConfig(k_yaw=0.0, estimate_height=True, trust_full_plane=trust)
+        ctrl = LandingController(config=cfg)
+        ranges = np.full(4, 0.5) + ctrl.sensors[:, 2]  # a level plane 0.5 m below the origin
+        tag = np.array([0.0, 0.0, -0.9])  # the estimate says 0.9 m
+        m = ctrl.measure_level(np.eye(3), 0.0, tag, 0.0, np.array([0.0, 0.0, 1.0]), ranges, np.ones(4, bool))
+        assert m.tof_full and m.tof_height == pytest.approx(0.5)
+        ctrl.act_measured(m)
+        assert ctrl.height == pytest.approx(expected)
