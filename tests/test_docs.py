@@ -150,6 +150,16 @@ def test_results_page_is_generated_and_stamped():
     assert "- machine: " in text and "CPUs" in text
 
 
+def test_benchmark_v2_page_is_generated_and_stamped():
+    text = (DOCS / "benchmark-v2.md").read_text()
+    assert "do not edit by hand" in text
+    assert "- command: `python -m ihrcf_env.experiments.benchmark_v2" in text
+    for level in ("calm", "moderate", "rough"):
+        assert re.search(rf"\| {level} \| scripted \| projected \| \d+/\d+ \(", text), level
+        assert re.search(rf"\| {level} \| blind:0.3 \| projected \| \d+/\d+ \(", text), level
+    assert "| moderate | scripted | rendered |" in text
+
+
 def test_the_docs_pages_exist():
     for name in (
         "tasks",

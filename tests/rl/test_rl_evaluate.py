@@ -45,3 +45,21 @@ def test_evaluate_cli_runs_the_shipped_policy() -> None:
     assert re.fullmatch(r"success [12]/2", lines[-1]), proc.stdout[-3000:]
     # the shipped policy was trained with deck_motion=True: the CLI detects it without --deck-motion
     assert "trained with deck_motion=True, evaluated so" in proc.stdout
+
+
+POLICY_V2 = POLICY.with_name("ppo_landing_v2.zip")
+
+
+def test_the_v2_policy_runs_the_benchmark_protocol() -> None:
+    """The shipped DeckLanding-v2 policy through the protocol CLI (``--level``), projected camera,
+    the calm level's first 4 test seeds: it loads (its observation detected) and lands on some."""
+    pytest.importorskip("stable_baselines3")
+    if not POLICY_V2.is_file():
+        pytest.skip(f"no shipped policy at {POLICY_V2}")
+    cmd = [sys.executable, "-m", "ihrcf_env.evaluate", "--level", "calm", "--policy", str(POLICY_V2)]
+    cmd += ["--episodes", "4", "--camera-model", "projected"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    last = proc.stdout.strip().splitlines()[-1]
+    m = re.fullmatch(r"success (\d)/4", last)
+    assert m is not None and int(m.group(1)) >= 1, proc.stdout[-3000:]
