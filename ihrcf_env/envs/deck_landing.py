@@ -73,6 +73,7 @@ from ihrcf_env.core.frames import euler_from_matrix, quat_from_matrix
 from ihrcf_env.core.profiles import PAPER_DURATION, MotionProfile, ShiftedProfile
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.core.seeding import SeedStreams
+from ihrcf_env.core.ship import fits
 from ihrcf_env.envs.config import ARENA_MARGIN, MIN_START_ALTITUDE, DeckLandingConfig, make_config
 from ihrcf_env.envs.display import require_gui_display
 from ihrcf_env.sim.disturbances import Wind
@@ -82,6 +83,10 @@ from ihrcf_env.sim.sensors.base import TAG_STATUS
 from ihrcf_env.sim.world import CAMERA_SENSORS, Snapshot, Touchdown, World, WorldConfig
 
 RESET_OPTIONS = ("altitude", "offset", "yaw", "deck_time")
+#: Deck profiles drawn at random per episode (a draw the legs cannot follow is drawn again).
+RANDOM_PROFILES = ("ship", "sea_state")
+#: Draws of a random sea per reset before giving up.
+MAX_DECK_DRAWS = 20
 #: Upper bound (s) of ``camera_age`` in the observation.
 MAX_SENSOR_AGE = 10.0
 #: Bound (m/s) of ``nav_velocity`` in the observation.
@@ -180,9 +185,7 @@ class DeckLandingEnv(gym.Env):
         super().reset(seed=seed)
         streams = SeedStreams.from_generator(self.np_random)
         alt, off, yaw, deck_time = self._draw_start(opts, streams.generator("start"))
-        profile = self.config.task.deck.make_profile(streams.generator("deck"))
-        if deck_time:
-            profile = ShiftedProfile(profile, deck_time)
+        profile = self._draw_deck(streams.generator("deck"), deck_time)
         self._profile = None  # no episode while the world is being reset (or if that fails)
         p.restoreState(stateId=self._state_id, physicsClientId=self.world.client)
         self.world.reset(profile, self.config.task.deck.horizon_s, altitude=alt, offset_xy=off, yaw=yaw)
@@ -282,6 +285,25 @@ class DeckLandingEnv(gym.Env):
             )
         require_gui_display()
         DeckLandingEnv._gui_owner = self
+
+    def _draw_deck(self, rng: np.random.Generator, deck_time: float) -> MotionProfile:
+        """This episode's deck motion from ``rng``, started at ``deck_time`` (s). A random sea
+        (``"ship"``, ``"sea_state"``) is drawn again, from the same stream, while the draw would
+        take a leg beyond its stroke within ``horizon_s`` (rare extremes of a sea the platform
+        otherwise reproduces); ValueError if :data:`MAX_DECK_DRAWS` draws all do."""
+        deck = self.config.task.deck
+        random_sea = deck.profile in RANDOM_PROFILES
+        for _ in range(MAX_DECK_DRAWS if random_sea else 1):
+            profile = deck.make_profile(rng)
+            if deck_time:
+                profile = ShiftedProfile(profile, deck_time)
+            if not random_sea or fits(profile, self.config.world.stewart, deck.horizon_s):
+                return profile
+        raise ValueError(
+            f"deck_profile {deck.profile!r}: {MAX_DECK_DRAWS} draws of this sea all exceed the Stewart "
+            "legs' stroke within horizon_s: choose a calmer sea state, a larger length_scale, a larger "
+            "platform (stewart) or a shorter horizon_s"
+        )
 
     def _trim_keeps_view(self) -> bool:
         """With ``start_trimmed``: move the trimmed drone so the camera still looks at the drawn

@@ -13,6 +13,8 @@ import ihrcf_env
 from ihrcf_env.envs.config import make_config
 from ihrcf_env.envs.levels import DEFAULT_LEVEL, LEVELS, TEST_SEEDS
 
+V2 = ihrcf_env.LANDING_V2_ID
+
 
 @pytest.mark.parametrize("name", list(LEVELS))
 def test_each_level_sets_its_bundle(name: str) -> None:
@@ -83,3 +85,23 @@ def test_v2_starts_trimmed_in_its_wind_and_earlier_tasks_level(make_env: Any) ->
 def test_bad_start_trimmed_is_named() -> None:
     with pytest.raises((TypeError, ValueError), match="start_trimmed"):
         make_config(task="landing-v2", raw=True, start_trimmed="yes")
+
+
+def test_a_ship_draw_beyond_the_leg_stroke_is_drawn_again(make_env: Any) -> None:
+    """A sea the platform mostly reproduces (sea state 5 at 1:30: about a third of the draws would
+    take a leg beyond its stroke within the horizon) resets on every seed: such a draw is drawn
+    again from the deck's stream, so a seed still gives one deck motion."""
+    env = make_env(V2, camera_model="projected", ship={"sea_state": 5, "length_scale": 30.0})
+    for seed in range(8):
+        _, info = env.reset(seed=seed)
+        assert np.isfinite(info["deck_position_world"]).all()
+    a = np.asarray(env.reset(seed=5)[1]["deck_position_world"])
+    env.step(np.zeros(4, np.float32))
+    b = np.asarray(env.reset(seed=5)[1]["deck_position_world"])
+    np.testing.assert_array_equal(a, b)
+
+
+def test_a_sea_the_platform_cannot_follow_is_refused_at_reset(make_env: Any) -> None:
+    env = make_env(V2, camera_model="projected", ship={"sea_state": 6, "length_scale": 30.0})
+    with pytest.raises(ValueError, match="deck_profile 'ship'.*stroke"):
+        env.reset(seed=0)
