@@ -84,19 +84,20 @@ def load_row(path: Path) -> LandingRow | None:
         return None
 
 
-def run_cached(job: Job, cache: str | None) -> LandingRow:
-    """:func:`run_job`, through the cache folder ``cache`` (None: no cache)."""
+def run_cached(job: Job, cache: str | None) -> tuple[LandingRow, bool]:
+    """:func:`run_job` through the cache folder ``cache`` (None: no cache): (row, from the cache)."""
     if cache is None:
-        return run_job(job)
+        return run_job(job), False
     path = Path(cache) / cache_key(job)
     row = load_row(path)
-    if row is None:
-        row = run_job(job)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(json.dumps(dataclasses.asdict(row)))
-        tmp.replace(path)
-    return row
+    if row is not None:
+        return row, True
+    row = run_job(job)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(dataclasses.asdict(row)))
+    tmp.replace(path)
+    return row, False
 
 
 def run_job(job: Job) -> LandingRow:
@@ -183,11 +184,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.jobs > 1:
         run = functools.partial(run_cached, cache=args.cache)
         with multiprocessing.get_context("spawn").Pool(args.jobs) as pool:
-            rows = dict(zip(jobs, pool.map(run, jobs, chunksize=1), strict=True))
+            ran = dict(zip(jobs, pool.map(run, jobs, chunksize=1), strict=True))
     else:
-        rows = {job: run_cached(job, args.cache) for job in jobs}
+        ran = {job: run_cached(job, args.cache) for job in jobs}
+    rows = {job: row for job, (row, _) in ran.items()}
+    cached = sum(hit for _, hit in ran.values())
     wall = time.perf_counter() - started
     done = f"{len(jobs)} rows of {args.episodes} episodes, {args.jobs} process(es)"
+    if cached:
+        done += f", {cached} of the rows from the cache of earlier runs (wall time: this run only)"
     stamp = Stamp(ihrcf_env.__version__, date, command, mach, done, wall)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

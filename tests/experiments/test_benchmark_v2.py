@@ -53,15 +53,16 @@ def test_the_cache_reuses_a_finished_row(tmp_path: Path, monkeypatch: pytest.Mon
     from ihrcf_env.experiments import benchmark_v2
 
     job = Job("calm", "blind:0.3", "projected", 1)
-    first = benchmark_v2.run_cached(job, str(tmp_path))
+    first, hit = benchmark_v2.run_cached(job, str(tmp_path))
+    assert not hit
     assert len(list(tmp_path.glob("*.json"))) == 1
 
     def fail(job: Job) -> None:
         raise AssertionError("ran again")
 
     monkeypatch.setattr(benchmark_v2, "run_job", fail)
-    again = benchmark_v2.run_cached(job, str(tmp_path))
-    assert repr(again) == repr(first)  # (NaN != NaN: compare the text)
+    again, hit = benchmark_v2.run_cached(job, str(tmp_path))
+    assert hit and repr(again) == repr(first)  # (NaN != NaN: compare the text)
     other = Job("calm", "blind:0.3", "projected", 2)
     with pytest.raises(AssertionError, match="ran again"):  # another row is not in the cache
         benchmark_v2.run_cached(other, str(tmp_path))
