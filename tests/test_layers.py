@@ -107,3 +107,14 @@ def test_pure_layers_do_not_load_pybullet_or_gymnasium_at_run_time() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     # importing the package root registers the envs with gymnasium; the pure modules add nothing more
     assert "pybullet" not in out.stdout, out.stdout
+
+
+def test_every_package_is_installed() -> None:
+    """pyproject.toml lists its packages one by one: a new sub-package missing there would work in
+    an editable install and be absent from a real one."""
+    import tomllib
+
+    root = Path(__file__).resolve().parents[1]
+    listed = set(tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    found = {".".join(p.parent.relative_to(root).parts) for p in (root / "ihrcf_env").rglob("__init__.py")}
+    assert found - listed == set()
