@@ -8,6 +8,7 @@ import math
 import cv2
 import numpy as np
 import pytest
+from test_batch_pnp import DIST, RIG, TAG, K, poses_and_corners
 
 import ihrcf_env.core.estimators.atda as atda_mod
 from ihrcf_env.core.batch import lm
@@ -15,7 +16,6 @@ from ihrcf_env.core.batch.pnp import AMBIGUITY_RATIO, R_MARKER_DECK, ATDABatch, 
 from ihrcf_env.core.batch.single import atda_candidates_batched, atda_single
 from ihrcf_env.core.estimators import ATDAEstimator, SensorFrame, atda_estimate
 from ihrcf_env.core.frames import matrix_from_euler, rotation_angle
-from tests.core.test_batch_pnp import DIST, RIG, TAG, K, poses_and_corners
 
 
 def _bad_rows(corners: np.ndarray) -> np.ndarray:
