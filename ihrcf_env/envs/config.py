@@ -493,6 +493,7 @@ def make_config(
     level: str | None = None,
     autopilot: str | None = None,
     ground_effect: bool | None = None,
+    physics: str = "pybullet",
     control_hz: int = 20,
     deck_profile: ProfileSpec | None = None,
     sea_state_amplitudes: Mapping[str, float] | None = None,
@@ -666,6 +667,7 @@ def make_config(
             wind_hold=check_str("autopilot", pick("autopilot", autopilot), AUTOPILOTS) == "wind_hold"
         ),
         ground_effect=check_bool("ground_effect", pick("ground_effect", ground_effect)),
+        physics=physics,
         control_hz=rate,
         action_mode=check_str("action_mode", action_mode, ACTION_MODES),
         camera=cam,

@@ -207,11 +207,7 @@ class DeckLandingEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         if self._episode_over:
             raise RuntimeError("episode is over (terminated): call reset() before stepping again")
-        a = _check_action(action)
-        if self.config.world.action_mode == "velocity":
-            self.world.set_velocity_setpoint(a * self.max_velocity)
-        else:
-            self.world.set_motor_thrusts((a + 1.0) / 2.0)
+        a = self.apply_action(action)
         touchdown = self.world.step()
         if touchdown is not None and self._last_touchdown is None:
             self._last_touchdown = touchdown
@@ -236,6 +232,17 @@ class DeckLandingEnv(gym.Env):
         if self.render_mode == "human":
             self._update_gui_camera()
         return obs, reward, terminated, False, info
+
+    def apply_action(self, action: Any) -> NDArray[np.float64]:
+        """Check ``action`` and hand it to the autopilot (velocity setpoint) or the motors; returns
+        it as floats. :meth:`step` starts with this; a vector env applies the actions of all its
+        envs before advancing their physics together (applying the same action twice is a no-op)."""
+        a = _check_action(action)
+        if self.config.world.action_mode == "velocity":
+            self.world.set_velocity_setpoint(a * self.max_velocity)
+        else:
+            self.world.set_motor_thrusts((a + 1.0) / 2.0)
+        return a
 
     def render(self) -> NDArray[np.uint8] | None:
         self._check_open()

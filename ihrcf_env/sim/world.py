@@ -20,6 +20,7 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
+from ihrcf_env.core.checks import check_str
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.frames import matrix_from_quat, quat_from_matrix, relative_pose
 from ihrcf_env.core.profiles import MotionProfile
@@ -44,6 +45,8 @@ ACTION_MODES: tuple[str, ...] = ("velocity", "motors")
 #: How the camera is simulated: ``"rendered"`` (TinyRenderer + the tag detector) or ``"projected"``
 #: (no image: the exact projection of the tag corners through a fitted detector model).
 CAMERA_MODELS: tuple[str, ...] = ("rendered", "projected")
+#: Integrators of the drone's flight (``WorldConfig.physics``).
+PHYSICS_BACKENDS: tuple[str, ...] = ("pybullet", "numpy")
 #: What the camera delivers: the ``"image"`` (rendered only) or the tag's ``"corners"`` (a rendered
 #: window around the tag + detection, or the projected model).
 CAMERA_OUTPUTS: tuple[str, ...] = ("image", "corners")
@@ -89,6 +92,10 @@ class WorldConfig:
     measurement_noise: tuple[tuple[str, str], ...] = ()
     #: sensor faults (:func:`ihrcf_env.sim.registry.check_faults`), applied after the noise models
     faults: tuple[tuple[str, tuple[tuple[str, Any], ...]], ...] = ()
+    #: who integrates the drone's flight: ``"pybullet"`` (its rigid-body solver and contacts) or
+    #: ``"numpy"`` (:mod:`ihrcf_env.sim.batched`: the same forces integrated in numpy, contacts in
+    #: closed form, many worlds at once in a vector env)
+    physics: str = "pybullet"
 
     def __post_init__(self) -> None:
         if not (isinstance(self.physics_hz, int | np.integer) and self.physics_hz > 0):
@@ -101,6 +108,7 @@ class WorldConfig:
             )
         if self.action_mode not in ACTION_MODES:
             raise ValueError(f"action_mode must be one of {ACTION_MODES}, got {self.action_mode!r}")
+        check_str("physics", self.physics, PHYSICS_BACKENDS)
         if self.camera_model not in CAMERA_MODELS:
             raise ValueError(f"camera_model must be one of {CAMERA_MODELS}, got {self.camera_model!r}")
         if self.camera_output not in CAMERA_OUTPUTS:
@@ -267,6 +275,8 @@ class World:
         self._acc_world = np.zeros(3)
         self._setpoint = (0.0, 0.0, 0.0, 0.0)
         self._mode_velocity = cfg.action_mode == "velocity"
+        #: numpy physics in a vector env: (command key, touchdown) of a step already advanced
+        self._advanced: tuple[tuple[object, ...], Touchdown | None] | None = None
         self._snapshot: Snapshot | None = None  # memo of snapshot(), valid for _snapshot_key
         self._snapshot_key = b""
         self._rotation = np.eye(3)  # memo of _drone_rotation(), valid for _rotation_key
@@ -310,6 +320,7 @@ class World:
             plate_half_thickness=self.config.deck.thickness / 2,
         )
         self.tick = 0
+        self._advanced = None
         self._held = {}
         self.sample_times = dict.fromkeys(self.sensors, math.nan)
         for clock in self.clocks.values():
@@ -469,6 +480,19 @@ class World:
     def step(self) -> Touchdown | None:
         """Advance one control period (``substeps`` physics steps); return the first contact, if any."""
         self._check_open()
+        if self.config.physics == "numpy":
+            done = self._advanced
+            if done is not None:  # advanced with other worlds (a vector env): hand over the result
+                self._advanced = None
+                if done[0] != self._command_key():
+                    raise RuntimeError(
+                        "the command changed between the batched physics step and step(): a wrapper "
+                        "between the vector env and the task changed the action"
+                    )
+                return done[1]
+            from ihrcf_env.sim.batched.loop import advance
+
+            return advance([self])[0]
         cid = self.client
         quad, ctrl, deck = self.quad, self.controller, self.deck
         dt = self.dt
@@ -518,6 +542,16 @@ class World:
         self._acc_world = (np.asarray(v_now) - np.asarray(prev_vel)) / dt
         return first
 
+    def _command_key(self) -> tuple[object, ...]:
+        """What the autopilot or the motors are commanded now (a key: equal commands, equal keys)."""
+        return (self._mode_velocity, self._setpoint, tuple(self._motor_cmd))
+
+    def mark_advanced(self, touchdown: Touchdown | None) -> None:
+        """Numpy physics: this control step was already advanced together with other worlds (by
+        :func:`ihrcf_env.sim.batched.loop.advance`): the next :meth:`step` returns ``touchdown``
+        without advancing again."""
+        self._advanced = (self._command_key(), touchdown)
+
     def _check_contact(self, approach_velocity: tuple[float, ...]) -> Touchdown | None:
         """Touchdown record if the drone touches anything after this physics step.
 
@@ -529,6 +563,11 @@ class World:
             return None
         ids = {c[2] for c in contacts}
         body = "deck" if self.deck.body in ids else ("ground" if self.ground in ids else "base")
+        return self.touchdown(body, approach_velocity)
+
+    def touchdown(self, body: str, approach_velocity: tuple[float, ...]) -> Touchdown:
+        """The :class:`Touchdown` record of a contact with ``body`` now, the drone having approached
+        at ``approach_velocity`` (world, m/s)."""
         s = self.snapshot()
         local = s.deck_rotation.T @ (s.drone_position - s.deck_position)
         half = self.deck.top_half_extent

@@ -23,6 +23,8 @@ from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
 from ihrcf_env.core.checks import check_int
+from ihrcf_env.envs.deck_landing import DeckLandingEnv
+from ihrcf_env.sim.batched.loop import advance
 
 #: Largest ``num_envs`` (each env holds a physics client).
 MAX_ENVS = 1024
@@ -57,6 +59,9 @@ class DeckLandingVectorEnv(VectorEnv):
         self.spec = first.spec
         self._autoreset = np.zeros(n, dtype=bool)
         self._closed_envs = False
+        #: the task envs under the wrappers (their worlds advance together with numpy physics)
+        self._bases: list[DeckLandingEnv] = [env.unwrapped for env in self._envs]  # type: ignore[misc]
+        self._numpy_physics = self._bases[0].config.world.physics == "numpy"
 
     @property
     def envs(self) -> tuple[gym.Env, ...]:
@@ -109,6 +114,8 @@ class DeckLandingVectorEnv(VectorEnv):
         truncated = np.zeros(n, dtype=bool)
         infos: dict[str, Any] = {}
         obs = []
+        if self._numpy_physics:
+            self._advance_together(a)
         for i, env in enumerate(self._envs):
             if self._autoreset[i]:
                 o, info = env.reset()
@@ -119,6 +126,18 @@ class DeckLandingVectorEnv(VectorEnv):
             infos = self._add_info(infos, info, i)
         self._autoreset = terminated | truncated
         return np.stack(obs), rewards, terminated, truncated, infos
+
+    def _advance_together(self, actions: NDArray[Any]) -> None:
+        """Numpy physics: apply the actions of the envs that step now and advance all their worlds
+        in one batched physics step; each env's own ``step`` then takes its world's result."""
+        rows = np.flatnonzero(~self._autoreset)
+        if rows.size == 0:
+            return
+        for i in rows:
+            self._bases[i].apply_action(actions[i])
+        worlds = [self._bases[i].world for i in rows]
+        for world, touchdown in zip(worlds, advance(worlds), strict=True):
+            world.mark_advanced(touchdown)
 
     def close_extras(self, **kwargs: Any) -> None:
         """Close every sub-env (their physics clients)."""

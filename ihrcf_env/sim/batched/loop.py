@@ -1,0 +1,278 @@
+"""One control step of the numpy physics for N worlds at once: :func:`advance`.
+
+Each :class:`~ihrcf_env.sim.world.World` with ``physics="numpy"`` keeps its drone and deck bodies in
+its PyBullet client (the sensors, the renderer and the ground truth read them there); between
+control steps its flight is integrated here, over all the worlds given, on arrays:
+
+1. gather each world's drone state (from its client), rotor speeds, autopilot state, command and
+   the deck's poses over the control period (from its trajectory);
+2. per physics tick: the navigation estimate and the disturbances (per world: they are the
+   world's own objects), the autopilot (:mod:`~ihrcf_env.sim.batched.autopilot`), the ground
+   effect (:mod:`~ihrcf_env.sim.batched.surface`), the rotors and the rigid-body step
+   (:mod:`~ihrcf_env.sim.batched.dynamics`), then the sensors on their own clock that sample at
+   this tick (their world written back first) and the first contact
+   (:mod:`~ihrcf_env.sim.batched.contact`); after its first contact a drone rests on what it
+   touched (it moves with the deck, or stays on the ground), as it would on its landing legs;
+3. scatter: every world's final state written back to its client and its objects.
+
+A row's arithmetic never depends on the other rows, so world ``i`` advances bit for bit as it
+would alone (``advance([world])``, what ``World.step`` does).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pybullet as p
+from numpy.typing import NDArray
+
+from ihrcf_env.sim.batched import contact
+from ihrcf_env.sim.batched.autopilot import BatchedVelocityController
+from ihrcf_env.sim.batched.dynamics import BatchedQuadrotor
+from ihrcf_env.sim.batched.floatmath import matrices_from_quaternions
+from ihrcf_env.sim.batched.surface import rotor_positions_batch, thrust_scale_batch
+from ihrcf_env.sim.deck import angular_velocity_between
+from ihrcf_env.sim.disturbances import disturbance_force
+
+if TYPE_CHECKING:
+    from ihrcf_env.sim.world import Touchdown, World
+
+
+def _check_group(worlds: Sequence[World]) -> None:
+    if not worlds:
+        raise ValueError("advance: no worlds")
+    first = worlds[0].config
+    for w in worlds:
+        w._check_open()
+        c = w.config
+        if c.physics != "numpy":
+            raise ValueError("advance: every world must have physics='numpy'")
+        if (c.physics_hz, c.control_hz, c.quad, c.gains, c.ground_effect, c.deck, c.stewart) != (
+            first.physics_hz,
+            first.control_hz,
+            first.quad,
+            first.gains,
+            first.ground_effect,
+            first.deck,
+            first.stewart,
+        ):
+            raise ValueError("advance: the worlds must share their physics configuration")
+
+
+def _deck_poses(worlds: Sequence[World], steps: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(N, steps + 1, 3) plate body centres (m) and (N, steps + 1, 4) quaternions of each world's
+    deck at its ticks ``tick .. tick + steps``."""
+    n = len(worlds)
+    body = np.empty((n, steps + 1, 3))
+    quat = np.empty((n, steps + 1, 4))
+    for i, w in enumerate(worlds):
+        traj = w.deck.trajectory
+        assert traj is not None
+        for j in range(steps + 1):
+            q, b = traj.body_target(w.tick + j)
+            quat[i, j] = q
+            body[i, j] = b
+    return body, quat
+
+
+def _write_back(w: World, quad: BatchedQuadrotor, i: int, deck: tuple[list, list, tuple, tuple]) -> None:
+    """World ``w``'s drone (row ``i`` of ``quad``) and deck state into its client (what the sensors
+    and the ground truth read)."""
+    cid = w.client
+    p.resetBasePositionAndOrientation(
+        w.quad.body, quad.position[i].tolist(), quad.quaternion[i].tolist(), physicsClientId=cid
+    )
+    p.resetBaseVelocity(
+        w.quad.body, quad.velocity[i].tolist(), quad.angular_velocity[i].tolist(), physicsClientId=cid
+    )
+    body_pos, body_quat, v, om = deck
+    p.resetBasePositionAndOrientation(w.deck.body, body_pos, body_quat, physicsClientId=cid)
+    p.resetBaseVelocity(w.deck.body, v, om, physicsClientId=cid)
+
+
+def _deck_state(
+    body: NDArray[np.float64], quat: NDArray[np.float64], i: int, j: int, dt: float
+) -> tuple[list, list, tuple, tuple]:
+    """World ``i``'s plate at its tick ``j`` of this step: pose and the velocity that brought it
+    there from tick ``j - 1`` (the finite difference PyBullet's driven plate carries)."""
+    b1, q1 = body[i, j].tolist(), quat[i, j].tolist()
+    if j == 0:
+        return b1, q1, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+    b0, q0 = body[i, j - 1], quat[i, j - 1]
+    v = ((b1[0] - b0[0]) / dt, (b1[1] - b0[1]) / dt, (b1[2] - b0[2]) / dt)
+    return b1, q1, v, angular_velocity_between(q0.tolist(), q1, dt)
+
+
+def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
+    """Advance every world of ``worlds`` by one control step (module docstring); returns each
+    world's first contact in that step, or None."""
+    _check_group(worlds)
+    n = len(worlds)
+    cfg = worlds[0].config
+    steps, dt = cfg.substeps, worlds[0].dt
+    half_thickness = cfg.deck.thickness / 2
+
+    quad = BatchedQuadrotor(cfg.quad, n)
+    for i, w in enumerate(worlds):
+        pos, quat = p.getBasePositionAndOrientation(w.quad.body, physicsClientId=w.client)
+        vel, omega = p.getBaseVelocity(w.quad.body, physicsClientId=w.client)
+        quad.position[i], quad.quaternion[i], quad.velocity[i], quad.angular_velocity[i] = pos, quat, vel, omega
+        quad.rotor_speed[i] = w.quad.rotor_speed
+    autopilot = BatchedVelocityController.gather([w.controller for w in worlds])
+    velocity_rows = np.array([w._mode_velocity for w in worlds])
+    setpoints = np.array([w._setpoint for w in worlds], dtype=np.float64)
+    motor_cmd = np.array([w._motor_cmd for w in worlds], dtype=np.float64)
+    deck_body, deck_quat = _deck_poses(worlds, steps)
+    deck_rot = matrices_from_quaternions(deck_quat)  # (N, steps + 1, 3, 3)
+    deck_top = deck_body + deck_rot[..., :, 2] * half_thickness
+    due = [w._due_samples() if w.clocks else {} for w in worlds]
+    ticks0 = np.array([w.tick for w in worlds], dtype=np.int64)
+    touchdowns: list[Touchdown | None] = [None] * n
+    latched = np.zeros(n, dtype=bool)
+    rel_pos = np.zeros((n, 3))  # latched drones: pose in the frame of what they rest on
+    rel_quat = np.zeros((n, 4))
+    on_deck = np.zeros(n, dtype=bool)
+    nav_rows = [i for i, w in enumerate(worlds) if not w.navigation.ideal]
+    dist_rows = [i for i, w in enumerate(worlds) if w.disturbances]
+    ge = worlds[0].ground_effect
+    half = worlds[0].deck.top_half_extent
+    base_radius = cfg.stewart.base_radius + 0.06
+    base_height = cfg.stewart.base_height
+    motor_xy = cfg.quad.motor_xy
+    all_velocity = bool(velocity_rows.all())
+    vel_idx = np.flatnonzero(velocity_rows)
+    prev_vel = quad.velocity.copy()
+    external = np.zeros((n, 3))
+    for j in range(steps):
+        t = (ticks0 + j) * dt
+        pos, vel = quad.position, quad.velocity
+        quat = quad.reported_quaternion()
+        omega = quad.angular_velocity
+        pos_c, vel_c = pos, vel
+        if nav_rows:
+            pos_c, vel_c = pos.copy(), vel.copy()
+            for i in nav_rows:
+                est_p, est_v = worlds[i].navigation.estimate(float(t[i]), tuple(pos[i].tolist()), tuple(vel[i].tolist()))
+                pos_c[i], vel_c[i] = est_p, est_v
+        if all_velocity:
+            cmd = autopilot.compute(setpoints, dt, pos_c, quat, vel_c, omega)
+        else:
+            cmd = motor_cmd.copy()
+            if vel_idx.size:
+                cmd[vel_idx] = autopilot.compute_rows(
+                    vel_idx, setpoints[vel_idx], dt, pos_c[vel_idx], quat[vel_idx], vel_c[vel_idx], omega[vel_idx]
+                )
+        scale = None
+        if ge is not None:
+            rotors = rotor_positions_batch(pos, matrices_from_quaternions(quat), motor_xy)
+            scale = thrust_scale_batch(ge, rotors, deck_top[:, j], deck_rot[:, j], half)
+        external[:] = 0.0
+        for i in dist_rows:
+            fx = fy = fz = 0.0
+            ti, pi, vi = float(t[i]), tuple(pos[i].tolist()), tuple(vel[i].tolist())
+            for d in worlds[i].disturbances:
+                f = disturbance_force(d, ti, pi, vi)
+                fx, fy, fz = fx + f[0], fy + f[1], fz + f[2]
+            external[i] = (fx, fy, fz)
+        prev_vel = quad.velocity.copy()
+        quad.step(cmd, dt, thrust_scale=scale, force=external if dist_rows else None)
+        if latched.any():
+            _rest(quad, np.flatnonzero(latched), on_deck, rel_pos, rel_quat, deck_top, deck_quat, j, dt)
+        for w in worlds:
+            w.tick += 1
+        for i in range(n):
+            names = due[i].get(int(ticks0[i]) + j + 1)
+            if names:
+                _write_back(worlds[i], quad, i, _deck_state(deck_body, deck_quat, i, j + 1, dt))
+                worlds[i]._sample_clocked(names, tuple(prev_vel[i].tolist()))
+        free = ~latched
+        if free.any():
+            codes = contact.first_contact(
+                quad.position,
+                matrices_from_quaternions(quad.quaternion),
+                deck_top[:, j + 1],
+                deck_rot[:, j + 1],
+                half,
+                cfg.deck.thickness,
+                base_radius,
+                base_height,
+            )
+            for i in np.flatnonzero(free & (codes != contact.NO_CONTACT)):
+                w = worlds[i]
+                _write_back(w, quad, i, _deck_state(deck_body, deck_quat, i, j + 1, dt))
+                touchdowns[i] = w.touchdown(contact.CONTACT_NAMES[codes[i]], tuple(prev_vel[i].tolist()))
+                latched[i] = True
+                on_deck[i] = codes[i] == contact.DECK
+                if on_deck[i]:
+                    rel_pos[i], rel_quat[i] = relative_pose(
+                        quad.position[i], quad.quaternion[i], deck_top[i, j + 1], deck_quat[i, j + 1]
+                    )
+                else:
+                    rel_pos[i], rel_quat[i] = quad.position[i], quad.quaternion[i]
+                _rest(quad, np.array([i]), on_deck, rel_pos, rel_quat, deck_top, deck_quat, j, dt)
+    for i, w in enumerate(worlds):
+        _write_back(w, quad, i, _deck_state(deck_body, deck_quat, i, steps, dt))
+        w._acc_world = (quad.velocity[i] - prev_vel[i]) / dt
+        w.quad.rotor_speed = quad.rotor_speed[i].tolist()
+    autopilot.scatter([w.controller for w in worlds])
+    return touchdowns
+
+
+def _rest(
+    quad: BatchedQuadrotor,
+    rows: NDArray[np.intp],
+    on_deck: NDArray[np.bool_],
+    rel_pos: NDArray[np.float64],
+    rel_quat: NDArray[np.float64],
+    deck_top: NDArray[np.float64],
+    deck_quat: NDArray[np.float64],
+    j: int,
+    dt: float,
+) -> None:
+    """Drones ``rows`` rest where they touched down, at their tick ``j + 1`` of this step: on the
+    deck they move with it (pose fixed in the deck frame, velocity of that material point over the
+    last tick); elsewhere they stay still."""
+    for i in rows:
+        if on_deck[i]:
+            pos0, quat0 = compose(deck_top[i, j], deck_quat[i, j], rel_pos[i], rel_quat[i])
+            pos, quat = compose(deck_top[i, j + 1], deck_quat[i, j + 1], rel_pos[i], rel_quat[i])
+            quad.velocity[i] = (pos - pos0) / dt
+            quad.angular_velocity[i] = angular_velocity_between(quat0.tolist(), quat.tolist(), dt)
+            quad.position[i], quad.quaternion[i] = pos, quat
+        else:
+            quad.position[i], quad.quaternion[i] = rel_pos[i], rel_quat[i]
+            quad.velocity[i] = 0.0
+            quad.angular_velocity[i] = 0.0
+
+
+def _quat_mul(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Hamilton product ``a b`` of quaternions (x, y, z, w)."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return np.array(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ]
+    )
+
+
+def relative_pose(
+    pos: NDArray[np.float64], quat: NDArray[np.float64], frame_pos: NDArray[np.float64], frame_quat: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The pose ``(pos, quat)`` (world) expressed in the frame ``(frame_pos, frame_quat)``."""
+    R = matrices_from_quaternions(frame_quat[None])[0]
+    inv = np.array([-frame_quat[0], -frame_quat[1], -frame_quat[2], frame_quat[3]])
+    return R.T @ (pos - frame_pos), _quat_mul(inv, quat)
+
+
+def compose(
+    frame_pos: NDArray[np.float64], frame_quat: NDArray[np.float64], rel_pos: NDArray[np.float64], rel_quat: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The world pose of ``(rel_pos, rel_quat)`` given in the frame ``(frame_pos, frame_quat)``."""
+    R = matrices_from_quaternions(frame_quat[None])[0]
+    return frame_pos + R @ rel_pos, _quat_mul(frame_quat, rel_quat)
