@@ -15,7 +15,7 @@ import pytest
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.sim.batched import integrator
 from ihrcf_env.sim.batched.dynamics import BatchedQuadrotor
-from ihrcf_env.sim.batched.floatmath import matrices_from_quaternions
+from ihrcf_env.sim.batched.floatmath import matrices_from_quaternions, quaternions_from_matrices
 from ihrcf_env.sim.drone import QuadParams, Quadrotor, VelocityController, VelocityGains
 
 DT = 1.0 / 240
@@ -153,6 +153,7 @@ def test_rows_do_not_depend_on_n():
     for i, s in enumerate(singles):
         s.reset(batch.position[i], 0.0)
         s.quaternion[:] = batch.quaternion[i]
+        s.invalidate()
     for _ in range(100):
         cmd = rng.uniform(300.0, 900.0, (n, 4))
         scale = rng.uniform(1.0, 1.3, (n, 4))
@@ -163,3 +164,19 @@ def test_rows_do_not_depend_on_n():
     for i, s in enumerate(singles):
         for name in ("position", "quaternion", "velocity", "angular_velocity", "rotor_speed"):
             assert np.array_equal(getattr(s, name)[0], getattr(batch, name)[i]), name
+
+
+def test_reported_orientation_any_rotation(bullet):
+    """PyBullet reports a body's orientation through a rotation matrix (Shepperd's method): the
+    same bits for random rotations, every branch (rotations beyond 120 degrees included)."""
+    quad = Quadrotor(bullet, QuadParams())
+    rng = np.random.default_rng(4)
+    q = rng.normal(size=(300, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    ours = quaternions_from_matrices(matrices_from_quaternions(q))
+    m = matrices_from_quaternions(q)
+    assert (np.trace(m, axis1=1, axis2=2) <= 0).sum() > 50
+    for i in range(q.shape[0]):
+        p.resetBasePositionAndOrientation(quad.body, [0, 0, 1], q[i].tolist(), physicsClientId=bullet)
+        _, reported = p.getBasePositionAndOrientation(quad.body, physicsClientId=bullet)
+        assert np.array_equal(reported, ours[i]), i

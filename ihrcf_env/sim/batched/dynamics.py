@@ -72,6 +72,7 @@ class BatchedQuadrotor:
         self._lag = 1.0
         self.force = np.zeros((self.n, 3))  # scratch: the total world force of the last step
         self.torque = np.zeros((self.n, 3))  # scratch: the world torque of the last step
+        self._reported: Array | None = None  # reported_quaternion() of the current state
 
     def reset(
         self,
@@ -94,6 +95,7 @@ class BatchedQuadrotor:
         p = self.params
         w_hover = float(np.sqrt(p.mass * GRAVITY / 4 / p.kf))
         self.rotor_speed[idx] = w_hover if hover else 0.0
+        self._reported = None
 
     def rotation(self) -> Array:
         """Body-to-world rotation matrices (N, 3, 3)."""
@@ -102,8 +104,15 @@ class BatchedQuadrotor:
     def reported_quaternion(self) -> Array:
         """The orientation (N, 4) as PyBullet's ``getBasePositionAndOrientation`` reports it: the
         stored quaternion through a rotation matrix and back (the same rotation; the sign and the
-        last bit may differ from :attr:`quaternion`, which is the integrator's state)."""
-        return quaternions_from_matrices(matrices_from_quaternions(self.quaternion))
+        last bit may differ from :attr:`quaternion`, which is the integrator's state). Computed once
+        per state: call :meth:`invalidate` after writing the state arrays directly."""
+        if self._reported is None:
+            self._reported = quaternions_from_matrices(matrices_from_quaternions(self.quaternion))
+        return self._reported
+
+    def invalidate(self) -> None:
+        """Forget the cached :meth:`reported_quaternion` (after editing :attr:`quaternion`)."""
+        self._reported = None
 
     def step(
         self,
@@ -154,3 +163,4 @@ class BatchedQuadrotor:
             dt,
             self.max_velocity,
         )
+        self._reported = None

@@ -60,8 +60,9 @@ def hypot2(x: Array, y: Array) -> Array:
     csum = s
     frac1 = frac1 + lo
     corr = csum - 1.0 + (frac1 + frac2)
-    h = h + corr / (2.0 * h)
-    out = h / scale
+    with np.errstate(invalid="ignore", divide="ignore"):  # 0 / 0 where both are zero
+        h = h + corr / (2.0 * h)
+        out = h / scale
     # math.hypot returns max when the other value is zero (or both are zero)
     return np.where((x == 0.0) | (y == 0.0), big, out)
 
@@ -121,29 +122,31 @@ def quaternions_from_matrices(m: Array) -> Array:
     trace and the largest diagonal element), the way PyBullet reports a body's orientation."""
     d0, d1, d2 = m[:, 0, 0], m[:, 1, 1], m[:, 2, 2]
     trace = d0 + d1 + d2
-    n = m.shape[0]
-    out = np.empty((n, 4))
+    out = np.empty((m.shape[0], 4))
     with np.errstate(invalid="ignore", divide="ignore"):
         s = np.sqrt(trace + 1.0)
         h = 0.5 / s
-        cases = [
-            (m[:, 2, 1] - m[:, 1, 2]) * h,
-            (m[:, 0, 2] - m[:, 2, 0]) * h,
-            (m[:, 1, 0] - m[:, 0, 1]) * h,
-            s * 0.5,
-        ]
-        pos = np.stack(cases, axis=-1)
-        i_big = np.where(d0 < d1, np.where(d1 < d2, 2, 1), np.where(d0 < d2, 2, 0))
-        out[:] = pos
+        out[:, 0] = (m[:, 2, 1] - m[:, 1, 2]) * h
+        out[:, 1] = (m[:, 0, 2] - m[:, 2, 0]) * h
+        out[:, 2] = (m[:, 1, 0] - m[:, 0, 1]) * h
+        out[:, 3] = s * 0.5
+    other = np.flatnonzero(trace <= 0.0)
+    if other.size:  # rotations beyond 120 degrees: the largest diagonal element's branch
+        mo = m[other]
+        e0, e1, e2 = d0[other], d1[other], d2[other]
+        i_big = np.where(e0 < e1, np.where(e1 < e2, 2, 1), np.where(e0 < e2, 2, 0))
         for i in range(3):
+            rows = np.flatnonzero(i_big == i)
+            if not rows.size:
+                continue
             j, k = (i + 1) % 3, (i + 2) % 3
-            si = np.sqrt(m[:, i, i] - m[:, j, j] - m[:, k, k] + 1.0)
+            mi = mo[rows]
+            si = np.sqrt(mi[:, i, i] - mi[:, j, j] - mi[:, k, k] + 1.0)
             hi = 0.5 / si
-            alt = np.empty((n, 4))
+            alt = np.empty((rows.size, 4))
             alt[:, i] = si * 0.5
-            alt[:, 3] = (m[:, k, j] - m[:, j, k]) * hi
-            alt[:, j] = (m[:, j, i] + m[:, i, j]) * hi
-            alt[:, k] = (m[:, k, i] + m[:, i, k]) * hi
-            use = (trace <= 0.0) & (i_big == i)
-            out[use] = alt[use]
+            alt[:, 3] = (mi[:, k, j] - mi[:, j, k]) * hi
+            alt[:, j] = (mi[:, j, i] + mi[:, i, j]) * hi
+            alt[:, k] = (mi[:, k, i] + mi[:, i, k]) * hi
+            out[other[rows]] = alt
     return out
