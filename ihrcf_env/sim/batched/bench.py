@@ -1,0 +1,125 @@
+"""Cost of one physics substep per drone: the batched numpy autopilot and dynamics at several N
+against PyBullet, measured in the same run: ``python -m ihrcf_env.sim.batched.bench [--seconds S]``.
+
+Rows (microseconds per drone per physics substep):
+
+* ``numpy N=...``: :class:`~ihrcf_env.sim.batched.autopilot.BatchedVelocityController` plus
+  :class:`~ihrcf_env.sim.batched.dynamics.BatchedQuadrotor` (the orientation as PyBullet reports
+  it, the controller, the rotor lag, forces with per-rotor thrust factors and a wind force, the
+  rigid-body step), with the split between the controller and the dynamics;
+* ``pybullet drone``: the scalar controller, ``Quadrotor.apply``, the wind force and
+  ``stepSimulation`` of a client holding only the drone;
+* ``pybullet World``: :meth:`~ihrcf_env.sim.world.World.step` of the default world (deck driven,
+  contacts checked) divided by its substeps.
+
+PyBullet is imported only by the two PyBullet rows.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+
+from ihrcf_env.core.constants import GRAVITY
+from ihrcf_env.sim.batched.autopilot import BatchedVelocityController
+from ihrcf_env.sim.batched.dynamics import BatchedQuadrotor
+
+SIZES = (1, 8, 32, 128)
+DT = 1.0 / 240
+
+
+def bench_numpy(n: int, steps: int) -> tuple[float, float]:
+    """(controller, dynamics) seconds per drone per substep for N drones hovering in wind."""
+    from ihrcf_env.sim.drone import QuadParams, VelocityGains  # dataclasses; drone imports pybullet
+
+    params, gains = QuadParams(), VelocityGains(wind_hold=True)
+    rng = np.random.default_rng(0)
+    quad = BatchedQuadrotor(params, n)
+    ctrl = BatchedVelocityController(params, gains, n)
+    start = np.column_stack([rng.uniform(-1, 1, (n, 2)), np.full(n, 3.0)])
+    yaw = rng.uniform(-math.pi, math.pi, n)
+    quad.reset(start, yaw)
+    ctrl.reset(start, yaw)
+    setpoint = np.tile([0.3, -0.2, -0.1, 0.2], (n, 1))
+    wind = np.tile([2.0, -1.0, 0.0], (n, 1))
+    scale = np.ones((n, 4))
+    t_ctrl = t_dyn = 0.0
+    for _ in range(steps):
+        t0 = time.perf_counter()
+        q = quad.reported_quaternion()
+        cmd = ctrl.compute(setpoint, DT, quad.position, q, quad.velocity, quad.angular_velocity)
+        t1 = time.perf_counter()
+        quad.step(cmd, DT, thrust_scale=scale, force=wind)
+        t2 = time.perf_counter()
+        t_ctrl += t1 - t0
+        t_dyn += t2 - t1
+    return t_ctrl / (steps * n), t_dyn / (steps * n)
+
+
+def bench_pybullet_drone(steps: int) -> float:
+    """Seconds per substep of one drone alone in a PyBullet client (scalar controller)."""
+    import pybullet as p
+
+    from ihrcf_env.sim.drone import QuadParams, Quadrotor, VelocityController, VelocityGains
+
+    cid = p.connect(p.DIRECT)
+    try:
+        p.setGravity(0, 0, -GRAVITY, physicsClientId=cid)
+        p.setTimeStep(DT, physicsClientId=cid)
+        quad = Quadrotor(cid, QuadParams())
+        quad.reset(np.array([0.0, 0.0, 3.0]), 0.3)
+        ctrl = VelocityController(quad, VelocityGains(wind_hold=True))
+        ctrl.reset(np.array([0.0, 0.0, 3.0]), 0.3)
+        sp, wind = (0.3, -0.2, -0.1, 0.2), (2.0, -1.0, 0.0)
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            pos, quat = p.getBasePositionAndOrientation(quad.body, physicsClientId=cid)
+            vel, omega = p.getBaseVelocity(quad.body, physicsClientId=cid)
+            cmd = ctrl.compute(sp, DT, pos, quat, vel, omega)
+            quad.apply(cmd, DT, pos, quat, vel)
+            p.applyExternalForce(quad.body, -1, wind, pos, p.WORLD_FRAME, physicsClientId=cid)
+            p.stepSimulation(physicsClientId=cid)
+        return (time.perf_counter() - t0) / steps
+    finally:
+        p.disconnect(cid)
+
+
+def bench_world(control_steps: int) -> float:
+    """Seconds per physics substep of the default :class:`~ihrcf_env.sim.world.World`."""
+    from ihrcf_env.core.profiles import StaticProfile
+    from ihrcf_env.sim.world import World
+
+    world = World()
+    try:
+        world.reset(StaticProfile(), horizon_s=control_steps * world.config.substeps * DT + 1.0, altitude=2.0)
+        world.set_velocity_setpoint(np.array([0.3, -0.2, 0.0, 0.2]))
+        t0 = time.perf_counter()
+        for _ in range(control_steps):
+            world.step()
+        return (time.perf_counter() - t0) / (control_steps * world.config.substeps)
+    finally:
+        world.close()
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seconds", type=float, default=2.0, help="simulated seconds per row (default 2)")
+    args = parser.parse_args(argv)
+    steps = max(10, int(round(args.seconds / DT)))
+    us = 1e6
+    print("microseconds per drone per physics substep (240 Hz)")
+    print(f"{'row':<20}{'total':>10}{'control':>10}{'dynamics':>10}")
+    for n in SIZES:
+        bench_numpy(n, 5)  # warm-up
+        c, d = bench_numpy(n, steps)
+        print(f"{'numpy N=' + str(n):<20}{(c + d) * us:>10.2f}{c * us:>10.2f}{d * us:>10.2f}")
+    print(f"{'pybullet drone':<20}{bench_pybullet_drone(steps) * us:>10.2f}")
+    world_steps = max(2, steps // 8)
+    print(f"{'pybullet World':<20}{bench_world(world_steps) * us:>10.2f}")
+
+
+if __name__ == "__main__":
+    main()
