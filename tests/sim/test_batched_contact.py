@@ -68,8 +68,14 @@ def test_contacts_agree_with_pybullet_away_from_the_boundary() -> None:
                 continue
             checked += 1
             code = contact.first_contact(
-                pos[None], R[None], deck_pos[None], deck_R[None], half, world.config.deck.thickness,
-                geo.base_radius + 0.06, geo.base_height,
+                pos[None],
+                R[None],
+                deck_pos[None],
+                deck_R[None],
+                half,
+                world.config.deck.thickness,
+                geo.base_radius + 0.06,
+                geo.base_height,
             )[0]
             got = _pybullet_contact(world, pos, quat)
             want = "deck" if "deck" in got else ("ground" if "ground" in got else ("base" if got else ""))
@@ -97,4 +103,6 @@ def test_batched_ground_effect_equals_the_scalar_model() -> None:
         want = ge.thrust_scale(r_s, deck_p[i].tolist(), deck_R[i].tolist(), 0.3)
         np.testing.assert_allclose(got[i], want, rtol=1e-14)
     # rows do not depend on the other rows
-    np.testing.assert_array_equal(thrust_scale_batch(ge, rotors[5:6], deck_p[5:6], deck_R[5:6], 0.3), got[5:6])
+    np.testing.assert_array_equal(
+        thrust_scale_batch(ge, rotors[5:6], deck_p[5:6], deck_R[5:6], 0.3), got[5:6]
+    )

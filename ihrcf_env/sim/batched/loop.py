@@ -37,6 +37,7 @@ from ihrcf_env.sim.deck import angular_velocity_between
 from ihrcf_env.sim.disturbances import disturbance_force
 
 if TYPE_CHECKING:
+    from ihrcf_env.sim.drone import VelocityController
     from ihrcf_env.sim.world import Touchdown, World
 
 
@@ -59,6 +60,65 @@ def _check_group(worlds: Sequence[World]) -> None:
             first.stewart,
         ):
             raise ValueError("advance: the worlds must share their physics configuration")
+
+
+#: The per-drone state of :class:`BatchedVelocityController` (arrays with one row per drone).
+_AUTOPILOT_STATE = (
+    "p_ref",
+    "yaw_ref",
+    "integral",
+    "disturbance",
+    "_v_prev",
+    "_has_v_prev",
+    "_thrust_model",
+    "_a_model",
+    "_saturated",
+    "_f_cmd",
+)
+
+
+def _gather_autopilots(controllers: Sequence[VelocityController]) -> BatchedVelocityController:
+    """One batched autopilot holding the state of each world's scalar ``controllers`` (row ``i``:
+    controller ``i``), which stay the worlds' record of it between control steps."""
+    c0 = controllers[0]
+    b = BatchedVelocityController(c0.quad.params, c0.gains, len(controllers))
+    for i, c in enumerate(controllers):
+        b.p_ref[i] = c.p_ref
+        b.yaw_ref[i] = c.yaw_ref
+        b.integral[i] = c.integral
+        b.disturbance[i] = c.disturbance
+        b._has_v_prev[i] = c._v_prev is not None
+        b._v_prev[i] = c._v_prev if c._v_prev is not None else (0.0, 0.0)
+        b._thrust_model[i] = c._thrust_model
+        b._a_model[i] = c._a_model
+        b._saturated[i] = c._saturated
+        b._f_cmd[i] = c._f_cmd
+    return b
+
+
+def _scatter_autopilots(b: BatchedVelocityController, controllers: Sequence[VelocityController]) -> None:
+    """The batched state back into each world's scalar controller (the inverse of the gather)."""
+    for i, c in enumerate(controllers):
+        c.p_ref = b.p_ref[i].tolist()
+        c.yaw_ref = float(b.yaw_ref[i])
+        c.integral = b.integral[i].tolist()
+        c.disturbance = b.disturbance[i].tolist()
+        c._v_prev = (float(b._v_prev[i, 0]), float(b._v_prev[i, 1])) if b._has_v_prev[i] else None
+        c._thrust_model = float(b._thrust_model[i])
+        c._a_model = (float(b._a_model[i, 0]), float(b._a_model[i, 1]))
+        c._saturated = bool(b._saturated[i])
+        c._f_cmd = (float(b._f_cmd[i, 0]), float(b._f_cmd[i, 1]))
+
+
+def _autopilot_state(b: BatchedVelocityController) -> dict[str, NDArray]:
+    return {k: np.array(getattr(b, k), copy=True) for k in _AUTOPILOT_STATE}
+
+
+def _restore_rows(b: BatchedVelocityController, kept: dict[str, NDArray], rows: NDArray[np.bool_]) -> None:
+    for k, v in kept.items():
+        a = np.array(getattr(b, k), copy=True)
+        a[rows] = v[rows]
+        setattr(b, k, a)
 
 
 def _deck_poses(worlds: Sequence[World], steps: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -118,9 +178,15 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
     for i, w in enumerate(worlds):
         pos, quat = p.getBasePositionAndOrientation(w.quad.body, physicsClientId=w.client)
         vel, omega = p.getBaseVelocity(w.quad.body, physicsClientId=w.client)
-        quad.position[i], quad.quaternion[i], quad.velocity[i], quad.angular_velocity[i] = pos, quat, vel, omega
+        quad.position[i], quad.quaternion[i], quad.velocity[i], quad.angular_velocity[i] = (
+            pos,
+            quat,
+            vel,
+            omega,
+        )
         quad.rotor_speed[i] = w.quad.rotor_speed
-    autopilot = BatchedVelocityController.gather([w.controller for w in worlds])
+    quad.invalidate()
+    autopilot = _gather_autopilots([w.controller for w in worlds])
     velocity_rows = np.array([w._mode_velocity for w in worlds])
     setpoints = np.array([w._setpoint for w in worlds], dtype=np.float64)
     motor_cmd = np.array([w._motor_cmd for w in worlds], dtype=np.float64)
@@ -142,7 +208,6 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
     base_height = cfg.stewart.base_height
     motor_xy = cfg.quad.motor_xy
     all_velocity = bool(velocity_rows.all())
-    vel_idx = np.flatnonzero(velocity_rows)
     prev_vel = quad.velocity.copy()
     external = np.zeros((n, 3))
     for j in range(steps):
@@ -154,16 +219,18 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
         if nav_rows:
             pos_c, vel_c = pos.copy(), vel.copy()
             for i in nav_rows:
-                est_p, est_v = worlds[i].navigation.estimate(float(t[i]), tuple(pos[i].tolist()), tuple(vel[i].tolist()))
+                est_p, est_v = worlds[i].navigation.estimate(
+                    float(t[i]), tuple(pos[i].tolist()), tuple(vel[i].tolist())
+                )
                 pos_c[i], vel_c[i] = est_p, est_v
         if all_velocity:
             cmd = autopilot.compute(setpoints, dt, pos_c, quat, vel_c, omega)
-        else:
-            cmd = motor_cmd.copy()
-            if vel_idx.size:
-                cmd[vel_idx] = autopilot.compute_rows(
-                    vel_idx, setpoints[vel_idx], dt, pos_c[vel_idx], quat[vel_idx], vel_c[vel_idx], omega[vel_idx]
-                )
+        else:  # rows on motor commands: their autopilot state stays as it was (as in World.step)
+            kept = _autopilot_state(autopilot)
+            cmd = np.where(
+                velocity_rows[:, None], autopilot.compute(setpoints, dt, pos_c, quat, vel_c, omega), motor_cmd
+            )
+            _restore_rows(autopilot, kept, ~velocity_rows)
         scale = None
         if ge is not None:
             rotors = rotor_positions_batch(pos, matrices_from_quaternions(quat), motor_xy)
@@ -216,7 +283,7 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
         _write_back(w, quad, i, _deck_state(deck_body, deck_quat, i, steps, dt))
         w._acc_world = (quad.velocity[i] - prev_vel[i]) / dt
         w.quad.rotor_speed = quad.rotor_speed[i].tolist()
-    autopilot.scatter([w.controller for w in worlds])
+    _scatter_autopilots(autopilot, [w.controller for w in worlds])
     return touchdowns
 
 
@@ -245,6 +312,7 @@ def _rest(
             quad.position[i], quad.quaternion[i] = rel_pos[i], rel_quat[i]
             quad.velocity[i] = 0.0
             quad.angular_velocity[i] = 0.0
+    quad.invalidate()
 
 
 def _quat_mul(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -262,7 +330,10 @@ def _quat_mul(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.floa
 
 
 def relative_pose(
-    pos: NDArray[np.float64], quat: NDArray[np.float64], frame_pos: NDArray[np.float64], frame_quat: NDArray[np.float64]
+    pos: NDArray[np.float64],
+    quat: NDArray[np.float64],
+    frame_pos: NDArray[np.float64],
+    frame_quat: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The pose ``(pos, quat)`` (world) expressed in the frame ``(frame_pos, frame_quat)``."""
     R = matrices_from_quaternions(frame_quat[None])[0]
@@ -271,7 +342,10 @@ def relative_pose(
 
 
 def compose(
-    frame_pos: NDArray[np.float64], frame_quat: NDArray[np.float64], rel_pos: NDArray[np.float64], rel_quat: NDArray[np.float64]
+    frame_pos: NDArray[np.float64],
+    frame_quat: NDArray[np.float64],
+    rel_pos: NDArray[np.float64],
+    rel_quat: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The world pose of ``(rel_pos, rel_quat)`` given in the frame ``(frame_pos, frame_quat)``."""
     R = matrices_from_quaternions(frame_quat[None])[0]
