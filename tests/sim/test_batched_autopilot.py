@@ -16,7 +16,7 @@ import pytest
 from ihrcf_env.sim import drone
 from ihrcf_env.sim.batched import autopilot as batched_autopilot
 from ihrcf_env.sim.batched.autopilot import BatchedVelocityController
-from ihrcf_env.sim.batched.floatmath import hypot2, remainder, yaw_quaternions
+from ihrcf_env.sim.batched.floatmath import hypot2, hypot_over, remainder, yaw_quaternions
 from ihrcf_env.sim.batched.mixer import BatchedMixer
 from ihrcf_env.sim.drone import QuadParams, Quadrotor, VelocityController, VelocityGains
 
@@ -154,3 +154,15 @@ def test_constants_and_no_pybullet():
         "assert 'pybullet' not in sys.modules"
     )
     subprocess.run([sys.executable, "-c", code], check=True, cwd=Path(__file__).resolve().parents[2])
+
+
+def test_hypot_over_decides_as_math_hypot():
+    """Limits at the exact hypot and one ulp either side: the comparison is math.hypot's."""
+    rng = np.random.default_rng(9)
+    x, y = rng.normal(size=3000), rng.normal(size=3000)
+    h = np.array([math.hypot(a, b) for a, b in zip(x, y, strict=True)])
+    for lim in (h, np.nextafter(h, 0.0), np.nextafter(h, 10.0), h * 2.0, h * 0.5):
+        over, got = hypot_over(x, y, lim)
+        assert np.array_equal(over, h > lim)
+        assert np.array_equal(got[over], h[over])
+    assert hypot_over(np.array([1e-170]), np.array([0.0]), 0.0)[0][0]

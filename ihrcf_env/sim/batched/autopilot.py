@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.sim.batched.dynamics import motor_lag
-from ihrcf_env.sim.batched.floatmath import hypot2, matrices_from_quaternions, remainder
+from ihrcf_env.sim.batched.floatmath import hypot2, hypot_over, matrices_from_quaternions, remainder
 from ihrcf_env.sim.batched.mixer import BatchedMixer
 
 if TYPE_CHECKING:
@@ -106,13 +106,24 @@ class BatchedVelocityController:
         self._thrust_model[idx] = m * np.sqrt(ax * ax + ay * ay + gz * gz)
         self._a_model[idx] = np.stack([-ax, -ay], axis=1)
 
-    def compute(self, setpoint: Array, dt: float, pos: Array, quat: Array, vel: Array, omega: Array) -> Array:
+    def compute(
+        self,
+        setpoint: Array,
+        dt: float,
+        pos: Array,
+        quat: Array,
+        vel: Array,
+        omega: Array,
+        rotation: Array | None = None,
+    ) -> Array:
         """Rotor speed commands (N, 4) rad/s for ``setpoint`` (N, 4) = (vx, vy, vz, yaw_rate) (m/s,
         rad/s), on positions ``pos`` (N, 3), quaternions ``quat`` (N, 4) (x, y, z, w), velocities
-        ``vel`` (N, 3) and angular velocities ``omega`` (N, 3) (world frame)."""
+        ``vel`` (N, 3) and angular velocities ``omega`` (N, 3) (world frame). ``rotation``: the
+        matrices (N, 3, 3) of ``quat`` when already computed (e.g.
+        :meth:`~ihrcf_env.sim.batched.dynamics.BatchedQuadrotor.reported_rotation`)."""
         g = self.gains
         m = self.params.mass
-        r = matrices_from_quaternions(quat)
+        r = matrices_from_quaternions(quat) if rotation is None else rotation
         r00, r01, r02 = r[:, 0, 0], r[:, 0, 1], r[:, 0, 2]
         r10, r11, r12 = r[:, 1, 0], r[:, 1, 1], r[:, 1, 2]
         r20, r21, r22 = r[:, 2, 0], r[:, 2, 1], r[:, 2, 2]
@@ -148,8 +159,7 @@ class BatchedVelocityController:
         acc_z = g.kp_z * e2 + g.kd_z * (vc2 - v2) + g.ki_z * i2
         fz = np.maximum(acc_z + GRAVITY, 0.2 * GRAVITY)
         lim = fz * self._tan_tilt
-        nxy = hypot2(fx, fy)
-        clip = nxy > lim
+        clip, nxy = hypot_over(fx, fy, lim)
         self._saturated = clip & g.wind_hold
         if clip.any():
             den = np.where(clip, nxy, 1.0)
@@ -216,8 +226,7 @@ class BatchedVelocityController:
             free = ~self._saturated | (e0 * self._f_cmd[:, 0] + e1 * self._f_cmd[:, 1] <= 0.0)
             i0, i1 = integ[:, 0] + e0 * dt, integ[:, 1] + e1 * dt
             cap = lim_i / ki
-            ni = hypot2(i0, i1)
-            over = ni > cap
+            over, ni = hypot_over(i0, i1, cap)
             den = np.where(over, ni, 1.0)
             i0 = np.where(over, i0 * cap / den, i0)
             i1 = np.where(over, i1 * cap / den, i1)
@@ -237,8 +246,7 @@ class BatchedVelocityController:
             k = dt / (g.dob_tau + dt)
             d0 = d[:, 0] + k * ((v0 - vp[:, 0]) / dt - self._a_model[:, 0] - d[:, 0])
             d1 = d[:, 1] + k * ((v1 - vp[:, 1]) / dt - self._a_model[:, 1] - d[:, 1])
-            nd = hypot2(d0, d1)
-            over = nd > lim_i
+            over, nd = hypot_over(d0, d1, lim_i)
             den = np.where(over, nd, 1.0)
             d0 = np.where(over, d0 * lim_i / den, d0)
             d1 = np.where(over, d1 * lim_i / den, d1)

@@ -49,8 +49,8 @@ def bench_numpy(n: int, steps: int) -> tuple[float, float]:
     t_ctrl = t_dyn = 0.0
     for _ in range(steps):
         t0 = time.perf_counter()
-        q = quad.reported_quaternion()
-        cmd = ctrl.compute(setpoint, DT, quad.position, q, quad.velocity, quad.angular_velocity)
+        q, r = quad.reported_quaternion(), quad.reported_rotation()
+        cmd = ctrl.compute(setpoint, DT, quad.position, q, quad.velocity, quad.angular_velocity, r)
         t1 = time.perf_counter()
         quad.step(cmd, DT, thrust_scale=scale, force=wind)
         t2 = time.perf_counter()

@@ -72,7 +72,7 @@ class BatchedQuadrotor:
         self._lag = 1.0
         self.force = np.zeros((self.n, 3))  # scratch: the total world force of the last step
         self.torque = np.zeros((self.n, 3))  # scratch: the world torque of the last step
-        self._reported: Array | None = None  # reported_quaternion() of the current state
+        self._reported: tuple[Array, Array] | None = None  # reported_quaternion() of the current state
 
     def reset(
         self,
@@ -107,8 +107,16 @@ class BatchedQuadrotor:
         last bit may differ from :attr:`quaternion`, which is the integrator's state). Computed once
         per state: call :meth:`invalidate` after writing the state arrays directly."""
         if self._reported is None:
-            self._reported = quaternions_from_matrices(matrices_from_quaternions(self.quaternion))
-        return self._reported
+            q = quaternions_from_matrices(matrices_from_quaternions(self.quaternion))
+            self._reported = (q, matrices_from_quaternions(q))
+        return self._reported[0]
+
+    def reported_rotation(self) -> Array:
+        """The rotation matrices (N, 3, 3) of :meth:`reported_quaternion` (what PyBullet's
+        ``getMatrixFromQuaternion`` gives for the reported orientation)."""
+        self.reported_quaternion()
+        assert self._reported is not None
+        return self._reported[1]
 
     def invalidate(self) -> None:
         """Forget the cached :meth:`reported_quaternion` (after editing :attr:`quaternion`)."""
@@ -141,7 +149,7 @@ class BatchedQuadrotor:
         thrust = f0 + f1 + f2 + f3
         tx = f0 * y[0] + f1 * y[1] + f2 * y[2] + f3 * y[3]
         ty = -(f0 * x[0] + f1 * x[1] + f2 * x[2] + f3 * x[3])
-        r = matrices_from_quaternions(self.reported_quaternion())
+        r = self.reported_rotation()
         vel = self.velocity
         drag = p.drag
         F, T = self.force, self.torque

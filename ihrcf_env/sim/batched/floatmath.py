@@ -67,6 +67,20 @@ def hypot2(x: Array, y: Array) -> Array:
     return np.where((x == 0.0) | (y == 0.0), big, out)
 
 
+def hypot_over(x: Array, y: Array, limit: Array | float) -> tuple[NDArray[np.bool_], Array]:
+    """``(math.hypot(x, y) > limit, h)`` elementwise, ``h`` equal to ``math.hypot(x, y)`` wherever
+    the comparison is true. The exact :func:`hypot2` is computed only when some element is within
+    1e-9 (relative) of its limit or above it: elsewhere ``sqrt(x^2 + y^2)`` decides the comparison
+    just as well, so no element's result depends on the others."""
+    approx = np.sqrt(x * x + y * y)
+    lim = np.asarray(limit, dtype=np.float64)
+    near = ~(approx < lim * (1.0 - 1e-9)) | (lim < 1e-100)
+    if not near.any():
+        return near, approx
+    h = hypot2(x, y)
+    return h > lim, h
+
+
 def remainder(x: Array, y: float) -> Array:
     """``math.remainder(x, y)`` elementwise for a positive finite ``y``: ``x - n y`` with ``n`` the
     integer nearest ``x / y`` (ties to even), computed exactly."""
