@@ -150,6 +150,7 @@ examples:
   ihrcf-benchmark                 # speed + accuracy tables (pinned to one core)
   ihrcf-benchmark --steps 400 --sizes 0 128 256 512 --no-accuracy
   python -m ihrcf_env.benchmark --accuracy-frames 600 --markdown out/benchmark.md
+  ihrcf-benchmark --vector 1 8 32 --processes 1 2   # the native vector env against the single env
 """
 
 
