@@ -5,6 +5,8 @@ Trains on the projected camera (evaluate on the rendered one with the evaluate C
 
     python examples/train_ppo.py --out out/ppo --total-steps 400000 --deck-motion --drop-inputs ihrcf \
         atda --dagger-rounds 6 --dagger-episodes 24 --log-std-init -2.3 --learning-rate 3e-5 --gamma 0.998
+``--vector`` steps the ``--n-envs`` training envs as the id's native vector env in this process
+(``ihrcf_env.rl.vec.make_sb3_vec_env``) instead of one process per env (SubprocVecEnv).
 Writes to ``--out``: ``final.zip``, ``best.zip`` (best evaluation), CSV logs, ``curves.png``,
 ``checkpoints/`` (``steps_N.zip`` every ``--checkpoint-every`` steps, ``latest.zip`` for ``--resume``).
 Seeds: training env k starts from ``reset(seed=10_000 + 100 SEED + k)``, DAgger round r from
@@ -18,6 +20,7 @@ import functools
 import time
 from pathlib import Path
 
+from ihrcf_env import VECTOR_IDS
 from ihrcf_env.rl.curriculum import curriculum_env
 from ihrcf_env.rl.curves import EVAL_FIELDS, TRAIN_FIELDS, CsvLog, plot_curves, summary
 from ihrcf_env.rl.envs import default_env_id, make_env, name_value, policy_inputs
@@ -26,7 +29,12 @@ TRAIN_SEED_BASE, EVAL_SEED_BASE, DAGGER_SEED_BASE = 10_000, 20_000, 30_000
 INT_OPTIONS = (
     ("--total-steps", 1_000_000, 1, "PPO environment steps in all"),
     ("--seed", 0, 0, "seed of the network, training and DAgger episodes"),
-    ("--n-envs", 2, 1, "env processes (SubprocVecEnv if > 1)"),
+    (
+        "--n-envs",
+        2,
+        1,
+        "training envs (processes of a SubprocVecEnv if > 1, or with --vector one vector env)",
+    ),
     ("--curriculum-steps", 0, 0, "steps of a start curriculum from low near the tag (0: off)"),
     ("--n-steps", 1024, 1, "rollout length per env"),
     ("--batch-size", 256, 1, "PPO minibatch"),
@@ -51,6 +59,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--camera-model", default="projected", choices=("projected", "rendered"))
     ap.add_argument("--max-episode-steps", type=int, default=None, help="default: the env's limit")
     ap.add_argument("--deck-motion", action="store_true", help="v1 deck_motion=True (CLI detects it)")
+    ap.add_argument(
+        "--vector",
+        action="store_true",
+        help="train on the id's native vector env in this process (ihrcf_env.rl.vec), not SubprocVecEnv",
+    )
     ap.add_argument("--ent-coef", type=float, default=0.0, help="PPO entropy bonus")
     ap.add_argument("--init-action-mean", type=float, nargs="+", default=None, help="e.g. 0 0 -0.3 0")
     ap.add_argument("--log-std-init", type=float, default=0.0, help="initial log std of the actions")
@@ -74,11 +87,16 @@ def main(argv: list[str] | None = None) -> int:
 
         from ihrcf_env.rl import sb3
         from ihrcf_env.rl.imitation import warm_start
+        from ihrcf_env.rl.vec import make_sb3_vec_env
     except ModuleNotFoundError as e:
         print(f'{e.name} is not installed: this example needs the [rl] extra (pip install ".[rl]")')
         return 2
     th.set_num_threads(1)  # the env processes need the cores; a 64x64 MLP gains nothing from threads
     env_id = args.env_id or default_env_id()
+    if args.vector and env_id not in VECTOR_IDS:
+        ap.error(f"--vector: {env_id} has no native vector env (those with one: {', '.join(VECTOR_IDS)})")
+    if args.vector and args.curriculum_steps:
+        ap.error("--vector: the start curriculum wraps single envs; use it without --vector")
     env_kw: dict[str, object] = {"deck_motion": True} if args.deck_motion else {}
     if args.reward_weights:  # shapes the training signal only: success is the task's
         env_kw["reward_weights"] = dict(args.reward_weights)
@@ -90,8 +108,11 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as e:
         ap.error(f"--drop-inputs: {e}")
     train_thunk = functools.partial(curriculum_env, thunk) if args.curriculum_steps else thunk
-    vec_cls = SubprocVecEnv if args.n_envs > 1 else DummyVecEnv
-    venv = VecMonitor(vec_cls([train_thunk] * args.n_envs), info_keywords=("is_success",))
+    if args.vector:  # one process: N envs stepped by the vector env (SB3's autoreset convention)
+        base = make_sb3_vec_env(env_id, args.n_envs, None, camera_model=args.camera_model, **env_kw)
+    else:
+        base = (SubprocVecEnv if args.n_envs > 1 else DummyVecEnv)([train_thunk] * args.n_envs)
+    venv = VecMonitor(base, info_keywords=("is_success",))
     out, ckpt = args.out, sb3.ResumableCheckpointCallback(args.out / "checkpoints", args.checkpoint_every)
     resume = args.resume and ckpt.model_path.exists()
     if resume:
@@ -130,7 +151,10 @@ def main(argv: list[str] | None = None) -> int:
         callbacks.append(sb3.CurriculumCallback(args.curriculum_steps))
     if args.max_wall_min is not None:  # evaluator.start_time already counts earlier segments
         callbacks.append(sb3.WallClockBudgetCallback(evaluator.start_time + 60.0 * args.max_wall_min))
-    print(f"training PPO on {env_id} (camera_model={args.camera_model}, {args.n_envs} envs)", flush=True)
+    kind = ", vector env" if args.vector else ""
+    print(
+        f"training PPO on {env_id} (camera_model={args.camera_model}, {args.n_envs} envs{kind})", flush=True
+    )
     t0 = time.time()
     try:
         if args.total_steps > done:

@@ -3,8 +3,9 @@ a multi-node Ray cluster.
 
 The env is registered with Ray's registry (``ray.tune.registry.register_env``) as
 ``ihrcf_deck_landing``; ``--num-env-runners`` EnvRunner actors (one CPU each) step
-``--num-envs-per-env-runner`` envs each with the fast projected camera; the learner runs in this
-process. Needs the ``[rl]`` extra on every node::
+``--num-envs-per-env-runner`` envs each with the fast projected camera (RLlib's SyncVectorEnv of single
+envs, or with ``--vector-env`` the id's native vector env, ``gym.make_vec``'s vector_entry_point);
+the learner runs in this process. Needs the ``[rl]`` extra on every node::
 
     pip install ".[rl]"
     # one machine: starts a local Ray instance with as many CPUs as the machine has
@@ -36,6 +37,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--iterations", type=int, default=50, help="training iterations")
     ap.add_argument("--num-env-runners", type=int, default=2, help="EnvRunner actors (one CPU each)")
     ap.add_argument("--num-envs-per-env-runner", type=int, default=1)
+    ap.add_argument(
+        "--vector-env",
+        action="store_true",
+        help="each runner steps its envs as the id's native vector env (gym.make_vec's vector_entry_point) "
+        "instead of RLlib's SyncVectorEnv of single envs",
+    )
     ap.add_argument("--address", default=None, help="Ray cluster: 'auto' or HOST:PORT (default: local)")
     ap.add_argument("--num-cpus", type=int, default=None, help="CPUs of the local Ray instance")
     ap.add_argument("--out", type=Path, default=Path("out/rllib"))
@@ -62,6 +69,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--num-env-runners must be >= 0 (0: sample in this process)")
 
     try:
+        import gymnasium as gym
         import ray
         from ray.rllib.algorithms.ppo import PPOConfig
         from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
@@ -81,7 +89,9 @@ def main(argv: list[str] | None = None) -> int:
         env_config["max_episode_steps"] = args.max_episode_steps
     if args.deck_motion:
         env_config["deck_motion"] = True
-    frag = max(1, args.train_batch_size // max(1, args.num_env_runners * args.num_envs_per_env_runner))
+    vectorize_mode = gym.VectorizeMode.VECTOR_ENTRY_POINT if args.vector_env else gym.VectorizeMode.SYNC
+    samplers = max(1, args.num_env_runners) * args.num_envs_per_env_runner  # 0 runners: this process samples
+    frag = max(1, args.train_batch_size // samplers)
     config = (
         PPOConfig()
         .environment(rllib.register(), env_config=env_config)
@@ -89,6 +99,7 @@ def main(argv: list[str] | None = None) -> int:
             num_env_runners=args.num_env_runners,
             num_envs_per_env_runner=args.num_envs_per_env_runner,
             rollout_fragment_length=frag,
+            gym_env_vectorize_mode=vectorize_mode,
         )
         .training(
             train_batch_size_per_learner=args.train_batch_size,
@@ -105,7 +116,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.restore is not None:
         algo.restore_from_path(str(args.restore.resolve()))
     cpus = ray.cluster_resources().get("CPU", 0)
-    print(f"Ray: {cpus:.0f} CPUs, {args.num_env_runners} env runners", flush=True)
+    kind = "native vector env" if args.vector_env else "SyncVectorEnv"
+    print(
+        f"Ray: {cpus:.0f} CPUs, {args.num_env_runners} env runners, "
+        f"{args.num_envs_per_env_runner} envs each ({kind})",
+        flush=True,
+    )
     log = CsvLog(args.out / "progress.csv", rllib.PROGRESS_FIELDS)
     ckpt = (args.out / "checkpoint").resolve()
     t0 = time.time()

@@ -31,8 +31,22 @@ from ihrcf_env.experiments.speed import (
     raw_speed,
     vector_scaling,
 )
+from ihrcf_env.experiments.vector_speed import (
+    ACTIONS,
+    markdown_table,
+    process_speed,
+    single_speed,
+    vector_speed,
+)
+from ihrcf_env.wrappers.vector import MAX_ENVS
 
 MILD_DISTORTION = (-0.05, 0.0)
+#: ``--vector``'s N when it has no values.
+VECTOR_NS = (1, 8, 32, 128)
+#: Most processes of ``--processes``.
+MAX_PROCESSES = 64
+#: Options of the envs the vector comparison times (as ``gym.make`` gives them otherwise).
+VECTOR_OPTIONS: dict[str, object] = {"camera_model": "projected"}
 
 
 def _camera_mode_report(steps: int, frames: int, vector: bool) -> list[str]:
@@ -70,6 +84,34 @@ def _camera_mode_report(steps: int, frames: int, vector: bool) -> list[str]:
     return out
 
 
+def _vector_report(args: argparse.Namespace, cores: list[int] | None) -> list[str]:
+    """Time the single env and the vector env for each N (and each number of processes, each
+    pinned to its own core of ``cores`` when given); print and return the markdown table."""
+    ns = list(args.vector) or list(VECTOR_NS)
+    common = {"env_id": args.id, "warmup": args.warmup, "actions": args.actions, **VECTOR_OPTIONS}
+    pinned = "pinned to one core" if cores else "not pinned"
+    head = (
+        f"{args.id}, camera_model=projected, {args.actions} actions: single env {args.steps} steps, "
+        f"vector env {args.vector_steps} steps per N, {args.warmup} untimed first ({pinned})"
+    )
+    print(head, flush=True)
+    single = single_speed(steps=args.steps, **common)
+    print(f"single env: {single:.1f} steps/s", flush=True)
+    rows = []
+    for n in ns:
+        for p in args.processes:
+            if p == 1:
+                row = vector_speed(num_envs=n, steps=args.vector_steps, **common)
+            else:
+                row = process_speed(num_envs=n, processes=p, steps=args.vector_steps, cores=cores, **common)
+            print(f"N={n}, {p} process(es): {row.env_steps_per_s:.1f} env-steps/s", flush=True)
+            rows.append(row)
+    table = markdown_table(single, rows)
+    print()
+    print("\n".join(table))
+    return [head + ".", "", *table]
+
+
 def calibration_for(distortion: tuple[float, float]) -> str | None:
     """Calibration file for a camera with radial ``distortion`` (k1, k2), made by the calibrate CLI
     in a temporary folder; ``None`` (the shipped file) for the undistorted camera."""
@@ -93,7 +135,7 @@ Speed: env steps per second and real-time factor (simulated seconds per wall-clo
 raw env with zero velocity actions over the "paper" deck profile, without a camera and with the
 camera at each size (rendered once per control step); then the wrapped env (IHRCF + ATDA + fused)
 at the 1 m hover per camera model (image kept, tag window, projected), the cost of each component
-per control step, the parts of the projected wrapped step and, with --vector, AsyncVectorEnv
+per control step, the parts of the projected wrapped step and, with --async-vector, AsyncVectorEnv
 scaling with 2 workers. Estimation: tag detection + IHRCF + ATDA + fused per 512x512 frame with
 the shipped calibration; the realistic camera's added cost per frame.
 
@@ -108,6 +150,7 @@ examples:
   ihrcf-benchmark                 # speed + accuracy tables (pinned to one core)
   ihrcf-benchmark --steps 400 --sizes 0 128 256 512 --no-accuracy
   python -m ihrcf_env.benchmark --accuracy-frames 600 --markdown out/benchmark.md
+  ihrcf-benchmark --vector 1 8 32 --processes 1 2   # the native vector env against the single env
 """
 
 
@@ -128,8 +171,34 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--distortion", action="store_true", help="also the tables with lens distortion")
     ap.add_argument(
-        "--vector", action="store_true", help="also AsyncVectorEnv scaling with 2 workers (uses 2 cores)"
+        "--async-vector",
+        action="store_true",
+        help="also AsyncVectorEnv scaling with 2 workers (uses 2 cores)",
     )
+    vec = ap.add_argument_group(
+        "native vector env", "--vector runs this comparison instead of the speed and accuracy tables"
+    )
+    vec.add_argument(
+        "--vector",
+        type=int_in(1, MAX_ENVS),
+        nargs="*",
+        default=None,
+        metavar="N",
+        help="time gym.make_vec(ID, num_envs=N) for each N against the single env "
+        f"(no values: {' '.join(map(str, VECTOR_NS))}; default: not run)",
+    )
+    vec.add_argument(
+        "--processes",
+        type=int_in(1, MAX_PROCESSES),
+        nargs="+",
+        default=[1],
+        metavar="P",
+        help="with --vector: also P processes, each with its own vector env of N on its own core",
+    )
+    vec.add_argument("--id", default=ihrcf_env.LANDING_V1_ID, choices=ihrcf_env.VECTOR_IDS, help="env id")
+    vec.add_argument("--vector-steps", type=int_in(1), default=20, help="timed vector steps per N")
+    vec.add_argument("--warmup", type=int_in(0), default=5, help="untimed steps before each timing")
+    vec.add_argument("--actions", choices=ACTIONS, default="random", help="actions of the timed steps")
     ap.add_argument(
         "--markdown", default=None, help="also write the tables to this file (default: not written)"
     )
@@ -144,11 +213,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     if any(not (math.isfinite(a) and 0.3 <= a <= 10.0) for a in args.altitudes):
         ap.error(f"argument --altitudes: heights must be in [0.3, 10] m, got {args.altitudes}")
     report: list[str] = []
-    if not args.all_cores and hasattr(os, "sched_setaffinity"):
-        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+    if args.vector is None and args.processes != [1]:
+        ap.error("argument --processes: only with --vector")
+    cores = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
+    if not args.all_cores and cores:
+        os.sched_setaffinity(0, {cores[0]})
     print(
         f"ihrcf_env {ihrcf_env.__version__}, Python {sys.version.split()[0]}, control 20 Hz, physics 240 Hz"
     )
+    if args.vector is not None:
+        report = _vector_report(args, None if args.all_cores or not cores else cores)
+        if markdown is not None:
+            write_whole(markdown, "\n".join(report) + "\n")
+            print(f"wrote {markdown}")
+        return 0
     if not args.no_speed:
         report += ["| camera | env steps/s | real-time factor |", "|---|---|---|"]
         print(f"{'camera':>10} {'steps/s':>10} {'real-time factor':>18}")
@@ -157,7 +235,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             label = "none" if size == 0 else f"{size}x{size}"
             print(f"{label:>10} {sps:10.1f} {rtf:17.2f}x", flush=True)
             report.append(f"| {label} | {sps:.1f} | {rtf:.2f}x |")
-        report += _camera_mode_report(args.steps, args.frames, args.vector)
+        report += _camera_mode_report(args.steps, args.frames, args.async_vector)
         ms = estimation_ms(args.frames)
         if ms is None:
             print("estimation: no shipped calibration file; run python -m ihrcf_env.calibrate")

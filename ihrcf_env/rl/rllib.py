@@ -11,7 +11,8 @@ from typing import Any
 
 import gymnasium as gym
 
-from ihrcf_env.rl.envs import make_env
+from ihrcf_env import VECTOR_IDS
+from ihrcf_env.rl.envs import default_env_id, make_env
 
 RLLIB_ENV_NAME = "ihrcf_deck_landing"
 PROGRESS_FIELDS = (
@@ -25,11 +26,24 @@ PROGRESS_FIELDS = (
 )
 
 
-def env_creator(env_config: Mapping[str, Any]) -> gym.Env:
+def env_creator(env_config: Mapping[str, Any]) -> gym.Env | gym.vector.VectorEnv:
     """RLlib env creator: ``env_config`` keys ``env_id`` (default v1), ``camera_model`` (default
-    ``"projected"``) and any keyword of the env (e.g. ``max_episode_steps``)."""
+    ``"projected"``) and any keyword of the env (e.g. ``max_episode_steps``).
+
+    With ``num_envs`` in ``env_config`` (what RLlib adds when its env runners are configured with
+    ``gym_env_vectorize_mode=gym.VectorizeMode.VECTOR_ENTRY_POINT``), the native vector env of the
+    id (``gym.make_vec(env_id, num_envs, vectorization_mode="vector_entry_point")``: next-step
+    autoreset, as RLlib's env runners expect) instead of one env."""
     cfg = dict(env_config)  # an EnvContext (a dict with worker_index etc. as attributes)
-    return make_env(cfg.pop("env_id", None), cfg.pop("camera_model", "projected"), **cfg)
+    env_id, camera_model = cfg.pop("env_id", None), cfg.pop("camera_model", "projected")
+    if "num_envs" not in cfg:
+        return make_env(env_id, camera_model, **cfg)
+    env_id = default_env_id() if env_id is None else env_id
+    if env_id not in VECTOR_IDS:
+        raise ValueError(f"env_id: {env_id!r} has no native vector env (those with one: {VECTOR_IDS})")
+    n = cfg.pop("num_envs")
+    mode = gym.VectorizeMode.VECTOR_ENTRY_POINT
+    return gym.make_vec(env_id, num_envs=n, vectorization_mode=mode, camera_model=camera_model, **cfg)
 
 
 def register() -> str:

@@ -190,3 +190,23 @@ def test_initial_action_mean_sets_the_untrained_policys_mean(closing) -> None:
     for bad in ([0.0, 0.0], [0.0, 0.0, float("nan"), 0.0]):
         with pytest.raises(ValueError, match="mean"):
             set_initial_action_mean(model, bad)
+
+
+def test_train_ppo_on_the_native_vector_env(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+
+    from ihrcf_env.rl.curves import read_csv
+
+    train_ppo = example("train_ppo")
+    out = tmp_path / "ppo"
+    assert train_ppo.main(["--total-steps", "128", "--out", str(out), "--vector", *TINY]) == 0
+    text = capsys.readouterr().out
+    assert f"(camera_model={CAMERA}, 2 envs, vector env)" in text and "128 steps in" in text
+    assert PPO.load(out / "final.zip", device="cpu").num_timesteps == 128
+    assert [int(r["timesteps"]) for r in read_csv(out / "eval.csv")] == [128]
+    for bad in (["--curriculum-steps", "100"], ["--env-id", "ihrcf_env/DeckHover-v0"]):
+        with pytest.raises(SystemExit) as e:
+            train_ppo.main(["--vector", "--out", str(out), *bad])
+        assert e.value.code == 2
+        assert "--vector" in capsys.readouterr().err
