@@ -4,7 +4,10 @@
 physics client) and steps them together with Gymnasium 1.x semantics: batched observations,
 rewards, ``terminated`` and ``truncated`` arrays, ``info`` as Gymnasium vector envs give it (each
 key an array over the envs, with a boolean ``_key`` mask), and next-step autoreset (an env that
-ended is reset by the following ``step``, which returns its first observation with reward 0).
+ended is reset by the following ``step``, which returns its first observation with reward 0;
+``autoreset_mode=AutoresetMode.SAME_STEP`` resets it in the step that ends it instead, with its
+last observation and info in ``info["final_obs"]`` / ``info["final_info"]``, as Gymnasium's
+``SyncVectorEnv`` does).
 Sub-env ``i`` of ``reset(seed=s)`` is the single env reset with seed ``s + i``, so it reproduces
 ``gym.make(id)`` step for step. It is the ids' ``vector_entry_point`` (``gym.make_vec`` uses it
 unless ``vectorization_mode`` says otherwise).
@@ -37,9 +40,24 @@ class DeckLandingVectorEnv(VectorEnv):
 
     metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
 
-    def __init__(self, env_id: str, num_envs: int = 1, **options: Any) -> None:
+    def __init__(
+        self,
+        env_id: str,
+        num_envs: int = 1,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        **options: Any,
+    ) -> None:
         self._envs: list[gym.Env] = []
         n = check_int("num_envs", num_envs, low=1, high=MAX_ENVS)
+        modes = {m.value: m for m in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)}
+        mode = autoreset_mode.value if isinstance(autoreset_mode, AutoresetMode) else autoreset_mode
+        if mode not in modes:
+            raise ValueError(
+                f"autoreset_mode must be one of {sorted(modes)} (AutoresetMode.NEXT_STEP or SAME_STEP), "
+                f"got {autoreset_mode!r}"
+            )
+        self.autoreset_mode = modes[mode]
+        self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         bad = sorted(set(options) & set(UNSUPPORTED_OPTIONS))
         if bad:
             raise ValueError(f"{bad[0]}: not supported by the vector env (make single envs to render)")
@@ -116,15 +134,19 @@ class DeckLandingVectorEnv(VectorEnv):
         obs = []
         if self._numpy_physics:
             self._advance_together(a)
+        same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
         for i, env in enumerate(self._envs):
             if self._autoreset[i]:
                 o, info = env.reset()
             else:
                 o, r, terminated[i], truncated[i], info = env.step(a[i])
                 rewards[i] = float(r)
+                if same_step and (terminated[i] or truncated[i]):
+                    infos = self._add_info(infos, {"final_obs": o, "final_info": info}, i)
+                    o, info = env.reset()
             obs.append(o)
             infos = self._add_info(infos, info, i)
-        self._autoreset = terminated | truncated
+        self._autoreset = (terminated | truncated) & (not same_step)
         return np.stack(obs), rewards, terminated, truncated, infos
 
     def _advance_together(self, actions: NDArray[Any]) -> None:

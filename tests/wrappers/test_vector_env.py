@@ -120,3 +120,34 @@ def test_close_releases_every_client(no_leaks: None) -> None:
     v.close()  # twice is fine
     with pytest.raises(RuntimeError, match="closed"):
         v.step(np.zeros((3, 4), np.float32))
+
+
+def test_same_step_autoreset_returns_the_next_first_observation(
+    make_vec: Callable[..., Any], make_env: Callable[..., gym.Env]
+) -> None:
+    """autoreset_mode=SAME_STEP: the step that ends an episode returns the next episode's first
+    observation, with the last one and its info in final_obs / final_info (SyncVectorEnv's way)."""
+    from gymnasium.vector import AutoresetMode
+
+    v = make_vec(2, max_episode_steps=3, autoreset_mode=AutoresetMode.SAME_STEP)
+    assert v.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
+    single = make_env(V2, **OPTIONS, max_episode_steps=3)
+    v.reset(seed=5)
+    single.reset(seed=5)
+    zero = np.zeros((2, 4), np.float32)
+    for k in range(3):
+        obs, reward, terminated, truncated, info = v.step(zero)
+        s_obs, s_r, _, s_tr, s_info = single.step(zero[0])
+    assert truncated.all() and s_tr
+    assert info["_final_obs"].all()
+    np.testing.assert_array_equal(info["final_obs"][0], s_obs)
+    assert info["final_info"]["time"][0] == s_info["time"]
+    first, _ = single.reset()
+    np.testing.assert_array_equal(obs[0], first)
+    obs, reward, terminated, truncated, info = v.step(zero)  # no extra reset step
+    assert not truncated.any() and "final_obs" not in info
+
+
+def test_an_unknown_autoreset_mode_is_refused_by_name(make_vec: Callable[..., Any]) -> None:
+    with pytest.raises(ValueError, match="autoreset_mode"):
+        make_vec(1, autoreset_mode="whenever")

@@ -214,6 +214,7 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
         t = (ticks0 + j) * dt
         pos, vel = quad.position, quad.velocity
         quat = quad.reported_quaternion()
+        rot = quad.reported_rotation()
         omega = quad.angular_velocity
         pos_c, vel_c = pos, vel
         if nav_rows:
@@ -224,16 +225,18 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
                 )
                 pos_c[i], vel_c[i] = est_p, est_v
         if all_velocity:
-            cmd = autopilot.compute(setpoints, dt, pos_c, quat, vel_c, omega)
+            cmd = autopilot.compute(setpoints, dt, pos_c, quat, vel_c, omega, rotation=rot)
         else:  # rows on motor commands: their autopilot state stays as it was (as in World.step)
             kept = _autopilot_state(autopilot)
             cmd = np.where(
-                velocity_rows[:, None], autopilot.compute(setpoints, dt, pos_c, quat, vel_c, omega), motor_cmd
+                velocity_rows[:, None],
+                autopilot.compute(setpoints, dt, pos_c, quat, vel_c, omega, rotation=rot),
+                motor_cmd,
             )
             _restore_rows(autopilot, kept, ~velocity_rows)
         scale = None
         if ge is not None:
-            rotors = rotor_positions_batch(pos, matrices_from_quaternions(quat), motor_xy)
+            rotors = rotor_positions_batch(pos, rot, motor_xy)
             scale = thrust_scale_batch(ge, rotors, deck_top[:, j], deck_rot[:, j], half)
         external[:] = 0.0
         for i in dist_rows:
