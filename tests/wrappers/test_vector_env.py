@@ -135,7 +135,7 @@ def test_same_step_autoreset_returns_the_next_first_observation(
     v.reset(seed=5)
     single.reset(seed=5)
     zero = np.zeros((2, 4), np.float32)
-    for k in range(3):
+    for _ in range(3):
         obs, reward, terminated, truncated, info = v.step(zero)
         s_obs, s_r, _, s_tr, s_info = single.step(zero[0])
     assert truncated.all() and s_tr

@@ -95,7 +95,8 @@ def boxes_overlap_deck(
             rb = b[j1] * A[..., i, j2] + b[j2] * A[..., i, j1]
             tl = t[..., i2] * R[..., i1, j] - t[..., i1] * R[..., i2, j]
             separated |= np.abs(tl) > ra + rb
-    return ~separated.all(axis=1)
+    out: NDArray[np.bool_] = ~separated.all(axis=1)
+    return out
 
 
 def corners_world(position: NDArray[np.float64], rotation: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -269,7 +269,7 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
                 base_radius,
                 base_height,
             )
-            for i in np.flatnonzero(free & (codes != contact.NO_CONTACT)):
+            for i in np.flatnonzero(free & (codes != contact.NO_CONTACT)).tolist():
                 w = worlds[i]
                 _write_back(w, quad, i, _deck_state(deck_body, deck_quat, i, j + 1, dt))
                 touchdowns[i] = w.touchdown(contact.CONTACT_NAMES[codes[i]], tuple(prev_vel[i].tolist()))
