@@ -95,7 +95,7 @@ def boxes_overlap_deck(
             rb = b[j1] * A[..., i, j2] + b[j2] * A[..., i, j1]
             tl = t[..., i2] * R[..., i1, j] - t[..., i1] * R[..., i2, j]
             separated |= np.abs(tl) > ra + rb
-    out: NDArray[np.bool_] = ~separated.all(axis=1)
+    out: NDArray[np.bool_] = np.logical_not(separated.all(axis=1))
     return out
 
 
