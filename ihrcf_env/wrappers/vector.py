@@ -78,8 +78,8 @@ class DeckLandingVectorEnv(VectorEnv):
         self._autoreset = np.zeros(n, dtype=bool)
         self._closed_envs = False
         #: the task envs under the wrappers (their worlds advance together with numpy physics)
-        self._bases: list[DeckLandingEnv] = [env.unwrapped for env in self._envs]  # type: ignore[misc]
-        self._numpy_physics = self._bases[0].config.world.physics == "numpy"
+        self._tasks = task_envs(self._envs)
+        self._numpy_physics = self._tasks[0].config.world.physics == "numpy"
 
     @property
     def envs(self) -> tuple[gym.Env, ...]:
@@ -155,9 +155,10 @@ class DeckLandingVectorEnv(VectorEnv):
         rows = np.flatnonzero(~self._autoreset)
         if rows.size == 0:
             return
-        for i in rows:
-            self._bases[i].apply_action(actions[i])
-        worlds = [self._bases[i].world for i in rows]
+        tasks = [self._tasks[i] for i in rows]
+        for task, i in zip(tasks, rows, strict=True):
+            task.apply_action(actions[i])
+        worlds = [task.world for task in tasks]
         for world, touchdown in zip(worlds, advance(worlds), strict=True):
             world.mark_advanced(touchdown)
 
@@ -171,6 +172,17 @@ class DeckLandingVectorEnv(VectorEnv):
     def _check_open(self) -> None:
         if getattr(self, "_closed_envs", True) or not self._envs:
             raise RuntimeError("vector env is closed (close() was called): make a new one with gym.make_vec")
+
+
+def task_envs(envs: Sequence[gym.Env]) -> list[DeckLandingEnv]:
+    """The task env under each of ``envs``' wrappers. The vector env uses them for control only
+    (the actions applied, the worlds advanced together); what the envs observe still flows
+    through each env's own ``step``."""
+    out = [env.unwrapped for env in envs]
+    for env in out:
+        if not isinstance(env, DeckLandingEnv):
+            raise TypeError(f"the vector env steps DeckLandingEnv tasks, got {type(env).__name__}")
+    return out  # type: ignore[return-value]
 
 
 def vector_entry_point(env_id: str) -> Callable[..., DeckLandingVectorEnv]:
