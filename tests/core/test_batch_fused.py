@@ -108,6 +108,7 @@ CONFIGS = {
         K,
     ),
     "ihrcf_only": (FusedParams(use_atda_position=False), None),
+    "ranges_only": (FusedParams(range_only_update=True, drop_lost_track=True, max_rejections=3), K),
 }
 
 
@@ -123,6 +124,7 @@ def test_batched_fused_equals_single_filters(config: str) -> None:
     reasons_seen: set[str] = set()
     events = {"rejected": 0, "reinitialised": 0}
     few_ranges = 0
+    ranges_only = 0  # frames with an accepted range-only update
     for k in range(STEPS):
         resets = np.array([k in hist[e][1] for e in range(n)])
         for e in np.flatnonzero(resets):
@@ -146,6 +148,8 @@ def test_batched_fused_equals_single_filters(config: str) -> None:
             few_ranges += int(out.ihrcf_code[e]) == FEW_RANGES
             for key in events:
                 events[key] += bool(singles[e].diagnostics.get(key))
+            accepted = [name for name, _ in singles[e].diagnostics.get("accepted", [])]
+            ranges_only += "ranges.distance" in accepted
             diff = max(
                 np.abs(s.position - b.position).max(),
                 np.abs(s.rotation - b.rotation).max(),
@@ -170,6 +174,7 @@ def test_batched_fused_equals_single_filters(config: str) -> None:
     ):  # fmt: skip
         assert part in text, part
     assert events["rejected"] > 0 and few_ranges > 0
+    assert (ranges_only > 20) == params.range_only_update, ranges_only
     assert valid_rows > n * STEPS * 0.4
 
 

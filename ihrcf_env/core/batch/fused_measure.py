@@ -22,6 +22,7 @@ from ihrcf_env.core.batch.geometry import matrix_from_euler_batch
 from ihrcf_env.core.batch.ihrcf import ihrcf_measure_batch
 from ihrcf_env.core.batch.imm import BatchImm
 from ihrcf_env.core.batch.pnp import PnPCandidates, pnp_candidates, pnp_choose
+from ihrcf_env.core.estimators.fused_ranges import ranges_distance, ranges_plane, ranges_tilt
 from ihrcf_env.core.frames import R_BODY_CAM
 
 if TYPE_CHECKING:
@@ -78,18 +79,21 @@ def measure(
     parts = MeasureParts(np.zeros(n, np.int8), np.zeros(n, np.int8), np.zeros(n), np.zeros(n, np.int8))
     det = go & frames.detected
     parts.inner[go & ~frames.detected] = fr.CORNERS
-    D = np.flatnonzero(det)
-    if D.size == 0:
-        return parts
     pos, att = bf.pos, bf.att
     offset_state = p.range_offset_sigma > 0 and bf.K is not None and p.use_atda_position
     ranges = frames.ranges - bf.bias[:, 0:1] if offset_state else frames.ranges.copy()
     shift = t - frames.ranges_time
-    i = np.flatnonzero(det & pos.alive & (shift != 0.0) & ~np.isnan(shift))
+    moved = det | (go & p.range_only_update)
+    i = np.flatnonzero(moved & pos.alive & (shift != 0.0) & ~np.isnan(shift))
     if i.size:
         v = pos.x(i)[:, 3:6]
         v_cam = np.einsum("ji,nkj,nk->ni", R_BODY_CAM, R_wb[i], v)
         ranges[i] += v_cam[:, 2:3] * shift[i, None]
+    if p.range_only_update:
+        range_only(bf, frames, go & ~frames.detected, ranges, t, R_wb)
+    D = np.flatnonzero(det)
+    if D.size == 0:
+        return parts
     # IHRCF up to its corners, then its rigid fit
     ih = ihrcf_measure_batch(
         frames.corners[D], ranges[D], frames.ranges_valid[D], np.ones(D.size, bool),
@@ -128,6 +132,8 @@ def measure(
         bf.atda_prior[took], bf.has_prior[took] = est.rotation[est.valid], True
     fail = det & ~ih_valid & ~at_valid
     parts.inner[fail] = fr.BOTH_FAILED
+    if p.range_only_update:
+        range_only(bf, frames, fail, ranges, t, R_wb)
     cont = det & ~fail
     # a filter whose every measurement was rejected for max_rejections frames has lost track
     for kf in (att, pos):
@@ -199,6 +205,11 @@ def measure(
         kf.frames[m] += acc[m]
         kf.rejected_run[m] = np.where(acc[m], 0, kf.rejected_run[m] + 1)
         kf.last_accepted[m & acc] = t[m & acc]
+    if p.drop_lost_track:  # a filter that lost track is not coasted on
+        for kf in (att, pos):
+            m = cont & kf.alive & (kf.rejected_run >= p.max_rejections)
+            kf.drop(m)
+            bf.converged[m] = False
     rejected = cont & (A.ok + P.ok == 0)
     parts.inner[rejected] = fr.ALL_REJECTED
     parts.inner[cont & ~rejected & ~ih_valid] = fr.IHRCF_FAILED
@@ -241,3 +252,45 @@ def _range_offset(bf: BatchFused, i: Rows, p_ihrcf: F64, used: NDArray[np.bool_]
     bf.bias[i] = bias + Kg * nu[:, None]
     P = P - Kg[:, :, None] * (H @ P)[:, None, :]
     bf.bias_P[i] = 0.5 * (P + P.transpose(0, 2, 1))
+
+
+def range_only(
+    bf: BatchFused, frames: BatchFrames, rows: NDArray[np.bool_], ranges: F64, t: F64, R_wb: F64
+) -> None:
+    """``FusedEstimator._range_only`` of the rows ``rows`` (frames without a tag measurement):
+    the tilt and the distance along the normal of the ranges' plane; no counter changes."""
+    p, pos, att, xy = bf.params, bf.pos, bf.att, bf.rig.sensor_xy_cam
+    cand = np.flatnonzero(rows & pos.alive & att.alive)
+    normals, used = np.zeros((bf.n, 3)), np.zeros((bf.n, 4), dtype=bool)
+    has = np.zeros(bf.n, dtype=bool)
+    for k in cand:
+        plane = ranges_plane(ranges[k], frames.ranges_valid[k], xy)
+        if plane is not None:
+            normals[k], used[k], has[k] = plane[0], plane[1], True
+    full = has & used.all(axis=1)
+    _range_noise(bf, frames, full)
+    with np.errstate(invalid="ignore"):
+        twist = (ranges @ bf.residual_direction) ** 2
+    has &= ~(full & (twist > bf.gate[1] * bf.range_sigma**2))
+    i = np.flatnonzero(has)
+    if i.size == 0:
+        return
+    sigma_r = bf.range_sigma[i]
+    tilt_var = bf.blocks.plane(used[i], sigma_r)[1] + p.ihrcf_tilt_floor**2
+    yaw = att.x(i)[:, 2]
+    z = np.array([ranges_tilt(normals[k], R_wb[k], float(w)) for k, w in zip(i, yaw, strict=True)])
+    R = np.zeros((i.size, 2, 2))
+    R[:, 0, 0] = R[:, 1, 1] = tilt_var
+    att.update(i, z, (0, 2), R, np.full(i.size, bf.gate[2]))
+    C = att.value_cov(i)
+    tilt = np.maximum(C[:, 0, 0], C[:, 1, 1])
+    R_bd = _filtered_R_bd(att, i, R_wb)
+    r = pos.x(i)[:, 0:3]
+    cam = np.array(bf.rig.camera_position, dtype=np.float64)
+    zd, h, var = np.zeros(i.size), np.zeros((i.size, 3)), np.zeros(i.size)
+    for j, k in enumerate(i):
+        zd[j], h[j], var[j] = ranges_distance(
+            ranges[k], used[k], xy, cam, R_bd[j], R_wb[k], r[j], float(sigma_r[j]), float(tilt[j]),
+            p.ihrcf_depth_floor**2,
+        )  # fmt: skip
+    pos.update_along(i, zd, h, var, np.full(i.size, bf.gate[1]))

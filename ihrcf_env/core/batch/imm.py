@@ -254,6 +254,40 @@ class BatchImm:
             self.mu[j] = w / w.sum(axis=1, keepdims=True)
         return ok, d2
 
+    def update_along(self, i: Rows, z: F64, h: F64, var: F64, gate: F64) -> tuple[NDArray[np.bool_], F64]:
+        """:meth:`Imm.update_along` of rows ``i``: ``h @ values = z`` with ``z`` (len(i),), ``h``
+        (len(i), 3), variance ``var`` (len(i),), gated at ``gate`` (len(i),; inf: not gated).
+        Returns (accepted, squared Mahalanobis distance), each (len(i),)."""
+        mu, Ps, X = self.mu[i], self.Ps[i], self.X[i]
+        NU = z[:, None] - np.einsum("nmk,nk->nm", X[:, :, 0:3], h)
+        PHt = np.einsum("nmik,nk->nmi", Ps[:, :, :, 0:3], h)
+        Ss = np.einsum("nmk,nk->nm", PHt[:, :, 0:3], h) + var[:, None]
+        nu = np.einsum("nm,nm->n", mu, NU)
+        dev = NU - nu[:, None]
+        S = np.einsum("nm,nm->n", mu, Ss) + np.einsum("nm,nm->n", mu, dev * dev)
+        with np.errstate(all="ignore"):
+            d2 = np.where(S > 0.0, nu * nu / np.where(S > 0.0, S, 1.0), np.inf)
+        d2 = np.where(np.isfinite(d2), d2, np.inf)
+        ok = np.isfinite(d2) & ~(d2 > gate)
+        pd = (Ss > 0.0).all(axis=1)
+        d2 = np.where(ok & ~pd, np.inf, d2)
+        ok &= pd
+        if not ok.any():
+            return ok, d2
+        j = i[ok]
+        mu, Ps, X, NU, PHt, Ss = mu[ok], Ps[ok], X[ok], NU[ok], PHt[ok], Ss[ok]
+        y = NU / Ss
+        self.X[j] = X + PHt * y[:, :, None]
+        Ps = Ps - (PHt[:, :, :, None] * PHt[:, :, None, :]) / Ss[:, :, None, None]
+        self.Ps[j] = 0.5 * (Ps + Ps.transpose(0, 1, 3, 2))
+        if mu.shape[1] > 1:
+            loglik = NU * y + np.log(Ss)
+            best = loglik.min(axis=1, keepdims=True)
+            w = mu * np.exp(0.5 * (best - loglik))
+            w = np.maximum(w / w.sum(axis=1, keepdims=True), 1e-12)
+            self.mu[j] = w / w.sum(axis=1, keepdims=True)
+        return ok, d2
+
     def assign(self, i: Rows, other: BatchImm) -> None:
         """Rows ``i`` of this bank set to those of ``other`` (same models)."""
         for name in ("X", "Ps", "mu", "alive", "frames", "rejected_run", "last_accepted"):

@@ -25,8 +25,9 @@ from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.estimators.atda import atda_choose, atda_frame_candidates
 from ihrcf_env.core.estimators.base import ImuSample, PoseEstimate, SensorFrame
 from ihrcf_env.core.estimators.fused_delay import imu_sample, predict_ahead
-from ihrcf_env.core.estimators.fused_measurements import Measurement, MeasurementBlocks
+from ihrcf_env.core.estimators.fused_measurements import Measurement, MeasurementBlocks, plane_covariance
 from ihrcf_env.core.estimators.fused_params import FusedParams
+from ihrcf_env.core.estimators.fused_ranges import ranges_distance, ranges_plane, ranges_tilt
 from ihrcf_env.core.estimators.ihrcf import IHRCFCorners, TouchPixels, ihrcf_measure
 from ihrcf_env.core.estimators.imm import Imm
 from ihrcf_env.core.frames import R_BODY_CAM, as_array, matrix_from_euler
@@ -267,14 +268,16 @@ class FusedEstimator:
         """Run IHRCF / ATDA on the frame and update (or initialise) the filter. Returns the reason
         when nothing could be measured ('' otherwise)."""
         p = self.params
-        if frame.corners is None:
-            return frame.corners_reason
         offset_state = p.range_offset_sigma > 0 and self.K is not None and p.use_atda_position
         ranges = frame.ranges - self._bias[0] if offset_state else frame.ranges
         shift = t - frame.ranges_time  # ranges measured at another time: moved to t (NaN: at t)
         if shift != 0.0 and not math.isnan(shift) and self._pos is not None:
             v_cam = R_BODY_CAM.T @ (R_wb.T @ self._pos.x[3:6])  # depth rate of the deck, m/s
             ranges = ranges + float(v_cam[2]) * shift
+        if frame.corners is None:
+            if p.range_only_update:
+                self._range_only(frame, ranges, R_wb, t)
+            return frame.corners_reason
         # IHRCF up to its 3-D corners, then its own rigid fit
         corners, ihrcf_est = ihrcf_measure(
             frame, ranges, self.touch_pixels, self.rig, self.tag_size, self.max_residual
@@ -305,6 +308,8 @@ class FusedEstimator:
                 atda = est
                 self._atda_prior = np.array(est.rotation)
         if ihrcf is None and atda is None:
+            if p.range_only_update:
+                self._range_only(frame, ranges, R_wb, t)
             return f"IHRCF: {ihrcf_reason}; ATDA: {atda_reason}"
 
         # a filter whose every measurement was rejected for max_rejections frames has lost track
@@ -383,10 +388,50 @@ class FusedEstimator:
                 kf.rejected_run = 0 if ok else kf.rejected_run + 1
                 if ok:
                     kf.last_accepted = t
+        if p.drop_lost_track:  # a filter that lost track is not coasted on
+            for key in ("_att", "_pos"):
+                kf = getattr(self, key)
+                if kf is not None and kf.rejected_run >= p.max_rejections:
+                    setattr(self, key, None)
+                    self._converged = False
+                    self.diagnostics["reinitialised"].append(key[1:])
         self.diagnostics["range_sigma"] = sigma_r
         if not (att_ok or pos_ok):
             return "every measurement rejected by the gate"
         return "" if ihrcf is not None else f"IHRCF: {ihrcf_reason}"
+
+    def _range_only(
+        self, frame: SensorFrame, ranges: NDArray[np.float64], R_wb: NDArray[np.float64], t: float
+    ) -> None:
+        """The range-only update (``range_only_update``, a frame without a tag measurement): the
+        deck's tilt and its distance along the normal from >= 3 valid ranges on one plane (four:
+        their plane-fit residual within the 1-dof gate); lateral position and yaw coast, and the
+        counters of the timeouts and of the rejections are left alone."""
+        pos, att = self._pos, self._att
+        plane = ranges_plane(ranges, frame.ranges_valid, self.rig.sensor_xy_cam)
+        if pos is None or att is None or plane is None:
+            return
+        normal, used = plane
+        if used.all():
+            self._update_range_noise(frame)
+            if float(self._residual_direction @ ranges) ** 2 > self._gate[1] * self.range_sigma**2:
+                self.diagnostics["rejected"].append(("ranges.plane", math.inf))
+                return
+        p, sigma_r = self.params, self.range_sigma
+        _, tilt_var = plane_covariance(self.rig.sensor_xy_cam[used], sigma_r)
+        tilt_var += p.ihrcf_tilt_floor**2
+        z = ranges_tilt(normal, R_wb, float(att.x[2]))
+        ok, d2 = att.update(z, (0, 2), np.diag([tilt_var, tilt_var]), self._gate[2])
+        self.diagnostics["accepted" if ok else "rejected"].append(("ranges.tilt", round(d2, 3)))
+        C = att.value_cov
+        R_bd = R_wb.T @ matrix_from_euler(*att.x[0:3])
+        zd, h, var = ranges_distance(
+            ranges, used, self.rig.sensor_xy_cam, self._blocks.camera_position, R_bd, R_wb,
+            pos.x[0:3], sigma_r, float(max(C[0, 0], C[1, 1])), p.ihrcf_depth_floor**2,
+        )  # fmt: skip
+        ok, d2 = pos.update_along(zd, h, var, self._gate[1])
+        self.diagnostics["accepted" if ok else "rejected"].append(("ranges.distance", round(d2, 3)))
+        self.diagnostics["lateral_coasting"] = t - pos.last_accepted
 
     def _output(
         self, R_wb: NDArray[np.float64], reason: str, pos: Imm | None = None, att: Imm | None = None

@@ -96,6 +96,11 @@ class MeasurementBlocks:
         self.max_residual = max_residual
         self._camera_position = np.array(rig.camera_position, dtype=np.float64)
 
+    @property
+    def camera_position(self) -> NDArray[np.float64]:
+        """The camera's position in the body frame (3,), m."""
+        return self._camera_position
+
     def depth_scale(self, depth: float) -> float:
         """``depth`` (m, floored at 1 mm) over the parameters' reference depth."""
         return max(depth, 1e-3) / self.params.reference_depth

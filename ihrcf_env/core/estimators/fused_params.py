@@ -73,6 +73,15 @@ class FusedParams:
         lost_timeout: seconds without an accepted measurement after which a filter (position or
             attitude) drops its state and the output turns invalid.
         nominal_dt: frame interval assumed when a frame's time is unknown (NaN), s.
+    Options (off by default):
+        range_only_update: in a frame without a tag measurement (no corners, or neither IHRCF nor
+            ATDA gave an estimate) but with at least three valid ranges on one plane, update the
+            deck's tilt and its distance along the plane's normal from the ranges alone; the
+            lateral position and the yaw coast on the IMU, and ``lost_timeout`` still counts from
+            the last tag measurement (see ``docs/fused.md``).
+        drop_lost_track: a filter whose every measurement was rejected for ``max_rejections``
+            frames is dropped at once (the output turns invalid until a measurement starts it
+            again) instead of coasting, still valid, until the next frame with a measurement.
     """
 
     tof_sigma: float = 0.010
@@ -111,6 +120,8 @@ class FusedParams:
     valid_angle_sigma: float = 3.0 * _DEG
     lost_timeout: float = 1.0
     nominal_dt: float = 0.05
+    range_only_update: bool = False
+    drop_lost_track: bool = False
 
     def __post_init__(self) -> None:
         for f in fields(self):

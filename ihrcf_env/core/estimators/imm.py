@@ -259,6 +259,40 @@ class Imm:
         self._changed()
         return True, d2
 
+    def update_along(
+        self, z: float, h: NDArray[np.float64], var: float, gate: float | None
+    ) -> tuple[bool, float]:
+        """Measure one combination of the values, ``h @ values = z`` (``h`` (3,), variance ``var``),
+        gated on the combined estimate as :meth:`update`; the values orthogonal to ``h`` are
+        corrected only through their covariance with it. Not for angles. Returns (accepted,
+        squared distance)."""
+        mu, Ps = self.mu, self.Ps
+        NU = z - self.X[:, 0:3] @ h  # (n,) innovation of each model
+        PHt = Ps[:, :, 0:3] @ h  # (n, 9) = P H^T
+        Ss = PHt[:, 0:3] @ h + var  # (n,) innovation variance of each model
+        nu = float(mu @ NU)
+        dev = NU - nu
+        S = float(mu @ Ss + mu @ (dev * dev))
+        d2 = nu * nu / S if S > 0.0 else math.inf
+        if not math.isfinite(d2) or (gate is not None and d2 > gate):
+            return False, d2
+        if not bool((Ss > 0.0).all()):
+            return False, math.inf
+        y = NU / Ss
+        self.X = self.X + PHt * y[:, None]
+        Ps = Ps - (PHt[:, :, None] * PHt[:, None, :]) / Ss[:, None, None]
+        self.Ps = 0.5 * (Ps + Ps.transpose(0, 2, 1))
+        if len(mu) > 1:
+            loglik = (NU * y + np.log(Ss)).tolist()  # -2 log L
+            best = min(loglik)
+            w = [m * math.exp(0.5 * (best - ll)) for m, ll in zip(mu.tolist(), loglik, strict=True)]
+            total = sum(w)
+            w = [max(x / total, 1e-12) for x in w]
+            total = sum(w)
+            self.mu = np.array([x / total for x in w])
+        self._changed()
+        return True, d2
+
     def finite(self) -> bool:
         return bool(np.isfinite(self.X).all() and np.isfinite(self.Ps).all() and np.isfinite(self.mu).all())
 
