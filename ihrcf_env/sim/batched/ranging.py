@@ -46,6 +46,21 @@ class BatchedToF:
         f, n = self_hits(starts, dirs, self.max_range)
         return starts, dirs, f, n
 
+    def cone_hits(
+        self,
+        position: NDArray[np.float64],
+        rotation: NDArray[np.float64],
+        deck_position: NDArray[np.float64],
+        deck_rotation: NDArray[np.float64],
+    ) -> tuple[RayHits, NDArray[np.float64], NDArray[np.float64]]:
+        """Realistic model only: the hits (N, 4 rays) of the cones' rays (sensor by sensor), their
+        world starts and directions (N, 4 rays, 3)."""
+        if self.model is None:
+            raise RuntimeError("cone_hits needs the realistic ToF model (tof_noise='realistic')")
+        h, dirs = self._cast(self._cone, position, rotation, deck_position, deck_rotation)
+        starts = to_world(np.broadcast_to(self._cone[0], dirs.shape), rotation) + position[:, None, :]
+        return h, starts, dirs
+
     def _cast(
         self,
         rays: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
