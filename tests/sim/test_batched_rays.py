@@ -135,7 +135,8 @@ def test_rays_match_pybullet(world):
         worst_deck = max(worst_deck, deg[clean & ~on_base].max())
         worst_base = max(worst_base, deg[clean & on_base].max())
     print(
-        f"max |d| cos(i) {worst_perp:.3g} m, normal: deck/ground {worst_deck:.3g} deg, base {worst_base:.3g} deg"
+        f"max |d| cos(i) {worst_perp:.3g} m, normal: deck/ground {worst_deck:.3g} deg, "
+        f"base {worst_base:.3g} deg"
     )
     assert worst_perp <= EPS
     assert worst_deck <= NORMAL_DEG_FLAT
