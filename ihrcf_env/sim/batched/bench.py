@@ -13,6 +13,10 @@ Rows (microseconds per drone per physics substep):
   contacts checked) divided by its substeps.
 
 PyBullet is imported only by the two PyBullet rows.
+
+``--rays``: the cost per drone of one reading of the four ToF sensors' cones (the realistic
+VL53L1X model, noise-free: ``cone_ranges``) instead, by :mod:`~ihrcf_env.sim.batched.ranging` at
+several N against PyBullet's ``rayTestBatch`` in one world (``ToFArray.cone_ranges``).
 """
 
 from __future__ import annotations
@@ -104,10 +108,59 @@ def bench_world(control_steps: int) -> float:
         world.close()
 
 
+def bench_rays(repeats: int) -> None:
+    """Print microseconds per drone of the four cones' noise-free readings."""
+    import pybullet as p
+    from scipy.spatial.transform import Rotation
+
+    from ihrcf_env.sim.batched.ranging import BatchedToF, cone_ranges_batch
+    from ihrcf_env.sim.batched.rays import RayScene
+    from ihrcf_env.sim.sensors.tof import ToFArray, ToFConfig
+    from ihrcf_env.sim.world import World, WorldConfig
+
+    world = World(WorldConfig(camera=None))
+    try:
+        cfg, tof_cfg = world.config, ToFConfig(noise="realistic")
+        scene = RayScene.of(
+            cfg.deck.size, cfg.deck.thickness, cfg.stewart.base_radius, cfg.stewart.base_height
+        )
+        tof = BatchedToF(cfg.rig.sensor_positions_body, tof_cfg.max_range, scene, tof_cfg.model)
+        rng = np.random.default_rng(0)
+        dp, dR = world.deck.pose()
+        rays = 4 * tof_cfg.model.rays if tof_cfg.model is not None else 4
+        print(f"microseconds per drone per reading of the four ToF cones ({rays} rays)")
+        for n in SIZES:
+            pos = dp + np.column_stack([rng.uniform(-0.5, 0.5, (n, 2)), rng.uniform(0.3, 2.0, n)])
+            R = Rotation.from_euler("xyz", rng.uniform(-0.3, 0.3, (n, 3))).as_matrix()
+            deck = (np.tile(dp, (n, 1)), np.tile(dR, (n, 1, 1)))
+            cone_ranges_batch(tof, pos, R, *deck)  # warm-up
+            t0 = time.perf_counter()
+            for _ in range(repeats):
+                cone_ranges_batch(tof, pos, R, *deck)
+            print(f"{'closed form N=' + str(n):<24}{(time.perf_counter() - t0) / (repeats * n) * 1e6:>10.2f}")
+        bullet = ToFArray(world.client, tof_cfg, cfg.rig)
+        quat = Rotation.from_euler("xyz", [0.1, -0.05, 0.3]).as_quat().tolist()
+        p.resetBasePositionAndOrientation(
+            world.quad.body, (dp + [0.1, 0.0, 1.0]).tolist(), quat, physicsClientId=world.client
+        )
+        pos1, R1 = world.drone_pose()
+        bullet.cone_ranges(pos1, R1)
+        t0 = time.perf_counter()
+        for _ in range(repeats):
+            bullet.cone_ranges(pos1, R1)
+        print(f"{'pybullet rayTestBatch':<24}{(time.perf_counter() - t0) / repeats * 1e6:>10.2f}")
+    finally:
+        world.close()
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=2.0, help="simulated seconds per row (default 2)")
+    parser.add_argument("--rays", action="store_true", help="benchmark the ToF sensors' ray casts instead")
     args = parser.parse_args(argv)
+    if args.rays:
+        bench_rays(max(10, int(round(args.seconds * 100))))
+        return
     steps = max(10, int(round(args.seconds / DT)))
     us = 1e6
     print("microseconds per drone per physics substep (240 Hz)")

@@ -39,6 +39,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pybullet as p
@@ -48,6 +49,10 @@ from ihrcf_env.core.checks import check_fields, check_int, check_real, set_field
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.sim.noise import NoiseModel, NoNoise
 from ihrcf_env.sim.sensors.base import BodyState
+
+if TYPE_CHECKING:
+    from ihrcf_env.sim.batched.ranging import BatchedToF
+    from ihrcf_env.sim.deck import Deck
 
 #: Ranges of ST's long distance mode used to calibrate :class:`VL53L1X`'s SNR model: an 88 %
 #: (white) target, 33 ms timing budget, full 16x16 SPAD region of interest.
@@ -189,14 +194,33 @@ class ToFArray:
     Ideal: one ray per sensor, then ``noise`` (default: none) corrupts the ranges. Realistic: the
     :class:`VL53L1X` cone model (its own noise and validity), then ``noise`` (default: none).
     Readings outside ``[min_range, max_range]`` are invalid; invalid readings read ``max_range``.
+
+    The rays are cast with PyBullet's ``rayTestBatch`` against the client's bodies, or, given the
+    world's ``deck`` (its plate and base are then the scene, with the ground and the drone's own
+    collision boxes), in closed form (:mod:`ihrcf_env.sim.batched.ranging`), the deck's pose read
+    from its body at each reading.
     """
 
     name = "tof"
 
     def __init__(
-        self, client: int, config: ToFConfig, rig: SensorRig, noise: NoiseModel | None = None
+        self,
+        client: int,
+        config: ToFConfig,
+        rig: SensorRig,
+        noise: NoiseModel | None = None,
+        deck: Deck | None = None,
     ) -> None:
         self.client = client
+        self.deck = deck
+        self.closed_form: BatchedToF | None = None
+        if deck is not None:
+            from ihrcf_env.sim.batched.ranging import BatchedToF
+            from ihrcf_env.sim.batched.rays import RayScene
+
+            g = deck.geometry
+            scene = RayScene.of(deck.config.size, deck.config.thickness, g.base_radius, g.base_height)
+            self.closed_form = BatchedToF(rig.sensor_positions_body, config.max_range, scene, config.model)
         self.config = config
         self._pos_body = rig.sensor_positions_body
         self.model = config.model
@@ -220,6 +244,9 @@ class ToFArray:
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         """Noise-free ranges (m) of the four beam axes (one ray each, along body -z) and hit flags.
         Misses read ``max_range``."""
+        if self.closed_form is not None:
+            ranges, hit = self.closed_form.true_ranges(pos[None], R_wb[None], *self._deck_pose())
+            return ranges[0], hit[0]
         starts = self._pos_body @ R_wb.T + pos
         ends = starts - R_wb[:, 2] * self.config.max_range
         hits = p.rayTestBatch(starts.tolist(), ends.tolist(), physicsClientId=self.client)
@@ -237,6 +264,9 @@ class ToFArray:
         ``nan`` for a miss) and return signal ``rho cos(incidence) / length^2`` (0 for a miss)."""
         if self.model is None:
             raise RuntimeError("cone_returns needs the realistic ToF model (tof_noise='realistic')")
+        if self.closed_form is not None:
+            r, s = self.closed_form.cone_returns(pos[None], R_wb[None], *self._deck_pose())
+            return r[0], s[0]
         n = self.model.rays
         length = self.config.max_range
         starts = np.repeat(self._pos_body @ R_wb.T + pos, n, axis=0)
@@ -249,6 +279,12 @@ class ToFArray:
         cos_i = np.abs(np.einsum("ij,ij->i", h[:, 2:], dirs_w))
         signal = np.where(hit, self.model.reflectance * cos_i / r**2, 0.0)
         return np.where(hit, r, np.nan).reshape(4, n), signal.reshape(4, n)
+
+    def _deck_pose(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The deck frame's pose now, stacked for one world: ((1, 3), (1, 3, 3))."""
+        assert self.deck is not None
+        pos, R = self.deck.pose()
+        return pos[None], R[None]
 
     def cone_ranges(
         self, pos: NDArray[np.float64], R_wb: NDArray[np.float64]
