@@ -38,6 +38,7 @@ from ihrcf_env.experiments.vector_speed import (
     single_speed,
     vector_speed,
 )
+from ihrcf_env.sim.world import PHYSICS_BACKENDS
 from ihrcf_env.wrappers.vector import MAX_ENVS
 
 MILD_DISTORTION = (-0.05, 0.0)
@@ -92,7 +93,8 @@ def _vector_report(args: argparse.Namespace, cores: list[int] | None) -> list[st
     pinned = "pinned to one core" if cores else "not pinned"
     head = (
         f"{args.id}, camera_model=projected, {args.actions} actions: single env {args.steps} steps, "
-        f"vector env {args.vector_steps} steps per N, {args.warmup} untimed first ({pinned})"
+        f"vector env ({args.physics} physics) {args.vector_steps} steps per N, {args.warmup} untimed "
+        f"first ({pinned})"
     )
     print(head, flush=True)
     single = single_speed(steps=args.steps, **common)
@@ -100,10 +102,13 @@ def _vector_report(args: argparse.Namespace, cores: list[int] | None) -> list[st
     rows = []
     for n in ns:
         for p in args.processes:
+            physics = {"physics": args.physics}
             if p == 1:
-                row = vector_speed(num_envs=n, steps=args.vector_steps, **common)
+                row = vector_speed(num_envs=n, steps=args.vector_steps, **common, **physics)
             else:
-                row = process_speed(num_envs=n, processes=p, steps=args.vector_steps, cores=cores, **common)
+                row = process_speed(
+                    num_envs=n, processes=p, steps=args.vector_steps, cores=cores, **common, **physics
+                )
             print(f"N={n}, {p} process(es): {row.env_steps_per_s:.1f} env-steps/s", flush=True)
             rows.append(row)
     table = markdown_table(single, rows)
@@ -196,6 +201,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --vector: also P processes, each with its own vector env of N on its own core",
     )
     vec.add_argument("--id", default=ihrcf_env.LANDING_V1_ID, choices=ihrcf_env.VECTOR_IDS, help="env id")
+    vec.add_argument(
+        "--physics",
+        choices=PHYSICS_BACKENDS,
+        default="numpy",
+        help="the vector env's physics (the single env runs the default, pybullet)",
+    )
     vec.add_argument("--vector-steps", type=int_in(1), default=20, help="timed vector steps per N")
     vec.add_argument("--warmup", type=int_in(0), default=5, help="untimed steps before each timing")
     vec.add_argument("--actions", choices=ACTIONS, default="random", help="actions of the timed steps")
