@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import math
 import os
 import sys
@@ -100,17 +101,25 @@ def _vector_report(args: argparse.Namespace, cores: list[int] | None) -> list[st
     single = single_speed(steps=args.steps, **common)
     print(f"single env: {single:.1f} steps/s", flush=True)
     rows = []
+    # the same N envs (and seeds) with PyBullet's physics: the envs stepped in turn
+    backends = ("pybullet", args.physics) if args.physics != "pybullet" else ("pybullet",)
     for n in ns:
         for p in args.processes:
-            physics = {"physics": args.physics}
-            if p == 1:
-                row = vector_speed(num_envs=n, steps=args.vector_steps, **common, **physics)
-            else:
-                row = process_speed(
-                    num_envs=n, processes=p, steps=args.vector_steps, cores=cores, **common, **physics
-                )
-            print(f"N={n}, {p} process(es): {row.env_steps_per_s:.1f} env-steps/s", flush=True)
-            rows.append(row)
+            for physics in backends:
+                if p == 1:
+                    row = vector_speed(num_envs=n, steps=args.vector_steps, **common, physics=physics)
+                else:
+                    row = process_speed(
+                        num_envs=n,
+                        processes=p,
+                        steps=args.vector_steps,
+                        cores=cores,
+                        **common,
+                        physics=physics,
+                    )
+                row = dataclasses.replace(row, physics=physics)
+                print(f"N={n}, {physics}, {p} process(es): {row.env_steps_per_s:.1f} env-steps/s", flush=True)
+                rows.append(row)
     table = markdown_table(single, rows)
     print()
     print("\n".join(table))

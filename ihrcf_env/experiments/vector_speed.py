@@ -41,6 +41,7 @@ class VectorSpeed:
     processes: int
     cores: int
     env_steps_per_s: float
+    physics: str = ""  # the vector env's physics option ("" when not given)
 
     def ratio(self, single_steps_per_s: float) -> float:
         """Env steps per second per core over the single env's steps per second (one core)."""
@@ -215,13 +216,13 @@ def process_speed(
 def markdown_table(single_steps_per_s: float, rows: Sequence[VectorSpeed]) -> list[str]:
     """The table's lines: the single env first (N and processes "-"), then one row per run."""
     lines = [
-        "| N | processes | env-steps/s | per core | ratio to single (per core) |",
-        "|---|---|---|---|---|",
-        f"| single env | 1 | {single_steps_per_s:.1f} | {single_steps_per_s:.1f} | 1.00 |",
+        "| N | physics | processes | env-steps/s | per core | ratio to single (per core) |",
+        "|---|---|---|---|---|---|",
+        f"| single env | pybullet | 1 | {single_steps_per_s:.1f} | {single_steps_per_s:.1f} | 1.00 |",
     ]
     for r in rows:
         lines.append(
-            f"| {r.num_envs} | {r.processes} | {r.env_steps_per_s:.1f} | "
+            f"| {r.num_envs} | {r.physics or '-'} | {r.processes} | {r.env_steps_per_s:.1f} | "
             f"{r.env_steps_per_s / r.cores:.1f} | {r.ratio(single_steps_per_s):.2f} |"
         )
     return lines

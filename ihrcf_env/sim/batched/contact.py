@@ -99,6 +99,13 @@ def boxes_overlap_deck(
     return out
 
 
+@functools.lru_cache(maxsize=1)
+def drone_radius() -> float:
+    """Radius (m) of the sphere about the body origin that holds every collision box (a margin
+    added): no contact is possible while it stays clear of a surface."""
+    return float(np.linalg.norm(drone_corners(), axis=1).max()) + 0.01
+
+
 def corners_world(position: NDArray[np.float64], rotation: NDArray[np.float64]) -> NDArray[np.float64]:
     """(N, K, 3) world positions (m) of the drones' collision corners, for drones at ``position``
     (N, 3) with ``rotation`` (N, 3, 3), world from body."""

@@ -34,11 +34,15 @@ from ihrcf_env.sim.batched.dynamics import BatchedQuadrotor
 from ihrcf_env.sim.batched.floatmath import matrices_from_quaternions
 from ihrcf_env.sim.batched.surface import rotor_positions_batch, thrust_scale_batch
 from ihrcf_env.sim.deck import angular_velocity_between
-from ihrcf_env.sim.disturbances import disturbance_force
+from ihrcf_env.sim.disturbances import ConstantForce, Wind, disturbance_force
 
 if TYPE_CHECKING:
     from ihrcf_env.sim.drone import VelocityController
     from ihrcf_env.sim.world import Touchdown, World
+
+
+#: Disturbance types whose forces are checked floats by construction.
+TRUSTED_DISTURBANCES: tuple[type, ...] = (Wind, ConstantForce)
 
 
 def _check_group(worlds: Sequence[World]) -> None:
@@ -202,6 +206,8 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
     on_deck = np.zeros(n, dtype=bool)
     nav_rows = [i for i, w in enumerate(worlds) if not w.navigation.ideal]
     dist_rows = [i for i, w in enumerate(worlds) if w.disturbances]
+    clocked_rows = [i for i in range(n) if due[i]]
+    reach = contact.drone_radius()
     ge = worlds[0].ground_effect
     half = worlds[0].deck.top_half_extent
     base_radius = cfg.stewart.base_radius + 0.06
@@ -243,34 +249,44 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
             fx = fy = fz = 0.0
             ti, pi, vi = float(t[i]), tuple(pos[i].tolist()), tuple(vel[i].tolist())
             for d in worlds[i].disturbances:
-                f = disturbance_force(d, ti, pi, vi)
+                # the simulator's own disturbances return checked floats: no need to check them again
+                f = d(ti, pi, vi) if type(d) in TRUSTED_DISTURBANCES else disturbance_force(d, ti, pi, vi)
                 fx, fy, fz = fx + f[0], fy + f[1], fz + f[2]
             external[i] = (fx, fy, fz)
         prev_vel = quad.velocity.copy()
         quad.step(cmd, dt, thrust_scale=scale, force=external if dist_rows else None)
         if latched.any():
             _rest(quad, np.flatnonzero(latched), on_deck, rel_pos, rel_quat, deck_top, deck_quat, j, dt)
-        for w in worlds:
-            w.tick += 1
-        for i in range(n):
+        for i in clocked_rows:
             names = due[i].get(int(ticks0[i]) + j + 1)
             if names:
+                worlds[i].tick = int(ticks0[i]) + j + 1
                 _write_back(worlds[i], quad, i, _deck_state(deck_body, deck_quat, i, j + 1, dt))
                 worlds[i]._sample_clocked(names, tuple(prev_vel[i].tolist()))
-        free = ~latched
-        if free.any():
-            codes = contact.first_contact(
-                quad.position,
-                matrices_from_quaternions(quad.quaternion),
-                deck_top[:, j + 1],
-                deck_rot[:, j + 1],
+        # contacts: only drones whose bounding sphere reaches the deck's plane or the ground
+        near = ~latched & (
+            (quad.position[:, 2] < reach + base_height)
+            | (
+                _plane_distance(quad.position, deck_top[:, j + 1], deck_rot[:, j + 1])
+                < reach + cfg.deck.thickness
+            )
+        )
+        if near.any():
+            rows = np.flatnonzero(near)
+            codes = np.zeros(n, dtype=np.int8)
+            codes[rows] = contact.first_contact(
+                quad.position[rows],
+                matrices_from_quaternions(quad.quaternion[rows]),
+                deck_top[rows, j + 1],
+                deck_rot[rows, j + 1],
                 half,
                 cfg.deck.thickness,
                 base_radius,
                 base_height,
             )
-            for i in np.flatnonzero(free & (codes != contact.NO_CONTACT)).tolist():
+            for i in np.flatnonzero(codes != contact.NO_CONTACT).tolist():
                 w = worlds[i]
+                w.tick = int(ticks0[i]) + j + 1
                 _write_back(w, quad, i, _deck_state(deck_body, deck_quat, i, j + 1, dt))
                 touchdowns[i] = w.touchdown(contact.CONTACT_NAMES[codes[i]], tuple(prev_vel[i].tolist()))
                 latched[i] = True
@@ -283,11 +299,24 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
                     rel_pos[i], rel_quat[i] = quad.position[i], quad.quaternion[i]
                 _rest(quad, np.array([i]), on_deck, rel_pos, rel_quat, deck_top, deck_quat, j, dt)
     for i, w in enumerate(worlds):
+        w.tick = int(ticks0[i]) + steps
         _write_back(w, quad, i, _deck_state(deck_body, deck_quat, i, steps, dt))
         w._acc_world = (quad.velocity[i] - prev_vel[i]) / dt
         w.quad.rotor_speed = quad.rotor_speed[i].tolist()
     _scatter_autopilots(autopilot, [w.controller for w in worlds])
     return touchdowns
+
+
+def _plane_distance(
+    position: NDArray[np.float64], plane_point: NDArray[np.float64], plane_rotation: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(N,) distance (m) of each point from its deck's top plane, along the deck normal (column 2)."""
+    d = position - plane_point
+    return np.abs(
+        d[:, 0] * plane_rotation[:, 0, 2]
+        + d[:, 1] * plane_rotation[:, 1, 2]
+        + d[:, 2] * plane_rotation[:, 2, 2]
+    )
 
 
 def _rest(
