@@ -294,7 +294,8 @@ def refine_cv_lm(
                 p_out[done], e_out[done], iters[done] = p[stop], e[stop], it[stop]
                 keep = ~stop
                 rows = rows[keep]
-                p, e, pxw, J, jtj, jtb, diag, gmax, lam, up, it = (
-                    a[keep] for a in (p, e, pxw, J, jtj, jtb, diag, gmax, lam, up, it)
+                it = it[keep]
+                p, e, pxw, J, jtj, jtb, diag, gmax, lam, up = (
+                    a[keep] for a in (p, e, pxw, J, jtj, jtb, diag, gmax, lam, up)
                 )
     return p_out[:, :3].copy(), p_out[:, 3:].copy(), e_out, iters
