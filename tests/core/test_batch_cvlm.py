@@ -109,3 +109,27 @@ def test_rows_do_not_depend_on_n() -> None:
         part = cvlm.refine_cv_lm(K, d5, rv0[lo:hi], t0[lo:hi], OBJ, px[lo:hi])
         for a, b in zip(part, full, strict=True):
             np.testing.assert_array_equal(a, b[lo:hi])
+
+
+@pytest.mark.parametrize("dist", [DIST, np.zeros(5)], ids=["distorted", "pinhole"])
+def test_refine_matches_cv2_over_the_wide_frame_set(dist: np.ndarray) -> None:
+    """0.3-3 m, tilt up to 0.5 rad, anywhere in the image, with and without distortion: the
+    refinement ends where cv2's does, to the level of cv2's own sensitivity to rounding."""
+    d5 = distortion5(dist)
+    corners = _frames(100, 7, dist)
+    rv0, t0 = _start(corners, d5)
+    px = np.repeat(corners, 2, axis=0)
+    rv, tv, _, _ = cvlm.refine_cv_lm(K, d5, rv0, t0, OBJ, px)
+    diff = np.zeros(len(rv))
+    for i in range(len(rv)):
+        r_c, t_c = cv2.solvePnPRefineLM(
+            OBJ,
+            corners[i // 2].reshape(4, 1, 2),
+            K,
+            dist,
+            rv0[i].reshape(3, 1).copy(),
+            t0[i].reshape(3, 1).copy(),
+            criteria=(cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, cvlm.MAX_ITER, FLT_EPS),
+        )
+        diff[i] = max(np.abs(r_c.ravel() - rv[i]).max(), np.abs(t_c.ravel() - tv[i]).max())
+    assert diff.max() < 1e-4 and np.median(diff) < 1e-6, (diff.max(), np.median(diff))
