@@ -101,8 +101,8 @@ def test_single_equals_batched_rows_bitwise(chunk: int) -> None:
 
 
 def test_single_matches_cv2_path() -> None:
-    """Same validity and reason as atda_estimate; the chosen pose agrees with cv2's to its LM's
-    stopping point and its reprojection error is never larger (the minimum, reached)."""
+    """Same validity and reason as atda_estimate; the chosen pose and its reprojection error agree
+    with cv2's (the same LM, up to rounding)."""
     _, _, corners = poses_and_corners(200, 13)
     det = _bad_rows(corners)
     n_valid = 0
@@ -119,9 +119,10 @@ def test_single_matches_cv2_path() -> None:
         assert isinstance(cands, str) == isinstance(ref, str)
         if s.valid:
             n_valid += 1
-            assert b.residual <= s.residual + 1e-9
-            assert np.abs(b.position - s.position).max() < 1e-4
-            assert rotation_angle(b.rotation, s.rotation) < 5e-3
+            # cv2's own result moves by up to ~1e-5 under rounding-level input changes
+            assert abs(b.residual - s.residual) < 5e-4
+            assert np.abs(b.position - s.position).max() < 5e-5
+            assert rotation_angle(b.rotation, s.rotation) < 2e-4
     assert n_valid > 150
 
 
@@ -134,8 +135,8 @@ def test_single_with_priors_matches_cv2_choice() -> None:
         for prior in (ref[0][1], ref[-1][1]):
             s = atda_estimate(corners[i], K, DIST, TAG, RIG, prior)
             b = atda_single(corners[i], K, DIST, TAG, RIG, prior)
-            assert rotation_angle(b.rotation, s.rotation) < 5e-3, i
-            assert b.residual <= s.residual + 1e-9
+            assert rotation_angle(b.rotation, s.rotation) < 2e-4, i
+            assert abs(b.residual - s.residual) < 5e-4
 
 
 def test_estimator_on_batched_candidates_equals_atda_batch(monkeypatch: pytest.MonkeyPatch) -> None:

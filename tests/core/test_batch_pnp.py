@@ -65,8 +65,8 @@ def test_ippe_equals_cv2_ippe_square() -> None:
 
 
 def test_atda_batch_against_cv2_refined() -> None:
-    """Same validity and reason; the LM-polished poses agree with cv2's to its stopping criteria, and
-    the batched one is never worse (it is the local minimum cv2's LM approaches)."""
+    """Same validity and reason; the LM-polished poses and errors agree with cv2's (the same LM, up
+    to rounding)."""
     R_true, p_true, corners = poses_and_corners(150, 2)
     det = np.ones(150, dtype=bool)
     det[::25] = False
@@ -81,9 +81,9 @@ def test_atda_batch_against_cv2_refined() -> None:
         s = atda_estimate(corners[i], K, DIST, TAG, RIG)
         assert s.valid == out.valid[i] and s.reason == reasons[i], i
         if s.valid:
-            assert np.abs(out.position[i] - s.position).max() < 1e-4
-            assert rotation_angle(out.rotation[i], s.rotation) < 1e-3
-            assert out.residual[i] <= s.residual + 1e-9
+            assert np.abs(out.position[i] - s.position).max() < 5e-5
+            assert rotation_angle(out.rotation[i], s.rotation) < 2e-4
+            assert abs(out.residual[i] - s.residual) < 5e-4
     assert out.valid.sum() > 100
 
 

@@ -4,9 +4,10 @@ Per frame: both closed-form IPPE poses (:func:`~ihrcf_env.core.batch.ippe.ippe_s
 polished by Levenberg-Marquardt on the four corners' reprojection error (the distorted camera
 model), then ATDA's choice: the lower RMS reprojection error, or of the two the one nearer a prior
 rotation when their errors are within :data:`~ihrcf_env.core.estimators.atda.AMBIGUITY_RATIO`.
-The LM (:func:`~ihrcf_env.core.batch.lm.refine_lm`) runs the lower-error solution to convergence
-(its result is the local minimum itself; ``cv2.solvePnPRefineLM`` stops on its own criteria, near
-it); the other stops once it is clearly worse or has reached the same pose (flip pairs).
+The LM is :func:`~ihrcf_env.core.batch.cvlm.refine_cv_lm`, ``cv2.solvePnPRefineLM``'s algorithm
+(same parametrisation, damping, geodesic step and stopping rules) on both solutions, started from
+the rotation vectors ``cv2.Rodrigues`` gives for IPPE's rotations, so the poses are the cv2 path's
+up to rounding.
 """
 
 from __future__ import annotations
@@ -17,9 +18,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ihrcf_env.core.batch import result as rs
+from ihrcf_env.core.batch.cvlm import refine_cv_lm, rodrigues, rodrigues_vector
 from ihrcf_env.core.batch.geometry import collinear_batch
 from ihrcf_env.core.batch.ippe import distortion5, ippe_square, marker_points, undistort
-from ihrcf_env.core.batch.lm import refine_lm
 from ihrcf_env.core.batch.result import BatchPoses, assemble, first_failure
 from ihrcf_env.core.estimators.base import DEGENERATE_REL_TOL
 from ihrcf_env.core.frames import R_BODY_CAM, as_array
@@ -34,6 +35,8 @@ AMBIGUITY_RATIO: float = 2.0
 R_MARKER_DECK: F64 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 #: Fixed-point undistortion iterations of the IPPE starting points (OpenCV's undistortPoints uses 5).
 UNDISTORT_ITERATIONS = 5
+#: LM iterations (``cv2.solvePnPRefineLM``'s default criteria).
+MAX_LM_ITER = 20
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,9 +86,10 @@ def pnp_candidates(
     first_failure(code, ~ok, rs.PNP_NO_SOLUTION)
     R_all, t_all = R0.reshape(-1, 3, 3), t0.reshape(-1, 3)
     px2 = np.repeat(px, 2, axis=0)
-    R_all, t_all, err, _ = refine_lm(
-        Km, d, R_all, t_all, obj, px2, max_iter=None if refine else 0, flip_pairs=True
+    rvec, t_all, energy, _ = refine_cv_lm(
+        Km, d, rodrigues_vector(R_all), t_all, obj, px2, max_iter=MAX_LM_ITER if refine else 0
     )
+    R_all, err = rodrigues(rvec)[0].reshape(-1, 3, 3), np.sqrt(energy / 4.0)
     R2, t2, err2 = R_all.reshape(n_env, 2, 3, 3), t_all.reshape(n_env, 2, 3), err.reshape(n_env, 2)
     usable = (
         np.isfinite(err2) & np.isfinite(t2).all(axis=2) & np.isfinite(R2).all(axis=(2, 3)) & (t2[..., 2] > 0)
