@@ -64,6 +64,12 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="train on the id's native vector env in this process (ihrcf_env.rl.vec), not SubprocVecEnv",
     )
+    ap.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="with --vector: processes sharing the envs (gym.make_vec workers)",
+    )
     ap.add_argument("--ent-coef", type=float, default=0.0, help="PPO entropy bonus")
     ap.add_argument("--init-action-mean", type=float, nargs="+", default=None, help="e.g. 0 0 -0.3 0")
     ap.add_argument("--log-std-init", type=float, default=0.0, help="initial log std of the actions")
@@ -95,6 +101,10 @@ def main(argv: list[str] | None = None) -> int:
     env_id = args.env_id or default_env_id()
     if args.vector and env_id not in VECTOR_IDS:
         ap.error(f"--vector: {env_id} has no native vector env (those with one: {', '.join(VECTOR_IDS)})")
+    if args.workers != 1 and not args.vector:
+        ap.error("--workers: only with --vector (SubprocVecEnv already runs one process per env)")
+    if args.workers < 1:
+        ap.error(f"--workers: at least 1, got {args.workers}")
     if args.vector and args.curriculum_steps:
         ap.error("--vector: the start curriculum wraps single envs; use it without --vector")
     env_kw: dict[str, object] = {"deck_motion": True} if args.deck_motion else {}
@@ -109,6 +119,8 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--drop-inputs: {e}")
     train_thunk = functools.partial(curriculum_env, thunk) if args.curriculum_steps else thunk
     if args.vector:  # one process: N envs stepped by the vector env (SB3's autoreset convention)
+        if args.workers > 1:
+            env_kw["workers"] = args.workers
         base = make_sb3_vec_env(env_id, args.n_envs, None, camera_model=args.camera_model, **env_kw)
     else:
         base = (SubprocVecEnv if args.n_envs > 1 else DummyVecEnv)([train_thunk] * args.n_envs)

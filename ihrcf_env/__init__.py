@@ -59,9 +59,13 @@ _ENTRY = {
 def _vector(env_id: str) -> Any:
     """``gym.make_vec``'s entry point of ``env_id`` (:mod:`ihrcf_env.wrappers.vector`)."""
 
-    def make(num_envs: int = 1, **options: Any) -> Any:
+    def make(num_envs: int = 1, workers: int = 1, **options: Any) -> Any:
+        from ihrcf_env.core.checks import check_int
         from ihrcf_env.wrappers.vector import DeckLandingVectorEnv
+        from ihrcf_env.wrappers.vector_workers import MAX_WORKERS, WorkerVectorEnv
 
+        if check_int("workers", workers, low=1, high=MAX_WORKERS) > 1:
+            return WorkerVectorEnv(env_id, num_envs, workers, **options)
         return DeckLandingVectorEnv(env_id, num_envs, **options)
 
     return make

@@ -210,3 +210,11 @@ def test_train_ppo_on_the_native_vector_env(tmp_path: Path, capsys: pytest.Captu
             train_ppo.main(["--vector", "--out", str(out), *bad])
         assert e.value.code == 2
         assert "--vector" in capsys.readouterr().err
+    # the same envs over 2 worker processes
+    out2 = tmp_path / "ppo-workers"
+    argv = ["--total-steps", "128", "--out", str(out2), "--vector", "--workers", "2", *TINY]
+    assert train_ppo.main(argv) == 0
+    assert PPO.load(out2 / "final.zip", device="cpu").num_timesteps == 128
+    with pytest.raises(SystemExit) as e:
+        train_ppo.main(["--workers", "2", "--out", str(out2)])
+    assert e.value.code == 2 and "--workers" in capsys.readouterr().err

@@ -1,0 +1,206 @@
+"""The landing tasks' vector env over several processes: ``gym.make_vec(id, num_envs=N, workers=K)``.
+
+:class:`WorkerVectorEnv` splits its N envs over K worker processes, each holding one
+:class:`~ihrcf_env.wrappers.vector.DeckLandingVectorEnv` of its share (the first ``N mod K``
+workers take one env more). A step sends each worker its rows of the actions and receives its
+batched results: one message per worker and step, whatever N, so the processes' cores add up
+(Gymnasium's ``AsyncVectorEnv`` exchanges one message per env). Sub-env ``i`` of ``reset(seed=s)``
+is still the single env of seed ``s + i``; observations, rewards, ``terminated``, ``truncated``
+and ``info`` (each key an array over the N envs with its ``_key`` mask) are those of one
+``DeckLandingVectorEnv`` of N envs. Workers are started with the ``spawn`` method (a physics
+client does not survive a fork); an error in a worker is raised in the parent with its traceback.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import traceback
+from collections.abc import Sequence
+from multiprocessing.connection import Connection
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+from numpy.typing import NDArray
+
+from ihrcf_env.core.checks import check_int
+
+#: Largest number of worker processes.
+MAX_WORKERS = 64
+#: Seconds to wait for a worker to start, answer or stop.
+WORKER_TIMEOUT_S = 600.0
+
+
+def _serve(conn: Connection, env_id: str, num_envs: int, options: dict[str, Any]) -> None:
+    """A worker: one vector env of ``num_envs``, driven by ``(command, argument)`` messages."""
+    from ihrcf_env.wrappers.vector import DeckLandingVectorEnv
+
+    env = None
+    try:
+        env = DeckLandingVectorEnv(env_id, num_envs, **options)
+        conn.send(("ok", (env.single_observation_space, env.single_action_space, env.metadata)))
+        while True:
+            command, arg = conn.recv()
+            if command == "close":
+                break
+            try:
+                if command == "step":
+                    conn.send(("ok", env.step(arg)))
+                elif command == "reset":
+                    conn.send(("ok", env.reset(seed=arg[0], options=arg[1])))
+                else:
+                    conn.send(("error", f"unknown command {command!r}"))
+            except Exception:
+                conn.send(("error", traceback.format_exc()))
+    except Exception:
+        conn.send(("error", traceback.format_exc()))
+    finally:
+        if env is not None:
+            env.close()
+        conn.close()
+
+
+def merge_infos(parts: Sequence[dict[str, Any]], sizes: Sequence[int]) -> dict[str, Any]:
+    """The ``info`` of the concatenated envs from each part's vector ``info`` (part ``k`` over
+    ``sizes[k]`` envs): every key an array over all the envs; where a part lacks a key, its envs
+    hold the array's zero (``None`` for objects) with the ``_key`` mask False."""
+    keys: list[str] = []
+    for part in parts:
+        keys.extend(k for k in part if k not in keys)
+    out: dict[str, Any] = {}
+    for key in keys:
+        values = [part.get(key) for part in parts]
+        if any(isinstance(v, dict) for v in values):
+            out[key] = merge_infos([v if isinstance(v, dict) else {} for v in values], sizes)
+            continue
+        present = [np.asarray(v) for v in values if v is not None]
+        dtype = np.result_type(*present) if present else np.dtype(object)
+        filled = []
+        for v, n in zip(values, sizes, strict=True):
+            if v is not None:
+                filled.append(np.asarray(v))
+            elif key.startswith("_"):
+                filled.append(np.zeros(n, dtype=bool))
+            else:
+                filled.append(
+                    np.full(n, None, dtype=object) if dtype.kind == "O" else np.zeros(n, dtype=dtype)
+                )
+        out[key] = np.concatenate(filled)
+    return out
+
+
+class WorkerVectorEnv(VectorEnv):
+    """``num_envs`` envs of ``env_id`` over ``workers`` processes (module docstring); ``options``
+    as for ``gym.make`` (and ``autoreset_mode``)."""
+
+    def __init__(self, env_id: str, num_envs: int, workers: int, **options: Any) -> None:
+        self._conns: list[Connection] = []
+        self._procs: list[Any] = []
+        self._closed_workers = True
+        n = check_int("num_envs", num_envs, low=1)
+        k = check_int("workers", workers, low=1, high=min(n, MAX_WORKERS))
+        self.sizes = [n // k + (1 if i < n % k else 0) for i in range(k)]
+        self.offsets = np.cumsum([0, *self.sizes])
+        ctx = mp.get_context("spawn")
+        try:
+            for size in self.sizes:
+                parent, child = ctx.Pipe()
+                proc = ctx.Process(target=_serve, args=(child, env_id, size, dict(options)), daemon=True)
+                proc.start()
+                child.close()
+                self._conns.append(parent)
+                self._procs.append(proc)
+            self._closed_workers = False
+            first = [self._receive(i) for i in range(k)][0]
+        except BaseException:
+            self.close_extras()
+            raise
+        obs_space, act_space, metadata = first
+        self.env_id = env_id
+        self.num_envs = n
+        self.workers = k
+        self.single_observation_space = obs_space
+        self.single_action_space = act_space
+        self.observation_space = batch_space(obs_space, n)
+        self.action_space = batch_space(act_space, n)
+        self.metadata = metadata
+        self.autoreset_mode: AutoresetMode = metadata["autoreset_mode"]
+        self.spec = gym.spec(env_id)
+
+    def _receive(self, i: int) -> Any:
+        conn = self._conns[i]
+        if not conn.poll(WORKER_TIMEOUT_S):
+            raise RuntimeError(f"vector env worker {i} did not answer within {WORKER_TIMEOUT_S:g} s")
+        status, payload = conn.recv()
+        if status != "ok":
+            raise RuntimeError(f"vector env worker {i} failed:\n{payload}")
+        return payload
+
+    def _check_open(self) -> None:
+        if self._closed_workers:
+            raise RuntimeError("vector env is closed (close() was called): make a new one with gym.make_vec")
+
+    def reset(
+        self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[NDArray[Any], dict[str, Any]]:
+        """Reset every env (``reset(seed=s)``: env ``i`` with seed ``s + i``)."""
+        self._check_open()
+        n, off = self.num_envs, self.offsets
+        if seed is None:
+            seeds: list[Any] = [None] * self.workers
+        elif isinstance(seed, int | np.integer) and not isinstance(seed, bool):
+            s = check_int("seed", seed, low=0, high=2**63 - n)
+            seeds = [s + int(o) for o in off[:-1]]
+        elif isinstance(seed, Sequence) and not isinstance(seed, str):
+            if len(seed) != n:
+                raise ValueError(f"seed: a sequence of {n} seeds (one per env), got {len(seed)}")
+            seeds = [list(seed[off[i] : off[i + 1]]) for i in range(self.workers)]
+        else:
+            raise TypeError(f"seed must be an int >= 0, a sequence of {n} of them or None, got {seed!r}")
+        for conn, s in zip(self._conns, seeds, strict=True):
+            conn.send(("reset", (s, options)))
+        parts = [self._receive(i) for i in range(self.workers)]
+        return np.concatenate([p[0] for p in parts]), merge_infos([p[1] for p in parts], self.sizes)
+
+    def step(
+        self, actions: Any
+    ) -> tuple[NDArray[Any], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
+        """Step every env with its row of ``actions`` (shape ``(num_envs, *single action shape)``)."""
+        self._check_open()
+        a = np.asarray(actions)
+        want = (self.num_envs, *self.single_action_space.shape)  # type: ignore[misc]
+        if a.shape != want:
+            raise ValueError(f"actions: shape {want} (num_envs, action), got {a.shape}")
+        if a.dtype.kind not in "fiu":
+            raise TypeError(f"actions: real numbers, got dtype {a.dtype}")
+        off = self.offsets
+        for i, conn in enumerate(self._conns):
+            conn.send(("step", a[off[i] : off[i + 1]]))
+        parts = [self._receive(i) for i in range(self.workers)]
+        return (
+            np.concatenate([p[0] for p in parts]),
+            np.concatenate([p[1] for p in parts]),
+            np.concatenate([p[2] for p in parts]),
+            np.concatenate([p[3] for p in parts]),
+            merge_infos([p[4] for p in parts], self.sizes),
+        )
+
+    def close_extras(self, **kwargs: Any) -> None:
+        """Stop the workers (each closes its envs' physics clients)."""
+        self._closed_workers = True
+        conns, procs = self._conns, self._procs
+        self._conns, self._procs = [], []
+        for conn in conns:
+            try:
+                conn.send(("close", None))
+            except (BrokenPipeError, OSError):
+                pass
+        for proc in procs:
+            proc.join(timeout=30)
+            if proc.is_alive():
+                proc.terminate()
+                proc.join(timeout=5)
+        for conn in conns:
+            conn.close()
