@@ -17,6 +17,10 @@ PyBullet is imported only by the two PyBullet rows.
 ``--rays``: the cost per drone of one reading of the four ToF sensors' cones (the realistic
 VL53L1X model, noise-free: ``cone_ranges``) instead, by :mod:`~ihrcf_env.sim.batched.ranging` at
 several N against PyBullet's ``rayTestBatch`` in one world (``ToFArray.cone_ranges``).
+
+``--camera``: the cost per world of one read of the projected tag camera (ideal quality, the tag in
+view), by :class:`~ihrcf_env.sim.batched.tag_camera.BatchedTagCamera` at several N against
+:meth:`ProjectedTagCamera.read <ihrcf_env.sim.sensors.tag_camera.ProjectedTagCamera.read>`.
 """
 
 from __future__ import annotations
@@ -153,13 +157,73 @@ def bench_rays(repeats: int) -> None:
         world.close()
 
 
+def bench_camera(repeats: int) -> None:
+    """Print microseconds per world per read of the projected tag camera (ideal quality)."""
+    import pybullet as p
+    from scipy.spatial.transform import Rotation
+
+    from ihrcf_env.core.detector_model import CornerTrack
+    from ihrcf_env.core.profiles import StaticProfile
+    from ihrcf_env.sim.batched.detector import BatchedCornerTrack
+    from ihrcf_env.sim.batched.rays import RayScene
+    from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
+    from ihrcf_env.sim.sensors.base import TAG_CAMERA, BodyState
+    from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
+    from ihrcf_env.sim.world import World, WorldConfig
+
+    world = World(WorldConfig(camera_model="projected", camera_output="corners"))
+    try:
+        world.reset(StaticProfile(), horizon_s=1.0, altitude=1.0)
+        cfg, cam = world.config, world.sensors[TAG_CAMERA]
+        assert isinstance(cam, ProjectedTagCamera)
+        scene = RayScene.of(
+            cfg.deck.size, cfg.deck.thickness, cfg.stewart.base_radius, cfg.stewart.base_height
+        )
+        bcam = BatchedTagCamera(cam.camera, cfg.rig, scene, cfg.deck.tag_size, cam.model)
+        rng = np.random.default_rng(0)
+        dp, dR = world.deck.pose()
+        print("microseconds per world per read of the projected tag camera (tag in view)")
+        for n in SIZES:
+            pos = dp + np.column_stack([rng.uniform(-0.2, 0.2, (n, 2)), rng.uniform(0.8, 2.0, n)])
+            R = Rotation.from_euler("xyz", rng.uniform(-0.15, 0.15, (n, 3))).as_matrix()
+            deck = (np.tile(dp, (n, 1)), np.tile(dR, (n, 1, 1)))
+            rngs = [np.random.default_rng([0, i]) for i in range(n)]
+            track = BatchedCornerTrack(n)
+            track.reset(rngs)
+            out = bcam.read(pos, R, *deck, track, rngs)  # warm-up
+            t0 = time.perf_counter()
+            for _ in range(repeats):
+                bcam.read(pos, R, *deck, track, rngs)
+            us = (time.perf_counter() - t0) / (repeats * n) * 1e6
+            print(f"{'batched N=' + str(n):<24}{us:>10.2f}   ({int(out['tag_detected'].sum())}/{n} detected)")
+        q = Rotation.from_euler("xyz", [0.1, -0.05, 0.3])
+        pos1 = dp + np.array([0.1, 0.0, 1.0])
+        p.resetBasePositionAndOrientation(
+            world.quad.body, pos1.tolist(), q.as_quat().tolist(), physicsClientId=world.client
+        )
+        z = np.zeros(3)
+        state = BodyState(0.0, pos1, q.as_matrix(), q.as_quat(), z, z, z)
+        cam.track = CornerTrack(rng)
+        assert cam.read(state, 0.05, rng)["tag_detected"]
+        t0 = time.perf_counter()
+        for _ in range(repeats):
+            cam.read(state, 0.05, rng)
+        print(f"{'scalar (rayTestBatch)':<24}{(time.perf_counter() - t0) / repeats * 1e6:>10.2f}")
+    finally:
+        world.close()
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=2.0, help="simulated seconds per row (default 2)")
     parser.add_argument("--rays", action="store_true", help="benchmark the ToF sensors' ray casts instead")
+    parser.add_argument("--camera", action="store_true", help="benchmark the projected tag camera instead")
     args = parser.parse_args(argv)
     if args.rays:
         bench_rays(max(10, int(round(args.seconds * 100))))
+        return
+    if args.camera:
+        bench_camera(max(10, int(round(args.seconds * 100))))
         return
     steps = max(10, int(round(args.seconds / DT)))
     us = 1e6
