@@ -86,25 +86,12 @@ class DeckLandingVectorEnv(VectorEnv):
         """The sub-envs (read-only: step them through the vector env)."""
         return tuple(self._envs)
 
-    def _seeds(self, seed: int | Sequence[int | None] | None) -> list[int | None]:
-        n = self.num_envs
-        if seed is None:
-            return [None] * n
-        if isinstance(seed, int | np.integer) and not isinstance(seed, bool):
-            s = check_int("seed", seed, low=0, high=2**63 - n)
-            return [s + i for i in range(n)]
-        if isinstance(seed, Sequence) and not isinstance(seed, str):
-            if len(seed) != n:
-                raise ValueError(f"seed: a sequence of {n} seeds (one per env), got {len(seed)}")
-            return [None if s is None else check_int(f"seed[{i}]", s, low=0) for i, s in enumerate(seed)]
-        raise TypeError(f"seed must be an int >= 0, a sequence of {n} of them or None, got {seed!r}")
-
     def reset(
         self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[NDArray[Any], dict[str, Any]]:
         """Reset every env (``reset(seed=s)``: env ``i`` with seed ``s + i``; ``options`` to each)."""
         self._check_open()
-        seeds = self._seeds(seed)
+        seeds = env_seeds(seed, self.num_envs)
         infos: dict[str, Any] = {}
         obs = []
         for i, (env, s) in enumerate(zip(self._envs, seeds, strict=True)):
@@ -120,12 +107,7 @@ class DeckLandingVectorEnv(VectorEnv):
         """Step every env with its row of ``actions`` (shape ``(num_envs, *single action shape)``);
         an env that ended at the previous step is reset instead (next-step autoreset)."""
         self._check_open()
-        a = np.asarray(actions)
-        want = (self.num_envs, *self.single_action_space.shape)  # type: ignore[misc]
-        if a.shape != want:
-            raise ValueError(f"actions: shape {want} (num_envs, action), got {a.shape}")
-        if a.dtype.kind not in "fiu":
-            raise TypeError(f"actions: real numbers, got dtype {a.dtype}")
+        a = check_actions(actions, self.num_envs, self.single_action_space.shape)  # type: ignore[arg-type]
         n = self.num_envs
         rewards = np.zeros(n, dtype=np.float64)
         terminated = np.zeros(n, dtype=bool)
@@ -172,6 +154,33 @@ class DeckLandingVectorEnv(VectorEnv):
     def _check_open(self) -> None:
         if getattr(self, "_closed_envs", True) or not self._envs:
             raise RuntimeError("vector env is closed (close() was called): make a new one with gym.make_vec")
+
+
+def env_seeds(seed: int | Sequence[int | None] | None, n: int) -> list[int | None]:
+    """The seed of each of ``n`` envs from a vector env's ``reset(seed=...)``: an int ``s`` gives
+    ``s + i`` to env ``i``; a sequence gives one seed (or None) per env; None leaves all unseeded."""
+    if seed is None:
+        return [None] * n
+    if isinstance(seed, int | np.integer) and not isinstance(seed, bool):
+        s = check_int("seed", seed, low=0, high=2**63 - n)
+        return [s + i for i in range(n)]
+    if isinstance(seed, Sequence) and not isinstance(seed, str):
+        if len(seed) != n:
+            raise ValueError(f"seed: a sequence of {n} seeds (one per env), got {len(seed)}")
+        return [None if s is None else check_int(f"seed[{i}]", s, low=0) for i, s in enumerate(seed)]
+    raise TypeError(f"seed must be an int >= 0, a sequence of {n} of them or None, got {seed!r}")
+
+
+def check_actions(actions: Any, n: int, shape: tuple[int, ...]) -> NDArray[Any]:
+    """``actions`` as an array of shape ``(n, *shape)`` of real numbers (ValueError / TypeError
+    naming ``actions`` otherwise)."""
+    a = np.asarray(actions)
+    want = (n, *shape)
+    if a.shape != want:
+        raise ValueError(f"actions: shape {want} (num_envs, action), got {a.shape}")
+    if a.dtype.kind not in "fiu":
+        raise TypeError(f"actions: real numbers, got dtype {a.dtype}")
+    return a
 
 
 def task_envs(envs: Sequence[gym.Env]) -> list[DeckLandingEnv]:

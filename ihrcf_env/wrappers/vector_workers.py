@@ -26,6 +26,7 @@ from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
 from ihrcf_env.core.checks import check_int
+from ihrcf_env.wrappers.vector import check_actions, env_seeds
 
 #: Largest number of worker processes.
 MAX_WORKERS = 64
@@ -147,18 +148,12 @@ class WorkerVectorEnv(VectorEnv):
     ) -> tuple[NDArray[Any], dict[str, Any]]:
         """Reset every env (``reset(seed=s)``: env ``i`` with seed ``s + i``)."""
         self._check_open()
-        n, off = self.num_envs, self.offsets
-        if seed is None:
-            seeds: list[Any] = [None] * self.workers
-        elif isinstance(seed, int | np.integer) and not isinstance(seed, bool):
-            s = check_int("seed", seed, low=0, high=2**63 - n)
-            seeds = [s + int(o) for o in off[:-1]]
-        elif isinstance(seed, Sequence) and not isinstance(seed, str):
-            if len(seed) != n:
-                raise ValueError(f"seed: a sequence of {n} seeds (one per env), got {len(seed)}")
-            seeds = [list(seed[off[i] : off[i + 1]]) for i in range(self.workers)]
-        else:
-            raise TypeError(f"seed must be an int >= 0, a sequence of {n} of them or None, got {seed!r}")
+        off = self.offsets
+        each = env_seeds(seed, self.num_envs)
+        seeds: list[Any] = [
+            None if all(x is None for x in part) else part
+            for part in (each[off[i] : off[i + 1]] for i in range(self.workers))
+        ]
         for conn, s in zip(self._conns, seeds, strict=True):
             conn.send(("reset", (s, options)))
         parts = [self._receive(i) for i in range(self.workers)]
@@ -169,12 +164,7 @@ class WorkerVectorEnv(VectorEnv):
     ) -> tuple[NDArray[Any], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
         """Step every env with its row of ``actions`` (shape ``(num_envs, *single action shape)``)."""
         self._check_open()
-        a = np.asarray(actions)
-        want = (self.num_envs, *self.single_action_space.shape)  # type: ignore[misc]
-        if a.shape != want:
-            raise ValueError(f"actions: shape {want} (num_envs, action), got {a.shape}")
-        if a.dtype.kind not in "fiu":
-            raise TypeError(f"actions: real numbers, got dtype {a.dtype}")
+        a = check_actions(actions, self.num_envs, self.single_action_space.shape)  # type: ignore[arg-type]
         off = self.offsets
         for i, conn in enumerate(self._conns):
             conn.send(("step", a[off[i] : off[i + 1]]))

@@ -247,17 +247,19 @@ class Imm:
             X[:, 0:3] = wrap_angles(X[:, 0:3])
         self.X = X
         if len(mu) > 1:
-            # Bayes on the model probabilities (mu >= 1e-12 > 0), likelihoods scaled by the largest
-            # (plain floats: n numbers)
-            loglik = (np.einsum("nk,nk->n", NU, y[:, :, 0]) + logdet).tolist()  # -2 log L
-            best = min(loglik)
-            w = [m * math.exp(0.5 * (best - ll)) for m, ll in zip(mu.tolist(), loglik, strict=True)]
-            total = sum(w)
-            w = [max(x / total, 1e-12) for x in w]
-            total = sum(w)
-            self.mu = np.array([x / total for x in w])
+            self._bayes((np.einsum("nk,nk->n", NU, y[:, :, 0]) + logdet).tolist())
         self._changed()
         return True, d2
+
+    def _bayes(self, loglik: list[float]) -> None:
+        """Bayes on the model probabilities from each model's ``-2 log`` likelihood (mu >= 1e-12 >
+        0), the likelihoods scaled by the largest (plain floats: n numbers)."""
+        best = min(loglik)
+        w = [m * math.exp(0.5 * (best - ll)) for m, ll in zip(self.mu.tolist(), loglik, strict=True)]
+        total = sum(w)
+        w = [max(x / total, 1e-12) for x in w]
+        total = sum(w)
+        self.mu = np.array([x / total for x in w])
 
     def update_along(
         self, z: float, h: NDArray[np.float64], var: float, gate: float | None
@@ -283,13 +285,7 @@ class Imm:
         Ps = Ps - (PHt[:, :, None] * PHt[:, None, :]) / Ss[:, None, None]
         self.Ps = 0.5 * (Ps + Ps.transpose(0, 2, 1))
         if len(mu) > 1:
-            loglik = (NU * y + np.log(Ss)).tolist()  # -2 log L
-            best = min(loglik)
-            w = [m * math.exp(0.5 * (best - ll)) for m, ll in zip(mu.tolist(), loglik, strict=True)]
-            total = sum(w)
-            w = [max(x / total, 1e-12) for x in w]
-            total = sum(w)
-            self.mu = np.array([x / total for x in w])
+            self._bayes((NU * y + np.log(Ss)).tolist())  # -2 log L
         self._changed()
         return True, d2
 
