@@ -19,7 +19,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from ihrcf_env.core.frames import matrix_from_quat
-from ihrcf_env.sim.batched.ranging import BatchedToF, cone_ranges_batch, true_ranges_batch
+from ihrcf_env.sim.batched.ranging import BatchedToF
 from ihrcf_env.sim.batched.rays import RayScene, cast_rays, self_hits
 from ihrcf_env.sim.sensors.tof import ToFArray, ToFConfig
 from ihrcf_env.sim.world import World, WorldConfig
@@ -214,10 +214,10 @@ def test_tof_closed_form_matches_pybullet(world, noise):
         deck = (np.tile(dp, (40, 1)), np.tile(dR, (40, 1, 1)))
         up, down = (deck[0] + EPS * dR[:, 2], deck[1]), (deck[0] - EPS * dR[:, 2], deck[1])
         if noise == "ideal":
-            batch, hit = true_ranges_batch(tof, pos, R, *deck)
+            batch, hit = tof.true_ranges(pos, R, *deck)
             r_lo, r_hi = lo.true_ranges(pos, R, *up)[0], hi.true_ranges(pos, R, *down)[0]
         else:
-            batch, signal = cone_ranges_batch(tof, pos, R, *deck)
+            batch, signal = tof.cone_ranges(pos, R, *deck)
             r_lo = np.nan_to_num(lo.cone_returns(pos, R, *up)[0], nan=cfg.max_range)
             r_hi = np.nan_to_num(hi.cone_returns(pos, R, *down)[0], nan=cfg.max_range)
             h, starts, dirs = tof.cone_hits(pos, R, *deck)

@@ -117,7 +117,7 @@ def bench_rays(repeats: int) -> None:
     import pybullet as p
     from scipy.spatial.transform import Rotation
 
-    from ihrcf_env.sim.batched.ranging import BatchedToF, cone_ranges_batch
+    from ihrcf_env.sim.batched.ranging import BatchedToF
     from ihrcf_env.sim.batched.rays import RayScene
     from ihrcf_env.sim.sensors.tof import ToFArray, ToFConfig
     from ihrcf_env.sim.world import World, WorldConfig
@@ -137,10 +137,10 @@ def bench_rays(repeats: int) -> None:
             pos = dp + np.column_stack([rng.uniform(-0.5, 0.5, (n, 2)), rng.uniform(0.3, 2.0, n)])
             R = Rotation.from_euler("xyz", rng.uniform(-0.3, 0.3, (n, 3))).as_matrix()
             deck = (np.tile(dp, (n, 1)), np.tile(dR, (n, 1, 1)))
-            cone_ranges_batch(tof, pos, R, *deck)  # warm-up
+            tof.cone_ranges(pos, R, *deck)  # warm-up
             t0 = time.perf_counter()
             for _ in range(repeats):
-                cone_ranges_batch(tof, pos, R, *deck)
+                tof.cone_ranges(pos, R, *deck)
             print(f"{'closed form N=' + str(n):<24}{(time.perf_counter() - t0) / (repeats * n) * 1e6:>10.2f}")
         bullet = ToFArray(world.client, tof_cfg, cfg.rig)
         quat = Rotation.from_euler("xyz", [0.1, -0.05, 0.3]).as_quat().tolist()

@@ -2,8 +2,7 @@
 
 :class:`BatchedToF` gives what :class:`~ihrcf_env.sim.sensors.tof.ToFArray` ``true_ranges``,
 ``cone_returns`` and ``cone_ranges`` give (noise-free), for stacks of drone and deck poses, with the
-same arithmetic on the rays' hits; :func:`true_ranges_batch` and :func:`cone_ranges_batch` are
-one-call forms. Row-independent: a drone's readings never depend on the other rows.
+same arithmetic on the rays' hits. Row-independent: a drone's readings never depend on the other rows.
 """
 
 from __future__ import annotations
@@ -130,25 +129,3 @@ class BatchedToF:
         with np.errstate(invalid="ignore", divide="ignore"):
             mean = np.nansum(s * r, axis=-1) / total / self._gain
         return np.where(total > 0, mean, np.nan), total / r.shape[-1]
-
-
-def true_ranges_batch(
-    tof: BatchedToF,
-    position: NDArray[np.float64],
-    rotation: NDArray[np.float64],
-    deck_position: NDArray[np.float64],
-    deck_rotation: NDArray[np.float64],
-) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-    """:meth:`BatchedToF.true_ranges` of N drones (poses (N, 3), (N, 3, 3)) over their decks."""
-    return tof.true_ranges(position, rotation, deck_position, deck_rotation)
-
-
-def cone_ranges_batch(
-    tof: BatchedToF,
-    position: NDArray[np.float64],
-    rotation: NDArray[np.float64],
-    deck_position: NDArray[np.float64],
-    deck_rotation: NDArray[np.float64],
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """:meth:`BatchedToF.cone_ranges` of N drones (poses (N, 3), (N, 3, 3)) over their decks."""
-    return tof.cone_ranges(position, rotation, deck_position, deck_rotation)
