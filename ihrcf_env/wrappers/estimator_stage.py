@@ -152,6 +152,7 @@ class EstimatorStage:
         self._frame_time = math.nan  # s, time of the camera frame the estimates come from
         self._frame_count = -1  # ``camera_frame`` of the last frame estimated
         self._history: deque[_Step] = deque(maxlen=self._steps_kept)
+        self._pending: tuple[SensorFrame, float] | None = None  # prepare's frame, its time (s)
 
     @property
     def time(self) -> float:
@@ -223,7 +224,13 @@ class EstimatorStage:
     def update(self, observation: Mapping[str, Any]) -> dict[str, PoseEstimate]:
         """The estimates for a raw observation taken now (:attr:`time`): recomputed on a new camera
         frame (``camera_age`` 0, a new ``camera_frame``, or no ``camera_age``), held on a repeated
-        one."""
+        one. The same as :meth:`prepare`, the estimator's ``update`` of its frame, :meth:`finish`."""
+        frame = self.prepare(observation)
+        return self.finish(None if frame is None else self.estimator.update(frame))
+
+    def prepare(self, observation: Mapping[str, Any]) -> SensorFrame | None:
+        """The frame the estimators take for a raw observation taken now, or None when its camera
+        frame is one already estimated (held). Give the estimates of the frame to :meth:`finish`."""
         now = self.time
         age = observation.get("camera_age")
         count = observation.get("camera_frame")
@@ -238,20 +245,31 @@ class EstimatorStage:
                 exposure = self._on_tick(now - float(np.asarray(age).ravel()[0]))
         else:
             fresh = self.last_estimates is None or age is None or float(np.asarray(age).reshape(-1)[0]) == 0.0
-        if fresh:
-            if count is not None and exposure is None:  # no frame has arrived yet
-                frame = dataclasses.replace(
-                    self.frame(observation, now), corners=None, corners_reason=NO_FRAME_YET
-                )
-            else:
-                frame = self.frame(observation, now, exposure)
-            self.last_estimates = self.estimator.update(frame)
-            self.last_frame = frame
-            self._frame_time = math.nan if count is not None and exposure is None else frame.time
-            if exposure is not None and not self.compensate_latency:
-                self._frame_time = exposure
+        self._pending = None
+        if not fresh:
+            return None
+        if count is not None and exposure is None:  # no frame has arrived yet
+            frame = dataclasses.replace(
+                self.frame(observation, now), corners=None, corners_reason=NO_FRAME_YET
+            )
+            frame_time = math.nan
+        else:
+            frame = self.frame(observation, now, exposure)
+            frame_time = exposure if exposure is not None and not self.compensate_latency else frame.time
+        self._pending = (frame, frame_time)
+        return frame
+
+    def finish(self, estimates: dict[str, PoseEstimate] | None) -> dict[str, PoseEstimate]:
+        """Take the ``estimates`` of the frame :meth:`prepare` returned (None when it returned
+        None: the last estimates are held) and return the estimates shown now."""
+        pending, self._pending = self._pending, None
+        if (pending is None) != (estimates is None):
+            raise RuntimeError("finish: estimates must be given exactly when prepare returned a frame")
+        if pending is not None:
+            self.last_frame, self._frame_time = pending
+            self.last_estimates = estimates
         assert self.last_estimates is not None
-        self.ages = dict.fromkeys(self.last_estimates, now - self._frame_time)
+        self.ages = dict.fromkeys(self.last_estimates, self.time - self._frame_time)
         return self.last_estimates
 
     def add_info(self, info: dict[str, Any]) -> None:

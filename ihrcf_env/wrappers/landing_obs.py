@@ -58,7 +58,7 @@ from numpy.typing import NDArray
 
 from ihrcf_env.core.calibration import Calibration
 from ihrcf_env.core.constants import GRAVITY
-from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedEstimator, FusedParams
+from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedEstimator, FusedParams, PoseEstimate
 from ihrcf_env.core.frames import matrix_from_euler, matrix_from_quat
 from ihrcf_env.envs.config import make_config, observation_options
 from ihrcf_env.wrappers.estimates import GROUND_TRUTH, base_config
@@ -201,24 +201,63 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._motion = np.zeros(6)  # last deck motion block (heading frame)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
+        raw, info = self.reset_raw(seed=seed, options=options)
+        return self._flatten(raw, info), info
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
+        raw, reward, terminated, truncated, info = self.step_raw(action)
+        return self._flatten(raw, info), float(reward), terminated, truncated, info
+
+    def reset_raw(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Reset the wrapped env and this wrapper's state; the raw observation and info (the first
+        half of :meth:`reset`: :meth:`complete` makes the observation)."""
         self._held, self._held_time = {}, {}
         self._motion = np.zeros(6)
         self.stage.reset()
-        obs, info = self.env.reset(seed=seed, options=options)
-        out = self._flatten(obs, info)
-        self.stage.add_info(info)
-        return out, info
+        return self.env.reset(seed=seed, options=options)
 
-    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
-        obs, reward, terminated, truncated, info = self.env.step(action)
+    def step_raw(self, action: Any) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        """Step the wrapped env; its raw results (the first half of :meth:`step`: :meth:`complete`
+        makes the observation)."""
+        raw, reward, terminated, truncated, info = self.env.step(action)
         self.stage.tick()
-        out = self._flatten(obs, info)
-        self.stage.add_info(info)
-        return out, float(reward), terminated, truncated, info
+        return raw, float(reward), terminated, truncated, info
 
-    def _flatten(self, obs: Mapping[str, Any], info: Mapping[str, Any]) -> NDArray[np.float32]:
+    def complete(
+        self,
+        raw: Mapping[str, Any],
+        info: dict[str, Any],
+        estimates: dict[str, PoseEstimate] | None,
+        motion: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
+    ) -> NDArray[np.float32]:
+        """The observation of ``raw`` (from :meth:`reset_raw` / :meth:`step_raw`) given the
+        ``estimates`` of the frame ``stage.prepare(raw)`` returned (None when it returned None) and
+        the fused filter's deck ``motion`` after them (see :meth:`observe`); adds the estimates'
+        reasons and ages to ``info``."""
+        out = self.observe(raw, info, self.stage.finish(estimates), motion)
+        self.stage.add_info(info)
+        return out
+
+    def _flatten(self, raw: Mapping[str, Any], info: dict[str, Any]) -> NDArray[np.float32]:
+        frame = self.stage.prepare(raw)
+        estimates = None if frame is None else self.stage.estimator.update(frame)
+        motion = self._fused.motion() if self._fused is not None else None
+        return self.complete(raw, info, estimates, motion)
+
+    def observe(
+        self,
+        obs: Mapping[str, Any],
+        info: Mapping[str, Any],
+        estimates: Mapping[str, PoseEstimate],
+        motion: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    ) -> NDArray[np.float32]:
+        """The flat observation of a raw observation ``obs`` (and its ``info``, for the
+        privileged block) given the ``estimates`` shown now (:attr:`stage` has taken them) and the
+        fused filter's deck ``motion`` (velocity m/s, normal rate 1/s, world frame; None:
+        undefined), which ``deck_motion=True`` shows. Updates the held blocks."""
         sl, sc = self.obs_slices, self.obs_scales
-        estimates = self.stage.update(obs)
         out = np.zeros(sl["all"].stop, np.float64)
         imu = obs["imu"]
         R_lb, R_lw = heading_rotation(imu["quaternion"])
@@ -241,8 +280,7 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             else:
                 out[sl[f"{name}.age"]] = MAX_AGE
             out[sl[f"{name}.valid"]] = float(bool(est.valid))
-        if self._fused is not None:
-            motion = self._fused.motion()
+        if self.deck_motion:
             if motion is not None:
                 self._motion = np.concatenate([R_lw @ motion[0], R_lw @ motion[1]])
             out[sl[MOTION]] = self._motion

@@ -8,8 +8,11 @@ ended is reset by the following ``step``, which returns its first observation wi
 ``autoreset_mode=AutoresetMode.SAME_STEP`` resets it in the step that ends it instead, with its
 last observation and info in ``info["final_obs"]`` / ``info["final_info"]``, as Gymnasium's
 ``SyncVectorEnv`` does).
+The envs' estimators run as one batch (:mod:`ihrcf_env.wrappers.vector_obs`; ``batch_estimators=False``
+runs each env's own); with ``physics="numpy"`` their worlds also advance as one batch.
 Sub-env ``i`` of ``reset(seed=s)`` is the single env reset with seed ``s + i``, so it reproduces
-``gym.make(id)`` step for step. It is the ids' ``vector_entry_point`` (``gym.make_vec`` uses it
+``gym.make(id)`` step for step (bit for bit with ``batch_estimators=False``, else to the rounding of
+the batched estimators). It is the ids' ``vector_entry_point`` (``gym.make_vec`` uses it
 unless ``vectorization_mode`` says otherwise).
 """
 
@@ -25,9 +28,10 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from ihrcf_env.core.checks import check_int
+from ihrcf_env.core.checks import check_bool, check_int
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
 from ihrcf_env.sim.batched.loop import advance
+from ihrcf_env.wrappers.vector_obs import batched_observations
 
 #: Largest ``num_envs`` (each env holds a physics client).
 MAX_ENVS = 1024
@@ -45,10 +49,12 @@ class DeckLandingVectorEnv(VectorEnv):
         env_id: str,
         num_envs: int = 1,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        batch_estimators: bool = True,
         **options: Any,
     ) -> None:
         self._envs: list[gym.Env] = []
         n = check_int("num_envs", num_envs, low=1, high=MAX_ENVS)
+        batch = check_bool("batch_estimators", batch_estimators)
         modes = {m.value: m for m in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)}
         mode = autoreset_mode.value if isinstance(autoreset_mode, AutoresetMode) else autoreset_mode
         if mode not in modes:
@@ -80,6 +86,14 @@ class DeckLandingVectorEnv(VectorEnv):
         #: the task envs under the wrappers (their worlds advance together with numpy physics)
         self._tasks = task_envs(self._envs)
         self._numpy_physics = self._tasks[0].config.world.physics == "numpy"
+        #: the batched observation stage (None: each env's own wrapper chain)
+        self._batched = batched_observations(self._envs) if batch else None
+        self._was_reset = False
+
+    @property
+    def batch_estimators(self) -> bool:
+        """True when the envs' estimators run as one batch (False: each env's own)."""
+        return self._batched is not None
 
     @property
     def envs(self) -> tuple[gym.Env, ...]:
@@ -94,11 +108,18 @@ class DeckLandingVectorEnv(VectorEnv):
         seeds = env_seeds(seed, self.num_envs)
         infos: dict[str, Any] = {}
         obs = []
+        self._was_reset = True
+        self._autoreset[:] = False
+        if self._batched is not None:
+            rows = self._batched.run(None, [], range(self.num_envs), seeds, options)
+            for i in range(self.num_envs):
+                obs.append(rows[i].obs)
+                infos = self._add_info(infos, rows[i].info, i)
+            return np.stack(obs), infos
         for i, (env, s) in enumerate(zip(self._envs, seeds, strict=True)):
             o, info = env.reset(seed=s, options=options)
             obs.append(o)
             infos = self._add_info(infos, info, i)
-        self._autoreset[:] = False
         return np.stack(obs), infos
 
     def step(
@@ -114,9 +135,13 @@ class DeckLandingVectorEnv(VectorEnv):
         truncated = np.zeros(n, dtype=bool)
         infos: dict[str, Any] = {}
         obs = []
+        if not self._was_reset:
+            raise gym.error.ResetNeeded("step: reset the vector env first")
         if self._numpy_physics:
             self._advance_together(a)
         same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
+        if self._batched is not None:
+            return self._step_batched(a, same_step)
         for i, env in enumerate(self._envs):
             if self._autoreset[i]:
                 o, info = env.reset()
@@ -128,6 +153,32 @@ class DeckLandingVectorEnv(VectorEnv):
                     o, info = env.reset()
             obs.append(o)
             infos = self._add_info(infos, info, i)
+        self._autoreset = (terminated | truncated) & (not same_step)
+        return np.stack(obs), rewards, terminated, truncated, infos
+
+    def _step_batched(
+        self, a: NDArray[Any], same_step: bool
+    ) -> tuple[NDArray[Any], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
+        """:meth:`step` through the batched observation stage (one estimator update per phase)."""
+        assert self._batched is not None
+        n = self.num_envs
+        rows = self._batched.run(a, np.flatnonzero(~self._autoreset), np.flatnonzero(self._autoreset))
+        terminated = np.array([rows[i].terminated for i in range(n)], dtype=bool)
+        truncated = np.array([rows[i].truncated for i in range(n)], dtype=bool)
+        rewards = np.array([rows[i].reward for i in range(n)], dtype=np.float64)
+        ended = np.flatnonzero(terminated | truncated)
+        final: dict[int, Any] = {}
+        if same_step and ended.size:
+            final = self._batched.run(None, [], ended)
+        infos: dict[str, Any] = {}
+        obs = []
+        for i in range(n):
+            row = rows[i]
+            if i in final:
+                infos = self._add_info(infos, {"final_obs": row.obs, "final_info": row.info}, i)
+                row = final[i]
+            obs.append(row.obs)
+            infos = self._add_info(infos, row.info, i)
         self._autoreset = (terminated | truncated) & (not same_step)
         return np.stack(obs), rewards, terminated, truncated, infos
 

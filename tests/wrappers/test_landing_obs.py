@@ -156,11 +156,21 @@ class _FakeStage:
     def tick(self) -> None:
         self.k += 1
 
-    def update(self, observation: Any) -> dict[str, PoseEstimate]:
+    @property
+    def estimator(self) -> _FakeStage:
+        return self  # its update(frame) gives the scripted estimates
+
+    def prepare(self, observation: Any) -> str:
+        return "frame"
+
+    def update(self, frame: Any) -> dict[str, PoseEstimate]:
         v = bool(self.valid[min(self.k, len(self.valid) - 1)])
-        self.ages = {"fused": 0.0}
         p = np.array([0.1 * self.k, 0.0, -2.0])
         return {"fused": PoseEstimate(p, np.zeros(3), np.eye(3), v, 0.0, "" if v else "x")}
+
+    def finish(self, estimates: dict[str, PoseEstimate]) -> dict[str, PoseEstimate]:
+        self.ages = {"fused": 0.0}
+        return estimates
 
     def add_info(self, info: dict[str, Any]) -> None:
         pass
