@@ -298,6 +298,16 @@ class Wind:
         g = self.gust(t)
         return np.array([self.mean[0] + g[0], self.mean[1] + g[1], self.mean[2] + g[2]])
 
+    def velocity_at(self, times: Sequence[float]) -> NDArray[np.float64]:
+        """Wind velocity (len(times), 3) (world, m/s) at each of ``times`` (s), as the force
+        (:meth:`__call__`) sees it."""
+        out = np.empty((len(times), 3))
+        mx, my, mz = self.mean
+        for m, t in enumerate(times):
+            gx, gy, gz = self.gust(t)
+            out[m] = (mx + gx, my + gy, mz + gz)
+        return out
+
     def __call__(
         self, t: float, position: Sequence[float], velocity: Sequence[float]
     ) -> tuple[float, float, float]:

@@ -32,6 +32,7 @@ the attitude the agent observes).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -240,6 +241,20 @@ class GNSSINSNavigation:
             self._step()
             self._k += 1
         self._k = k
+
+    def errors_at(
+        self, times: Sequence[float]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """The error state :meth:`estimate` applies at each of ``times`` (s, non-decreasing),
+        advancing to the last: position error ``e_p``, correlated velocity error ``e_v`` and the
+        white velocity noise, each (len(times), 3) (world, m and m/s). :meth:`estimate` at time
+        ``t`` returns ``(p + e_p, ((v + e_v) - e_p / tau_p) + white)`` (``1 / tau_p`` as
+        ``_inv_tp``)."""
+        out = np.empty((3, len(times), 3))
+        for m, t in enumerate(times):
+            self.advance(t)
+            out[0, m], out[1, m], out[2, m] = self.position_error, self.velocity_error, self._white
+        return out[0], out[1], out[2]
 
     def estimate(self, t: float, position: Vec3, velocity: Vec3) -> tuple[Vec3, Vec3]:
         self.advance(t)

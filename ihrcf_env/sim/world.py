@@ -231,7 +231,8 @@ class World:
         self.controller = VelocityController(self.quad, cfg.gains)
         rendered = cfg.camera is not None and cfg.camera_model == "rendered"
         self.camera = DownCamera(cid, cfg.camera, cfg.rig) if rendered and cfg.camera is not None else None
-        self.tof = ToFArray(cid, cfg.tof, cfg.rig)
+        # numpy physics: the ranges in closed form too (no Bullet collision world is stepped)
+        self.tof = ToFArray(cid, cfg.tof, cfg.rig, deck=self.deck if cfg.physics == "numpy" else None)
         self.imu_sensor = IMU.from_config(cfg.imu)
         self.navigation: Navigation = make_navigation(cfg.navigation, self.dt)
         self.sensors: dict[str, Sensor] = {}

@@ -8,8 +8,9 @@ ended is reset by the following ``step``, which returns its first observation wi
 ``autoreset_mode=AutoresetMode.SAME_STEP`` resets it in the step that ends it instead, with its
 last observation and info in ``info["final_obs"]`` / ``info["final_info"]``, as Gymnasium's
 ``SyncVectorEnv`` does).
-The envs' estimators run as one batch (:mod:`ihrcf_env.wrappers.vector_obs`; ``batch_estimators=False``
-runs each env's own); with ``physics="numpy"`` their worlds also advance as one batch.
+From :data:`BATCH_FROM` envs on, their estimators run as one batch (:mod:`ihrcf_env.wrappers.vector_obs`;
+``batch_estimators=True`` / ``False`` forces it either way); with ``physics="numpy"`` their worlds
+also advance as one batch.
 Sub-env ``i`` of ``reset(seed=s)`` is the single env reset with seed ``s + i``, so it reproduces
 ``gym.make(id)`` step for step (bit for bit with ``batch_estimators=False``, else to the rounding of
 the batched estimators). It is the ids' ``vector_entry_point`` (``gym.make_vec`` uses it
@@ -35,6 +36,8 @@ from ihrcf_env.wrappers.vector_obs import batched_observations
 
 #: Largest ``num_envs`` (each env holds a physics client).
 MAX_ENVS = 1024
+#: Fewest envs whose estimators run as one batch by default (below, a batch costs more than it saves).
+BATCH_FROM = 8
 #: Options the vector env does not take (a GUI is one per process; the vector env does not render).
 UNSUPPORTED_OPTIONS = ("render_mode",)
 
@@ -49,12 +52,14 @@ class DeckLandingVectorEnv(VectorEnv):
         env_id: str,
         num_envs: int = 1,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-        batch_estimators: bool = True,
+        batch_estimators: bool | None = None,
         **options: Any,
     ) -> None:
         self._envs: list[gym.Env] = []
         n = check_int("num_envs", num_envs, low=1, high=MAX_ENVS)
-        batch = check_bool("batch_estimators", batch_estimators)
+        batch = (
+            n >= BATCH_FROM if batch_estimators is None else check_bool("batch_estimators", batch_estimators)
+        )
         modes = {m.value: m for m in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)}
         mode = autoreset_mode.value if isinstance(autoreset_mode, AutoresetMode) else autoreset_mode
         if mode not in modes:

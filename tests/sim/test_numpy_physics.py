@@ -68,3 +68,40 @@ def test_the_physics_backend_is_checked_by_name() -> None:
     with pytest.raises(ValueError, match="physics"):
         WorldConfig(physics="bullet")
     assert dataclasses.replace(WorldConfig(), physics="numpy").physics == "numpy"
+
+
+@pytest.mark.parametrize("tof_noise", ["ideal", "realistic"])
+def test_worlds_advanced_together_read_the_ranges_of_a_world_alone(make_world: Any, tof_noise: str) -> None:
+    """Numpy worlds cast their ToF rays in closed form; advanced together, the rays of all are cast
+    in one call (ranging.prefetch), and each world reads what it reads when advanced alone."""
+    from ihrcf_env.sim.batched.loop import advance
+    from ihrcf_env.sim.sensors.tof import ToFConfig
+
+    def worlds() -> list[World]:
+        out = []
+        for k in range(3):
+            w = _world(make_world, "numpy", tof=ToFConfig(noise=tof_noise))
+            w.reset_random(np.random.default_rng(20 + k))
+            out.append(w)
+        return out
+
+    together, alone = worlds(), worlds()
+    assert together[0].tof.closed_form is not None
+    hits = 0
+    for k in range(30):
+        for ws in (together, alone):
+            for w in ws:
+                w.set_velocity_setpoint(np.array([0.2 * math.sin(0.2 * k), -0.1, -0.1, 0.0]))
+        for w, touchdown in zip(together, advance(together), strict=True):
+            w.mark_advanced(touchdown)
+        for w in together:
+            hits += w.tof.prefetched is not None
+            w.step()
+        for w in alone:
+            w.step()
+        for a, b in zip(together, alone, strict=True):
+            ra, rb = a.read_sensors(), b.read_sensors()
+            assert a.tof.prefetched is None  # taken by the reading
+            np.testing.assert_array_equal(ra["ranges"], rb["ranges"])
+            np.testing.assert_array_equal(ra["ranges_valid"], rb["ranges_valid"])
+    assert hits == 3 * 30

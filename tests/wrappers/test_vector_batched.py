@@ -14,7 +14,7 @@ from test_estimator_registry import BelowAtHeight
 import ihrcf_env
 from ihrcf_env.core.estimators import ESTIMATORS
 from ihrcf_env.wrappers.landing_obs import landing_obs_fields
-from ihrcf_env.wrappers.vector import DeckLandingVectorEnv
+from ihrcf_env.wrappers.vector import BATCH_FROM, DeckLandingVectorEnv
 
 V2 = ihrcf_env.LANDING_V2_ID
 #: camera latency, lost frames (moderate), both optional observation blocks
@@ -91,3 +91,5 @@ def test_bad_batch_option_and_step_before_reset(no_leaks: None, closing: Callabl
     v = closing(gym.make_vec(V2, num_envs=2, camera_model="projected"))
     with pytest.raises(gym.error.ResetNeeded, match="reset"):
         v.step(np.zeros((2, 4), np.float32))
+    assert not v.batch_estimators  # by default from BATCH_FROM envs on
+    assert closing(gym.make_vec(V2, num_envs=BATCH_FROM, camera_model="projected")).batch_estimators

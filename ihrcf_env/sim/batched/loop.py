@@ -6,9 +6,10 @@ control steps its flight is integrated here, over all the worlds given, on array
 
 1. gather each world's drone state (from its client), rotor speeds, autopilot state, command and
    the deck's poses over the control period (from its trajectory);
-2. per physics tick: the navigation estimate and the disturbances (per world: they are the
-   world's own objects), the autopilot (:mod:`~ihrcf_env.sim.batched.autopilot`), the ground
-   effect (:mod:`~ihrcf_env.sim.batched.surface`), the rotors and the rigid-body step
+2. per physics tick: the navigation estimate and the disturbances (the worlds' own objects,
+   :mod:`~ihrcf_env.sim.batched.external`), the autopilot
+   (:mod:`~ihrcf_env.sim.batched.autopilot`), the ground effect
+   (:mod:`~ihrcf_env.sim.batched.surface`), the rotors and the rigid-body step
    (:mod:`~ihrcf_env.sim.batched.dynamics`), then the sensors on their own clock that sample at
    this tick (their world written back first) and the first contact
    (:mod:`~ihrcf_env.sim.batched.contact`); after its first contact a drone rests on what it
@@ -31,18 +32,15 @@ from numpy.typing import NDArray
 from ihrcf_env.sim.batched import contact
 from ihrcf_env.sim.batched.autopilot import BatchedVelocityController
 from ihrcf_env.sim.batched.dynamics import BatchedQuadrotor
+from ihrcf_env.sim.batched.external import ExternalInputs
 from ihrcf_env.sim.batched.floatmath import matrices_from_quaternions
+from ihrcf_env.sim.batched.ranging import prefetch
 from ihrcf_env.sim.batched.surface import rotor_positions_batch, thrust_scale_batch
 from ihrcf_env.sim.deck import angular_velocity_between
-from ihrcf_env.sim.disturbances import ConstantForce, Wind, disturbance_force
 
 if TYPE_CHECKING:
     from ihrcf_env.sim.drone import VelocityController
     from ihrcf_env.sim.world import Touchdown, World
-
-
-#: Disturbance types whose forces are checked floats by construction.
-TRUSTED_DISTURBANCES: tuple[type, ...] = (Wind, ConstantForce)
 
 
 def _check_group(worlds: Sequence[World]) -> None:
@@ -204,8 +202,7 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
     rel_pos = np.zeros((n, 3))  # latched drones: pose in the frame of what they rest on
     rel_quat = np.zeros((n, 4))
     on_deck = np.zeros(n, dtype=bool)
-    nav_rows = [i for i, w in enumerate(worlds) if not w.navigation.ideal]
-    dist_rows = [i for i, w in enumerate(worlds) if w.disturbances]
+    outside = ExternalInputs(worlds, ticks0, steps, dt)
     clocked_rows = [i for i in range(n) if due[i]]
     reach = contact.drone_radius()
     ge = worlds[0].ground_effect
@@ -215,21 +212,12 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
     motor_xy = cfg.quad.motor_xy
     all_velocity = bool(velocity_rows.all())
     prev_vel = quad.velocity.copy()
-    external = np.zeros((n, 3))
     for j in range(steps):
-        t = (ticks0 + j) * dt
         pos, vel = quad.position, quad.velocity
         quat = quad.reported_quaternion()
         rot = quad.reported_rotation()
         omega = quad.angular_velocity
-        pos_c, vel_c = pos, vel
-        if nav_rows:
-            pos_c, vel_c = pos.copy(), vel.copy()
-            for i in nav_rows:
-                est_p, est_v = worlds[i].navigation.estimate(
-                    float(t[i]), tuple(pos[i].tolist()), tuple(vel[i].tolist())
-                )
-                pos_c[i], vel_c[i] = est_p, est_v
+        pos_c, vel_c = outside.navigation(j, pos, vel) if outside.navigating else (pos, vel)
         if all_velocity:
             cmd = autopilot.compute(setpoints, dt, pos_c, quat, vel_c, omega, rotation=rot)
         else:  # rows on motor commands: their autopilot state stays as it was (as in World.step)
@@ -244,25 +232,18 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
         if ge is not None:
             rotors = rotor_positions_batch(pos, rot, motor_xy)
             scale = thrust_scale_batch(ge, rotors, deck_top[:, j], deck_rot[:, j], half)
-        external[:] = 0.0
-        for i in dist_rows:
-            fx = fy = fz = 0.0
-            ti, pi, vi = float(t[i]), tuple(pos[i].tolist()), tuple(vel[i].tolist())
-            for d in worlds[i].disturbances:
-                # the simulator's own disturbances return checked floats: no need to check them again
-                f = d(ti, pi, vi) if type(d) in TRUSTED_DISTURBANCES else disturbance_force(d, ti, pi, vi)
-                fx, fy, fz = fx + f[0], fy + f[1], fz + f[2]
-            external[i] = (fx, fy, fz)
+        external = outside.forces(j, pos, vel)
         prev_vel = quad.velocity.copy()
-        quad.step(cmd, dt, thrust_scale=scale, force=external if dist_rows else None)
+        quad.step(cmd, dt, thrust_scale=scale, force=external)
         if latched.any():
             _rest(quad, np.flatnonzero(latched), on_deck, rel_pos, rel_quat, deck_top, deck_quat, j, dt)
-        for i in clocked_rows:
-            names = due[i].get(int(ticks0[i]) + j + 1)
-            if names:
-                worlds[i].tick = int(ticks0[i]) + j + 1
-                _write_back(worlds[i], quad, i, _deck_state(deck_body, deck_quat, i, j + 1, dt))
-                worlds[i]._sample_clocked(names, tuple(prev_vel[i].tolist()))
+        due_now = [(i, names) for i in clocked_rows if (names := due[i].get(int(ticks0[i]) + j + 1))]
+        for i, _ in due_now:
+            worlds[i].tick = int(ticks0[i]) + j + 1
+            _write_back(worlds[i], quad, i, _deck_state(deck_body, deck_quat, i, j + 1, dt))
+        _prefetch_ranges([worlds[i] for i, names in due_now if "tof" in names])
+        for i, names in due_now:
+            worlds[i]._sample_clocked(names, tuple(prev_vel[i].tolist()))
         # contacts: only drones whose bounding sphere reaches the deck's plane or the ground
         near = ~latched & (
             (quad.position[:, 2] < reach + base_height)
@@ -304,7 +285,16 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
         w._acc_world = (quad.velocity[i] - prev_vel[i]) / dt
         w.quad.rotor_speed = quad.rotor_speed[i].tolist()
     _scatter_autopilots(autopilot, [w.controller for w in worlds])
+    _prefetch_ranges([w for w in worlds if "tof" not in w.clocks])  # read at the control step
     return touchdowns
+
+
+def _prefetch_ranges(worlds: Sequence[World]) -> None:
+    """Cast the closed-form ToF rays of ``worlds`` at their state now in one batched call, for
+    their readings that follow (one world alone casts its own when it reads)."""
+    ranged = [w for w in worlds if w.tof.closed_form is not None]
+    if len(ranged) > 1:
+        prefetch([w.tof for w in ranged], [w.body_state() for w in ranged])
 
 
 def _plane_distance(

@@ -187,6 +187,11 @@ class ToFConfig:
         return self.noise if isinstance(self.noise, VL53L1X) else TOF_PRESETS[self.noise]
 
 
+def poses_key(*parts: NDArray) -> bytes:
+    """Arrays (what was cast, the drone's and the deck's poses) as one key: their float64 bytes."""
+    return b"".join(np.ascontiguousarray(a, dtype=np.float64).tobytes() for a in parts)
+
+
 class ToFArray:
     """Range sensors ps1..ps4 (see :mod:`ihrcf_env.core.rig`): a :class:`Sensor` reading ``ranges``
     (4,) float32 m and ``ranges_valid`` (4,) int8.
@@ -198,7 +203,9 @@ class ToFArray:
     The rays are cast with PyBullet's ``rayTestBatch`` against the client's bodies, or, given the
     world's ``deck`` (its plate and base are then the scene, with the ground and the drone's own
     collision boxes), in closed form (:mod:`ihrcf_env.sim.batched.ranging`), the deck's pose read
-    from its body at each reading.
+    from its body at each reading. Closed-form rays cast for many worlds at once
+    (:func:`~ihrcf_env.sim.batched.ranging.prefetch`) are taken by the next reading at the same
+    drone and deck poses.
     """
 
     name = "tof"
@@ -214,6 +221,8 @@ class ToFArray:
         self.client = client
         self.deck = deck
         self.closed_form: BatchedToF | None = None
+        #: closed-form rays cast ahead (ranging.prefetch): (poses key, (a, b) of the one world)
+        self.prefetched: tuple[bytes, tuple[NDArray[np.float64], NDArray[np.float64]]] | None = None
         if deck is not None:
             from ihrcf_env.sim.batched.ranging import BatchedToF
             from ihrcf_env.sim.batched.rays import RayScene
@@ -245,8 +254,8 @@ class ToFArray:
         """Noise-free ranges (m) of the four beam axes (one ray each, along body -z) and hit flags.
         Misses read ``max_range``."""
         if self.closed_form is not None:
-            ranges, hit = self.closed_form.true_ranges(pos[None], R_wb[None], *self._deck_pose())
-            return ranges[0], hit[0]
+            ranges, hit = self._closed(pos, R_wb, cone=False)
+            return ranges, hit.astype(bool)
         starts = self._pos_body @ R_wb.T + pos
         ends = starts - R_wb[:, 2] * self.config.max_range
         hits = p.rayTestBatch(starts.tolist(), ends.tolist(), physicsClientId=self.client)
@@ -265,8 +274,7 @@ class ToFArray:
         if self.model is None:
             raise RuntimeError("cone_returns needs the realistic ToF model (tof_noise='realistic')")
         if self.closed_form is not None:
-            r, s = self.closed_form.cone_returns(pos[None], R_wb[None], *self._deck_pose())
-            return r[0], s[0]
+            return self._closed(pos, R_wb, cone=True)
         n = self.model.rays
         length = self.config.max_range
         starts = np.repeat(self._pos_body @ R_wb.T + pos, n, axis=0)
@@ -279,6 +287,22 @@ class ToFArray:
         cos_i = np.abs(np.einsum("ij,ij->i", h[:, 2:], dirs_w))
         signal = np.where(hit, self.model.reflectance * cos_i / r**2, 0.0)
         return np.where(hit, r, np.nan).reshape(4, n), signal.reshape(4, n)
+
+    def _closed(
+        self, pos: NDArray[np.float64], R_wb: NDArray[np.float64], cone: bool
+    ) -> tuple[NDArray, NDArray]:
+        """The closed-form rays at this drone pose and the deck's pose now, of this world:
+        :meth:`BatchedToF.cone_returns` (``cone``) or :meth:`BatchedToF.true_ranges`; the
+        prefetched ones when cast at the same poses."""
+        cf = self.closed_form
+        assert cf is not None
+        deck_pos, deck_R = self._deck_pose()
+        ahead, self.prefetched = self.prefetched, None
+        if ahead is not None and ahead[0] == poses_key(np.array([cone]), pos, R_wb, deck_pos[0], deck_R[0]):
+            return ahead[1]
+        cast = cf.cone_returns if cone else cf.true_ranges
+        a, b = cast(pos[None], R_wb[None], deck_pos, deck_R)
+        return a[0], b[0]
 
     def _deck_pose(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The deck frame's pose now, stacked for one world: ((1, 3), (1, 3, 3))."""
