@@ -40,6 +40,7 @@ from ihrcf_env.sim.sensors.timing import DelayLine, SampleClock, no_frame_readin
 
 if TYPE_CHECKING:
     from ihrcf_env.core.detector_model import DetectorModel
+    from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
 
 ACTION_MODES: tuple[str, ...] = ("velocity", "motors")
 #: How the camera is simulated: ``"rendered"`` (TinyRenderer + the tag detector) or ``"projected"``
@@ -298,7 +299,13 @@ class World:
         from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
 
         model = cfg.detector_model if cfg.detector_model is not None else DetectorModel.load()
-        return {TAG_CAMERA: ProjectedTagCamera(self.client, camera, cfg.rig, self.deck, tag_size, model)}
+        # numpy physics: the occlusion rays in closed form too (the ideal quality)
+        closed = cfg.physics == "numpy" and camera.quality == "ideal"
+        return {
+            TAG_CAMERA: ProjectedTagCamera(
+                self.client, camera, cfg.rig, self.deck, tag_size, model, closed_form=closed
+            )
+        }
 
     # -- lifecycle -------------------------------------------------------------------------
     def reset(
@@ -639,7 +646,6 @@ class World:
         from ``rng`` when given. Named explicitly, a sensor is always read now."""
         state = self.body_state()
         control_dt = self.config.substeps * self.dt
-        step = self.tick // self.config.substeps
         out: dict[str, NDArray] = {}
         held = names is None
         for name in names if names is not None else tuple(self.sensors):
@@ -649,10 +655,11 @@ class World:
                 out.update(self._read_clocked(name, state, rng))
                 continue
             if held and self.camera_pipeline is not None and name in self.frame_counts:
-                out.update(self._read_delayed(name, state, step % every == 0, control_dt * every, rng))
+                out.update(self._read_delayed(name, state, self.takes_fresh(name), control_dt * every, rng))
                 continue
             last = self._held.get(name)
-            if held and last is not None and step % every != 0:
+            if held and not self.takes_fresh(name):
+                assert last is not None
                 out.update({k: v.copy() for k, v in last.items()})
                 continue
             reading = self._take(name, state, control_dt * every, rng)
@@ -663,6 +670,33 @@ class World:
                 if name in self.frame_counts:
                     self.frame_counts[name] += 1
         return out
+
+    def takes_fresh(self, name: str) -> bool:
+        """True when the next :meth:`read_sensors` (of all sensors) takes a new reading of sensor
+        ``name`` at this tick (False: it shows a held one, or the sensor runs on its own clock)."""
+        if name in self.clocks:
+            return False
+        step = self.tick // self.config.substeps
+        every = int(getattr(self.sensors[name], "update_interval", 1))
+        line = self.camera_pipeline
+        if line is not None and name in self.frame_counts:
+            return step % every == 0 and line.exposed_at != self.tick
+        return step % every == 0 or self._held.get(name) is None
+
+    def camera_ahead(self) -> tuple[ProjectedTagCamera, BodyState, np.random.Generator] | None:
+        """The projected tag camera with closed-form rays, the state and the generator of the
+        reading the next :meth:`read_sensors` takes of it, or None when it takes none (or the
+        camera is another kind): a reading cast ahead for many worlds at once
+        (:func:`~ihrcf_env.sim.batched.loop.advance`) is taken by that read."""
+        from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera as Projected
+
+        cam = self.sensors.get(TAG_CAMERA)
+        gen = self._rngs.get(TAG_CAMERA)
+        if not isinstance(cam, Projected) or cam.batched is None or gen is None:
+            return None
+        if not self.takes_fresh(TAG_CAMERA):
+            return None
+        return cam, self.body_state(), gen
 
     def _take(
         self, name: str, state: BodyState, dt: float, rng: np.random.Generator | None
@@ -688,7 +722,7 @@ class World:
         yet exposed at this tick), then show the last frame due."""
         line = self.camera_pipeline
         assert line is not None
-        if exposing and line.exposed_at != self.tick:
+        if exposing:
             line.push(self.tick, self._take(name, state, dt, rng))
         for tick, reading in line.deliver(self.tick):
             self._held[name] = reading

@@ -37,6 +37,7 @@ from ihrcf_env.sim.batched.floatmath import matrices_from_quaternions
 from ihrcf_env.sim.batched.ranging import prefetch
 from ihrcf_env.sim.batched.surface import rotor_positions_batch, thrust_scale_batch
 from ihrcf_env.sim.deck import angular_velocity_between
+from ihrcf_env.sim.sensors.tag_camera import reading_row
 
 if TYPE_CHECKING:
     from ihrcf_env.sim.drone import VelocityController
@@ -286,7 +287,39 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
         w.quad.rotor_speed = quad.rotor_speed[i].tolist()
     _scatter_autopilots(autopilot, [w.controller for w in worlds])
     _prefetch_ranges([w for w in worlds if "tof" not in w.clocks])  # read at the control step
+    _prefetch_camera(worlds)
     return touchdowns
+
+
+def _prefetch_camera(worlds: Sequence[World]) -> None:
+    """Read the projected tag cameras (closed-form rays) that the worlds' next sensor reads take,
+    in one batched read per camera set-up (each from its world's generator and corner track)."""
+    ahead = [a for a in (w.camera_ahead() for w in worlds) if a is not None]
+    groups: list[list[int]] = []
+    for k, (cam, _, _) in enumerate(ahead):
+        assert cam.batched is not None
+        group = next((g for g in groups if cam.batched.same_as(ahead[g[0]][0].batched)), None)  # type: ignore[arg-type]
+        if group is None:
+            groups.append([k])
+        else:
+            group.append(k)
+    for rows in groups:
+        if len(rows) < 2:  # alone, the world's own read casts them
+            continue
+        cams = [ahead[k][0] for k in rows]
+        keys = [cam.poses_key(ahead[k][1]) for cam, k in zip(cams, rows, strict=True)]
+        batched = cams[0].batched
+        assert batched is not None
+        out = batched.read(
+            np.stack([ahead[k][1].position for k in rows]).astype(np.float64),
+            np.stack([ahead[k][1].rotation for k in rows]).astype(np.float64),
+            np.stack([key[1] for key in keys]),
+            np.stack([key[2] for key in keys]),
+            [cam.track for cam in cams],
+            [ahead[k][2] for k in rows],
+        )
+        for m, (cam, k) in enumerate(zip(cams, rows, strict=True)):
+            cam.prefetched = (keys[m][0], ahead[k][2], reading_row(out, m))
 
 
 def _prefetch_ranges(worlds: Sequence[World]) -> None:

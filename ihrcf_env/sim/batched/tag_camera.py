@@ -73,6 +73,16 @@ class BatchedTagCamera:
         quiet = corners * np.array([QUIET_ZONE_SCALE, QUIET_ZONE_SCALE, 1.0])
         self._points_deck = np.vstack([corners, quiet, np.zeros((1, 3))])  # 4 corners, 4 quiet, centre
 
+    def same_as(self, other: BatchedTagCamera) -> bool:
+        """True when ``other`` reads as this one does (one batched read serves the worlds of both)."""
+        return (
+            self.camera == other.camera
+            and self.scene == other.scene
+            and self.params == other.params
+            and np.array_equal(self._cam_offset, other._cam_offset)
+            and np.array_equal(self._points_deck, other._points_deck)
+        )
+
     def _project(self, P: NDArray[np.float64]) -> NDArray[np.float64]:
         """Pixels (N, M, 2) of camera-frame points (N, M, 3) (as ``project_points``)."""
         K = self.K

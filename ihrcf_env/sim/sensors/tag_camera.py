@@ -23,6 +23,7 @@ It renders nothing, so a read costs a small fraction of a rendered frame (``docs
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pybullet as p
@@ -43,6 +44,9 @@ from ihrcf_env.sim.deck import Deck
 from ihrcf_env.sim.sensors.base import TAG_CAMERA, BodyState, tag_reading
 from ihrcf_env.sim.sensors.camera import CameraConfig
 from ihrcf_env.sim.sensors.imaging import FULL_SCALE_DN, EpisodeImaging, draw_episode, image_motion_px
+
+if TYPE_CHECKING:
+    from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
 
 #: Failure reasons decided by the simulator (the model's are in detector_model).
 REASON_DEPTH = "tag outside the camera's depth range"
@@ -78,6 +82,7 @@ class ProjectedTagCamera:
         deck: Deck,
         tag_size: float,
         model: DetectorModel,
+        closed_form: bool = False,
     ) -> None:
         if not isinstance(camera, CameraConfig):
             raise TypeError(f"camera must be a CameraConfig, got {type(camera).__name__}")
@@ -108,6 +113,18 @@ class ProjectedTagCamera:
         self._blur_threshold = float(im.blur_threshold_px)
         self._e_per_dn = math.nan
         self._deck_half = float(deck.config.thickness) / 2.0
+        #: closed-form rays: every read is the batched read of this world alone (None: Bullet's rays)
+        self.batched: BatchedTagCamera | None = None
+        #: a reading cast ahead (:meth:`BatchedTagCamera.read` of many worlds): (poses key, the
+        #: generator it drew from, the reading)
+        self.prefetched: tuple[bytes, np.random.Generator, dict[str, NDArray]] | None = None
+        if closed_form:
+            from ihrcf_env.sim.batched.rays import RayScene
+            from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
+
+            g = deck.geometry
+            scene = RayScene.of(deck.config.size, deck.config.thickness, g.base_radius, g.base_height)
+            self.batched = BatchedTagCamera(camera, rig, scene, float(tag_size), model)
 
     def reset(self, rng: np.random.Generator, episode: EpisodeImaging | None = None) -> None:
         """Start an episode. The realistic quality first draws the episode's light, exposure and
@@ -232,6 +249,8 @@ class ProjectedTagCamera:
         """:func:`~ihrcf_env.sim.sensors.base.tag_reading` of the frame at ``state``. Draws 8
         normals and one uniform from ``rng`` whatever happens (reproducible streams; and the
         realistic episode first, if :meth:`reset` was not called)."""
+        if self.batched is not None:
+            return self._read_closed_form(state, rng)
         if self.quality == "realistic" and self.episode is None:
             self.reset(rng)  # as the rendered camera: the episode drawn at the first read
         f, reason, occluded = self._observe(state, rays=True)
@@ -244,3 +263,38 @@ class ProjectedTagCamera:
         if corners is not None and occluded:
             return tag_reading(None, REASON_OCCLUDED)
         return tag_reading(corners, reason)
+
+    def poses_key(self, state: BodyState) -> tuple[bytes, NDArray[np.float64], NDArray[np.float64]]:
+        """(key of the drone's pose in ``state`` and the deck's pose now, deck position, rotation)."""
+        deck_pos, R_wd = self._deck_pose()
+        key = b"".join(
+            np.ascontiguousarray(a, dtype=np.float64).tobytes()
+            for a in (state.position, state.rotation, deck_pos, R_wd)
+        )
+        return key, deck_pos, R_wd
+
+    def _read_closed_form(self, state: BodyState, rng: np.random.Generator) -> dict[str, NDArray]:
+        """The batched read of this world alone, or the one cast ahead for it (which must be of
+        the same poses and generator: it has drawn from it)."""
+        key, deck_pos, R_wd = self.poses_key(state)
+        ahead, self.prefetched = self.prefetched, None
+        self.last_features = None
+        if ahead is not None:
+            if ahead[0] != key or ahead[1] is not rng:
+                raise RuntimeError("a camera reading cast ahead was not read at its poses and generator")
+            return ahead[2]
+        assert self.batched is not None
+        pos = np.asarray(state.position, dtype=np.float64)[None]
+        R = np.asarray(state.rotation, dtype=np.float64)[None]
+        out = self.batched.read(pos, R, deck_pos[None], R_wd[None], [self.track], [rng])
+        return reading_row(out, 0)
+
+
+def reading_row(out: dict[str, NDArray], i: int) -> dict[str, NDArray]:
+    """Row ``i`` of a batched tag reading as :func:`~ihrcf_env.sim.sensors.base.tag_reading` gives it."""
+    return {
+        "tag_corners": np.array(out["tag_corners"][i], dtype=np.float64),
+        "tag_detected": np.array(bool(out["tag_detected"][i])),
+        "tag_reason": np.array(str(out["tag_reason"][i])),
+        "tag_status": np.array(int(out["tag_status"][i])),
+    }
