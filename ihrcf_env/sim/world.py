@@ -299,8 +299,8 @@ class World:
         from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
 
         model = cfg.detector_model if cfg.detector_model is not None else DetectorModel.load()
-        # numpy physics: the occlusion rays in closed form too (the ideal quality)
-        closed = cfg.physics == "numpy" and camera.quality == "ideal"
+        # numpy physics: the camera's rays in closed form too
+        closed = cfg.physics == "numpy"
         return {
             TAG_CAMERA: ProjectedTagCamera(
                 self.client, camera, cfg.rig, self.deck, tag_size, model, closed_form=closed
@@ -693,6 +693,8 @@ class World:
         cam = self.sensors.get(TAG_CAMERA)
         gen = self._rngs.get(TAG_CAMERA)
         if not isinstance(cam, Projected) or cam.batched is None or gen is None:
+            return None
+        if cam.quality == "realistic" and cam.episode is None:  # its own read draws the episode
             return None
         if not self.takes_fresh(TAG_CAMERA):
             return None

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Iterator
-from dataclasses import replace
 
 import numpy as np
 import pybullet as p
@@ -279,14 +278,6 @@ def test_scalar_tracks_are_updated(world: World) -> None:
 def test_refuses_bad_input(world: World) -> None:
     cam = world.sensors[TAG_CAMERA]
     assert isinstance(cam, ProjectedTagCamera)
-    with pytest.raises(ValueError, match="ideal"):
-        BatchedTagCamera(
-            replace(cam.camera, quality="realistic"),
-            world.config.rig,
-            scene_of(world),
-            0.4,
-            cam.model,
-        )
     with pytest.raises(TypeError, match="scene"):
         BatchedTagCamera(cam.camera, world.config.rig, None, 0.4, cam.model)  # type: ignore[arg-type]
     bcam = batched(world)

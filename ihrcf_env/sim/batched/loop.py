@@ -23,7 +23,7 @@ would alone (``advance([world])``, what ``World.step`` does).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pybullet as p
@@ -310,13 +310,22 @@ def _prefetch_camera(worlds: Sequence[World]) -> None:
         keys = [cam.poses_key(ahead[k][1]) for cam, k in zip(cams, rows, strict=True)]
         batched = cams[0].batched
         assert batched is not None
+        states = [ahead[k][1] for k in rows]
+        imaging: dict[str, Any] = {}
+        if batched.realistic:
+            imaging = {
+                "velocity": np.stack([st.velocity for st in states]).astype(np.float64),
+                "angular_velocity": np.stack([st.angular_velocity for st in states]).astype(np.float64),
+                "episodes": [cam.episode for cam in cams],
+            }
         out = batched.read(
-            np.stack([ahead[k][1].position for k in rows]).astype(np.float64),
-            np.stack([ahead[k][1].rotation for k in rows]).astype(np.float64),
+            np.stack([st.position for st in states]).astype(np.float64),
+            np.stack([st.rotation for st in states]).astype(np.float64),
             np.stack([key[1] for key in keys]),
             np.stack([key[2] for key in keys]),
             [cam.track for cam in cams],
             [ahead[k][2] for k in rows],
+            **imaging,
         )
         for m, (cam, k) in enumerate(zip(cams, rows, strict=True)):
             cam.prefetched = (keys[m][0], ahead[k][2], reading_row(out, m))

@@ -11,8 +11,13 @@ small matrix products as stacked ``matmul``, one BLAS call per world as in the s
 the same draws from its generator; only the occlusion rays may differ from Bullet's, within its
 convex-cast tolerance, where a ray passes within about a millimetre of a collision surface.
 
-The camera quality ``"ideal"`` only: the realistic quality's motion blur needs the scene depth on
-the optical axis, which Bullet reports only within its tolerance, and its episode imaging.
+The realistic quality needs each world's :class:`~ihrcf_env.sim.sensors.imaging.EpisodeImaging`
+and the drone's velocities: its noise ratio (vignetting, light, exposure) and motion blur are the
+scalar read's, with the scene depth on the optical axis from a closed-form ray too. Bullet reports
+that depth only within its tolerance, so the realistic rows follow the scalar read closely, and
+bit for bit the world's own read with closed-form rays
+(:class:`~ihrcf_env.sim.sensors.tag_camera.ProjectedTagCamera` with ``closed_form=True``, which
+is this read of one world).
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from ihrcf_env.sim.batched.detector import BatchedCornerTrack, model_corners
 from ihrcf_env.sim.batched.rays import RayScene, cast_rays, self_hits, to_local
 from ihrcf_env.sim.sensors.base import TAG_STATUS, tag_status_code
 from ihrcf_env.sim.sensors.camera import CameraConfig
+from ihrcf_env.sim.sensors.imaging import FULL_SCALE_DN, EpisodeImaging
 from ihrcf_env.sim.sensors.tag_camera import RAY_MARGIN_M, REASON_DEPTH, REASON_OCCLUDED
 
 _DEPTH, _OCCLUDED = tag_status_code(REASON_DEPTH), tag_status_code(REASON_OCCLUDED)
@@ -59,10 +65,6 @@ class BatchedTagCamera:
             raise TypeError(f"model must be a DetectorModel, got {type(model).__name__}")
         if isinstance(tag_size, bool) or not isinstance(tag_size, int | float | np.floating):
             raise TypeError(f"tag_size must be a real number (m), got {type(tag_size).__name__}")
-        if camera.quality != "ideal":
-            raise ValueError(
-                f'the batched projected camera supports quality "ideal" only, got {camera.quality!r}'
-            )
         corners = tag_corners_deck(float(tag_size))  # validates the value
         self.camera = camera
         self.scene = scene
@@ -72,6 +74,11 @@ class BatchedTagCamera:
         self._cam_offset = np.asarray(rig.camera_position, dtype=np.float64)
         quiet = corners * np.array([QUIET_ZONE_SCALE, QUIET_ZONE_SCALE, 1.0])
         self._points_deck = np.vstack([corners, quiet, np.zeros((1, 3))])  # 4 corners, 4 quiet, centre
+        self.realistic = camera.quality == "realistic"
+        im = camera.imaging
+        self._vignetting_exponent = float(im.vignetting_exponent)
+        self._read_noise = float(im.read_noise_e)
+        self._blur_threshold = float(im.blur_threshold_px)
 
     def same_as(self, other: BatchedTagCamera) -> bool:
         """True when ``other`` reads as this one does (one batched read serves the worlds of both)."""
@@ -124,12 +131,17 @@ class BatchedTagCamera:
         deck_rotation: NDArray[np.float64],
         track: BatchedCornerTrack | Sequence[CornerTrack],
         rngs: Sequence[np.random.Generator],
+        velocity: NDArray[np.float64] | None = None,
+        angular_velocity: NDArray[np.float64] | None = None,
+        episodes: Sequence[EpisodeImaging] | None = None,
     ) -> dict[str, NDArray]:
         """One read of N worlds: the drone at ``position`` (N, 3) with ``rotation`` (N, 3, 3; world
         from body), the deck frame (its top face) at ``deck_position`` (N, 3) with ``deck_rotation``
         (N, 3, 3; world from deck); ``track`` each world's correlated error field (a scalar track's
         field drawn here is written back to it), ``rngs`` each world's generator (8 normals and one
-        uniform each, then the field at its first use). Returns the
+        uniform each, then the field at its first use); the realistic quality also takes the
+        drones' ``velocity`` and ``angular_velocity`` (N, 3; world, m/s and rad/s) and each world's
+        ``episodes`` imaging. Returns the
         :func:`~ihrcf_env.sim.sensors.base.tag_reading` fields stacked: ``tag_corners`` (N, 4, 2)
         px, ``tag_detected`` (N,), ``tag_reason`` (N,) str, ``tag_status`` (N,)."""
         n = len(rngs)
@@ -162,6 +174,14 @@ class BatchedTagCamera:
                         batch.omega[i].copy(),
                         batch.phase[i].copy(),
                     )
+        noise_ratio: NDArray[np.float64] | float = 0.0
+        blur: NDArray[np.float64] | float = 0.0
+        if self.realistic:
+            if velocity is None or angular_velocity is None or episodes is None or len(episodes) != n:
+                raise ValueError("the realistic quality needs velocity, angular_velocity and n episodes")
+            noise_ratio, blur = self._imaging(
+                P, R_wb, R_wc, R_wd, eye, position, deck_position, velocity, angular_velocity, episodes
+            )
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             px = self._project(P[:, :8])
             centre = P[:, 8]
@@ -176,8 +196,8 @@ class BatchedTagCamera:
                 cos_view,
                 c.width,
                 c.height,
-                0.0,
-                0.0,
+                noise_ratio,
+                blur,
                 normals,
                 uniforms,
                 batch,
@@ -201,3 +221,82 @@ class BatchedTagCamera:
             "tag_reason": _REASONS[status],
             "tag_status": status,
         }
+
+    def _imaging(
+        self,
+        P: NDArray[np.float64],
+        R_wb: NDArray[np.float64],
+        R_wc: NDArray[np.float64],
+        R_wd: NDArray[np.float64],
+        eye: NDArray[np.float64],
+        position: NDArray[np.float64],
+        deck_position: NDArray[np.float64],
+        velocity: NDArray[np.float64],
+        angular_velocity: NDArray[np.float64],
+        episodes: Sequence[EpisodeImaging],
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The realistic quality's noise ratio (N, 4) at the corners and motion blur (N,) px, as
+        :meth:`ProjectedTagCamera._observe` computes them (the depth from a closed-form ray)."""
+        imaging = self.camera.imaging
+        light = np.array([e.light_direction for e in episodes], dtype=np.float64)
+        ambient = np.array([e.ambient for e in episodes])
+        diffuse = np.array([e.diffuse for e in episodes])
+        brightness = np.array([e.brightness for e in episodes])
+        exposure = np.array([e.exposure_s for e in episodes])
+        e_per_dn = np.array([imaging.electrons_per_dn(e.gain) for e in episodes])
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            x = P[:, :4, :2] / P[:, :4, 2:3]
+            vig = (1.0 + (x * x).sum(axis=2)) ** (-0.5 * self._vignetting_exponent)
+            n_w = R_wd[:, :, 2]
+            cos_light = n_w[:, 0] * light[:, 0] + n_w[:, 1] * light[:, 1] + n_w[:, 2] * light[:, 2]
+            shade = np.minimum(1.0, ambient + diffuse * np.maximum(0.0, cos_light))
+            white = np.minimum(FULL_SCALE_DN * shade[:, None] * brightness[:, None] * vig, FULL_SCALE_DN)
+            w = np.maximum(white, 1.0)
+            g = e_per_dn[:, None]
+            noise_ratio = np.sqrt((self._read_noise / g) ** 2 + 0.5 * w / g) / w
+        omega = np.asarray(angular_velocity, dtype=np.float64)
+        r = R_wb @ self._cam_offset
+        v_eye = np.asarray(velocity, dtype=np.float64) + np.stack(
+            [
+                omega[:, 1] * r[:, 2] - omega[:, 2] * r[:, 1],
+                omega[:, 2] * r[:, 0] - omega[:, 0] * r[:, 2],
+                omega[:, 0] * r[:, 1] - omega[:, 1] * r[:, 0],
+            ],
+            axis=1,
+        )
+        depth = self.axis_depth(position, R_wb, eye, R_wc, deck_position, R_wd)
+        v_c = np.einsum("nji,nj->ni", R_wc, v_eye)
+        w_c = np.einsum("nji,nj->ni", R_wc, omega)
+        z = np.maximum(depth, 1e-3)
+        K = self.K
+        du = K[0, 0] * (-v_c[:, 0] / z - w_c[:, 1]) * exposure
+        dv = K[1, 1] * (-v_c[:, 1] / z + w_c[:, 0]) * exposure
+        blur = np.hypot(du, dv)
+        return noise_ratio, np.where(blur <= self._blur_threshold, 0.0, blur)
+
+    def axis_depth(
+        self,
+        position: NDArray[np.float64],
+        rotation: NDArray[np.float64],
+        eye: NDArray[np.float64],
+        R_wc: NDArray[np.float64],
+        deck_position: NDArray[np.float64],
+        deck_rotation: NDArray[np.float64],
+    ) -> NDArray[np.float64]:
+        """(N,) distance (m) along the optical axis to the first collision surface within the far
+        plane (the drone's own boxes included), else to the ground plane z = 0 (the far plane when
+        the axis does not look down), as the scalar read's depth."""
+        far = self.camera.far
+        axis = R_wc[:, :, 2]
+        starts = eye[:, None, :]
+        dirs = axis[:, None, :] * far
+        hits = cast_rays(starts, dirs, 1.0, deck_position, deck_rotation, self.scene)
+        s_body = to_local(starts - position[:, None, :], rotation)
+        d_body = to_local(dirs, rotation)
+        f_self, _ = self_hits(s_body.reshape(-1, 3), d_body.reshape(-1, 3), 1.0)
+        f = np.where(hits.hit[:, 0], hits.fraction[:, 0], np.inf)
+        f = np.minimum(f, f_self.reshape(-1))
+        down = -axis[:, 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            fallback = np.where(down > 1e-3, eye[:, 2] / down, far)
+        return np.where(np.isfinite(f), f * far, fallback)

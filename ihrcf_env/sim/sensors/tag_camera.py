@@ -23,7 +23,7 @@ It renders nothing, so a read costs a small fraction of a rendered frame (``docs
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pybullet as p
@@ -284,10 +284,30 @@ class ProjectedTagCamera:
                 raise RuntimeError("a camera reading cast ahead was not read at its poses and generator")
             return ahead[2]
         assert self.batched is not None
+        if self.quality == "realistic" and self.episode is None:
+            self.reset(rng)  # as the rendered camera: the episode drawn at the first read
+        pos, R, dp, dR = self.batch_inputs(state, deck_pos, R_wd)
+        out = self.batched.read(pos, R, dp, dR, [self.track], [rng], **self.imaging_inputs(state))
+        return reading_row(out, 0)
+
+    def batch_inputs(
+        self, state: BodyState, deck_pos: NDArray[np.float64], R_wd: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """The poses of one world as :meth:`BatchedTagCamera.read` takes them (rows of N = 1)."""
         pos = np.asarray(state.position, dtype=np.float64)[None]
         R = np.asarray(state.rotation, dtype=np.float64)[None]
-        out = self.batched.read(pos, R, deck_pos[None], R_wd[None], [self.track], [rng])
-        return reading_row(out, 0)
+        return pos, R, deck_pos[None], R_wd[None]
+
+    def imaging_inputs(self, state: BodyState) -> dict[str, Any]:
+        """The realistic quality's inputs of one world to :meth:`BatchedTagCamera.read` (none for
+        the ideal one)."""
+        if self.quality != "realistic":
+            return {}
+        return {
+            "velocity": np.asarray(state.velocity, dtype=np.float64)[None],
+            "angular_velocity": np.asarray(state.angular_velocity, dtype=np.float64)[None],
+            "episodes": [self.episode],
+        }
 
 
 def reading_row(out: dict[str, NDArray], i: int) -> dict[str, NDArray]:
