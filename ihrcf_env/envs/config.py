@@ -47,6 +47,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import cv2
 import numpy as np
 
+from ihrcf_env.core.batch.pipeline import BATCHED, batchable_names
 from ihrcf_env.core.calibration import Calibration, default_calibration_path
 from ihrcf_env.core.checks import (
     check_bool,
@@ -184,6 +185,7 @@ LANDING_OPTIONS: tuple[str, ...] = (
     "reward_weights",
     "privileged",
     "deck_motion",
+    "batch_estimators",
 )
 #: Options of the hover task only (its observation wrapper's).
 HOVER_OPTIONS: tuple[str, ...] = ("keep_image", "flatten")
@@ -219,7 +221,9 @@ class ObservationConfig:
     the hover task's wrapper options; ``max_residual`` (m): IHRCF's rigid-fit threshold;
     ``estimators``: registered names, in order; ``fused_params``: the fused filter's parameters
     (from :func:`make_config`: resolved from the ToF model when not given); ``privileged`` /
-    ``deck_motion``: the landing task's flat observation options."""
+    ``deck_motion``: the landing task's flat observation options; ``batch_estimators``: run the
+    estimators through their batched form (:mod:`ihrcf_env.core.batch.pipeline`) with one row, the
+    arithmetic of a vector env's batched sub-envs."""
 
     raw: bool = False
     calibration: Calibration | None = None
@@ -230,6 +234,7 @@ class ObservationConfig:
     fused_params: FusedParams | None = None
     privileged: bool = False
     deck_motion: bool = False
+    batch_estimators: bool = False
 
 
 def load_calibration(calibration: object) -> Calibration:
@@ -258,6 +263,7 @@ def observation_options(
     fused_params: object = None,
     privileged: object = False,
     deck_motion: object = False,
+    batch_estimators: object = False,
 ) -> ObservationConfig:
     """The wrapper options' type and range checks (no file read): an :class:`ObservationConfig`
     without its calibration, ``fused_params`` None when not given."""
@@ -282,6 +288,12 @@ def observation_options(
         raise ValueError(
             f"deck_motion needs the fused estimator (estimators must include 'fused'), got {names}"
         )
+    batch = check_bool("batch_estimators", batch_estimators)
+    if batch and not batchable_names(names):
+        raise ValueError(
+            f"batch_estimators: the batched form covers the built-in estimators {sorted(BATCHED)} "
+            f"only, got {list(names)}"
+        )
     if is_raw:
         given = [
             n
@@ -290,6 +302,7 @@ def observation_options(
                 ("flatten", flat, False),
                 ("privileged", priv, False),
                 ("deck_motion", motion, False),
+                ("batch_estimators", batch, False),
                 ("calibration", calibration, None),
                 ("fused_params", fused_params, None),
             )
@@ -306,6 +319,7 @@ def observation_options(
         fused_params=fused_params,
         privileged=priv,
         deck_motion=motion,
+        batch_estimators=batch,
     )
 
 
@@ -547,6 +561,7 @@ def make_config(
     fused_params: FusedParams | None = None,
     privileged: bool = False,
     deck_motion: bool = False,
+    batch_estimators: bool = False,
 ) -> DeckLandingConfig:
     """The validated configuration of a deck task (module docstring). Options left at None take
     ``task``'s default (:data:`TASK_DEFAULTS`). Raises TypeError / ValueError naming the option.
@@ -573,6 +588,7 @@ def make_config(
         fused_params=fused_params,
         privileged=privileged,
         deck_motion=deck_motion,
+        batch_estimators=batch_estimators,
     )
     is_raw = obs.raw
     given = {
@@ -582,6 +598,7 @@ def make_config(
         "reward_weights": reward_weights,
         "privileged": privileged or None,
         "deck_motion": deck_motion or None,
+        "batch_estimators": batch_estimators or None,
         "keep_image": keep_image,
         "flatten": flatten or None,
     }

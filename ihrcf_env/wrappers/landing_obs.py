@@ -56,6 +56,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from ihrcf_env.core.batch.pipeline import BatchDeckPoseEstimator
 from ihrcf_env.core.calibration import Calibration
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedEstimator, FusedParams, PoseEstimate
@@ -146,6 +147,9 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         privileged: append the ground-truth block (asymmetric actor-critic); default False.
         deck_motion: append the fused filter's deck motion (module docstring; needs the ``fused``
             estimator); default False.
+        batch_estimators: run the estimators through their batched form with one row
+            (:class:`~ihrcf_env.core.batch.pipeline.BatchDeckPoseEstimator`): the same numbers as a
+            vector env's batched sub-env, bit for bit; default False.
 
     Attributes: ``obs_slices`` (name -> slice), ``obs_scales`` (name -> scale: physical = value *
     scale), ``estimator_names``, ``estimators`` (name -> source), ``stage``, ``privileged``,
@@ -161,6 +165,7 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         fused_params: FusedParams | None = None,
         privileged: bool = False,
         deck_motion: bool = False,
+        batch_estimators: bool = False,
     ) -> None:
         opts = observation_options(
             calibration=calibration,
@@ -169,6 +174,7 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             fused_params=fused_params,
             privileged=privileged,
             deck_motion=deck_motion,
+            batch_estimators=batch_estimators,
         )
         gym.utils.RecordConstructorArgs.__init__(
             self,
@@ -178,6 +184,7 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             fused_params=fused_params,
             privileged=opts.privileged,
             deck_motion=opts.deck_motion,
+            batch_estimators=opts.batch_estimators,
         )
         gym.Wrapper.__init__(self, env)
         world = base_config(env).world
@@ -190,6 +197,10 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.deck_motion = opts.deck_motion
         fused_source = self.stage.sources.get("fused")
         self._fused = fused_source if opts.deck_motion and isinstance(fused_source, FusedEstimator) else None
+        #: the estimators' batched form with one row (``batch_estimators=True``), else None
+        self.batch: BatchDeckPoseEstimator | None = None
+        if opts.batch_estimators:
+            self.batch = BatchDeckPoseEstimator(1, self.stage.estimator.config, names)
         self._max_range = float(world.tof.max_range)
         self.obs_slices, self.obs_scales, low, high = landing_obs_fields(
             self.estimator_names, self._max_range, self.privileged, self.deck_motion
@@ -216,6 +227,8 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._held, self._held_time = {}, {}
         self._motion = np.zeros(6)
         self.stage.reset()
+        if self.batch is not None:
+            self.batch.reset()
         return self.env.reset(seed=seed, options=options)
 
     def step_raw(self, action: Any) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
@@ -242,6 +255,13 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     def _flatten(self, raw: Mapping[str, Any], info: dict[str, Any]) -> NDArray[np.float32]:
         frame = self.stage.prepare(raw)
+        if self.batch is not None:  # the vector env's arithmetic, one row
+            estimates = None if frame is None else self.batch.update([frame])[0]
+            motion = None
+            if self.deck_motion:
+                velocity, rate, defined = self.batch.motion()
+                motion = (velocity[0].copy(), rate[0].copy()) if defined[0] else None
+            return self.complete(raw, info, estimates, motion)
         estimates = None if frame is None else self.stage.estimator.update(frame)
         motion = self._fused.motion() if self._fused is not None else None
         return self.complete(raw, info, estimates, motion)
@@ -333,6 +353,7 @@ def make_landing(task: str, **options: Any) -> gym.Env:
             fused_params=obs.fused_params,  # resolved from the ToF model when not given
             privileged=obs.privileged,
             deck_motion=obs.deck_motion,
+            batch_estimators=obs.batch_estimators,
         )
     except BaseException:
         env.close()

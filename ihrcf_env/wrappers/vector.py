@@ -8,13 +8,13 @@ ended is reset by the following ``step``, which returns its first observation wi
 ``autoreset_mode=AutoresetMode.SAME_STEP`` resets it in the step that ends it instead, with its
 last observation and info in ``info["final_obs"]`` / ``info["final_info"]``, as Gymnasium's
 ``SyncVectorEnv`` does).
-From :data:`BATCH_FROM` envs on, their estimators run as one batch (:mod:`ihrcf_env.wrappers.vector_obs`;
-``batch_estimators=True`` / ``False`` forces it either way); with ``physics="numpy"`` their worlds
-also advance as one batch.
-Sub-env ``i`` of ``reset(seed=s)`` is the single env reset with seed ``s + i``, so it reproduces
-``gym.make(id)`` step for step (bit for bit with ``batch_estimators=False``, else to the rounding of
-the batched estimators). It is the ids' ``vector_entry_point`` (``gym.make_vec`` uses it
-unless ``vectorization_mode`` says otherwise).
+From :data:`BATCH_FROM` envs on, their estimators run as one batch
+(:mod:`ihrcf_env.wrappers.vector_obs`; ``batch_estimators=True`` / ``False`` forces it either way);
+with ``physics="numpy"`` their worlds also advance as one batch. Sub-env ``i`` of
+``reset(seed=s)`` is the single env reset with seed ``s + i``, made with ``batch_estimators`` as
+the vector env decided it: it reproduces ``gym.make(id, batch_estimators=..., **options)`` step for
+step, bit for bit. It is the ids' ``vector_entry_point`` (``gym.make_vec`` uses it unless
+``vectorization_mode`` says otherwise).
 """
 
 from __future__ import annotations
@@ -29,7 +29,9 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
+from ihrcf_env.core.batch.pipeline import batchable_names
 from ihrcf_env.core.checks import check_bool, check_int
+from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
 from ihrcf_env.sim.batched.loop import advance
 from ihrcf_env.wrappers.vector_obs import batched_observations
@@ -57,9 +59,7 @@ class DeckLandingVectorEnv(VectorEnv):
     ) -> None:
         self._envs: list[gym.Env] = []
         n = check_int("num_envs", num_envs, low=1, high=MAX_ENVS)
-        batch = (
-            n >= BATCH_FROM if batch_estimators is None else check_bool("batch_estimators", batch_estimators)
-        )
+        batch = resolve_batch(n, batch_estimators, options)
         modes = {m.value: m for m in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)}
         mode = autoreset_mode.value if isinstance(autoreset_mode, AutoresetMode) else autoreset_mode
         if mode not in modes:
@@ -74,7 +74,7 @@ class DeckLandingVectorEnv(VectorEnv):
             raise ValueError(f"{bad[0]}: not supported by the vector env (make single envs to render)")
         try:
             for _ in range(n):
-                self._envs.append(gym.make(env_id, **options))
+                self._envs.append(gym.make(env_id, batch_estimators=batch, **options))
         except BaseException:
             self.close_extras()
             raise
@@ -93,6 +93,9 @@ class DeckLandingVectorEnv(VectorEnv):
         self._numpy_physics = self._tasks[0].config.world.physics == "numpy"
         #: the batched observation stage (None: each env's own wrapper chain)
         self._batched = batched_observations(self._envs) if batch else None
+        if batch and self._batched is None:
+            self.close_extras()
+            raise ValueError("batch_estimators: these envs' observation cannot be batched (see vector_obs)")
         self._was_reset = False
 
     @property
@@ -210,6 +213,20 @@ class DeckLandingVectorEnv(VectorEnv):
     def _check_open(self) -> None:
         if getattr(self, "_closed_envs", True) or not self._envs:
             raise RuntimeError("vector env is closed (close() was called): make a new one with gym.make_vec")
+
+
+def resolve_batch(n: int, batch_estimators: object, options: dict[str, Any]) -> bool:
+    """Whether a vector env of ``n`` envs with these ``options`` runs its estimators as one batch:
+    ``batch_estimators`` when given (a bool), else from :data:`BATCH_FROM` envs on when its
+    estimators have a batched form (and the envs are not raw)."""
+    if batch_estimators is not None:
+        return check_bool("batch_estimators", batch_estimators)
+    names = options.get("estimators", DEFAULT_ESTIMATORS)
+    try:
+        names = tuple(names)
+    except TypeError:
+        return False  # gym.make names the bad option
+    return n >= BATCH_FROM and not options.get("raw", False) and batchable_names(names)
 
 
 def env_seeds(seed: int | Sequence[int | None] | None, n: int) -> list[int | None]:

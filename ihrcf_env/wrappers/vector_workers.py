@@ -26,7 +26,7 @@ from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
 from ihrcf_env.core.checks import check_int
-from ihrcf_env.wrappers.vector import BATCH_FROM, check_actions, env_seeds
+from ihrcf_env.wrappers.vector import check_actions, env_seeds, resolve_batch
 
 #: Largest number of worker processes.
 MAX_WORKERS = 64
@@ -103,8 +103,8 @@ class WorkerVectorEnv(VectorEnv):
         n = check_int("num_envs", num_envs, low=1)
         k = check_int("workers", workers, low=1, high=min(n, MAX_WORKERS))
         self.sizes = [n // k + (1 if i < n % k else 0) for i in range(k)]
-        if options.get("batch_estimators") is None:  # as one vector env of N envs decides it
-            options = {**options, "batch_estimators": n >= BATCH_FROM}
+        # as one vector env of N envs decides it
+        options = {**options, "batch_estimators": resolve_batch(n, options.get("batch_estimators"), options)}
         self.offsets = np.cumsum([0, *self.sizes])
         ctx = mp.get_context("spawn")
         try:

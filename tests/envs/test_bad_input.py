@@ -456,6 +456,8 @@ BAD_OPTIONS = [
     ({"fused_params": {}}, TypeError, "fused_params"),
     ({"privileged": True}, ValueError, "privileged"),  # a landing-task option
     ({"deck_motion": 1}, TypeError, "deck_motion"),
+    ({"batch_estimators": "yes"}, TypeError, "batch_estimators"),
+    ({"batch_estimators": True}, ValueError, "batch_estimators"),  # a landing-task option
     ({"success_radius": 0.1}, ValueError, "success_radius"),
     ({"start_in_view": True}, ValueError, "start_in_view"),
     ({"view_margin": 0.1}, ValueError, "view_margin"),

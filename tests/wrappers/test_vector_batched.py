@@ -70,6 +70,33 @@ def test_batched_estimators_reproduce_each_envs_own() -> None:
     print(f"max |batched - own chains| = {worst:.3g} over {len(a) - 1} steps of 3 envs, {ended} endings")
 
 
+def test_a_single_env_with_batch_estimators_reproduces_a_sub_env(make_env: Callable[..., gym.Env]) -> None:
+    """gym.make(id, batch_estimators=True) runs the batched estimators with one row: it equals a
+    batched vector env's sub-env bit for bit (through latency, deck motion and autoresets)."""
+    n = 3
+    v = DeckLandingVectorEnv(V2, n, autoreset_mode=AutoresetMode.SAME_STEP, batch_estimators=True, **OPTIONS)
+    try:
+        singles = [make_env(V2, batch_estimators=True, **OPTIONS) for _ in range(n)]
+        obs, _ = v.reset(seed=30)
+        for i, e in enumerate(singles):
+            np.testing.assert_array_equal(obs[i], e.reset(seed=30 + i)[0])
+        rng = np.random.default_rng(5)
+        for _ in range(60):
+            a = (rng.uniform(-1, 1, (n, 4)) * [0.4, 0.4, 0.3, 0.2] + [0.0, 0.0, -0.25, 0.0]).astype(
+                np.float32
+            )
+            obs, reward, terminated, truncated, info = v.step(a)
+            for i, e in enumerate(singles):
+                o, r, te, tr, _ = e.step(a[i])
+                assert (reward[i], terminated[i], truncated[i]) == (r, te, tr)
+                if te or tr:
+                    np.testing.assert_array_equal(info["final_obs"][i], o)
+                    o, _ = e.reset()
+                np.testing.assert_array_equal(obs[i], o)
+    finally:
+        v.close()
+
+
 def test_other_estimators_step_their_own_chains(toy_registered: None) -> None:
     v = DeckLandingVectorEnv(V2, 2, camera_model="projected", estimators=("ihrcf", "toy"))
     try:
@@ -78,6 +105,10 @@ def test_other_estimators_step_their_own_chains(toy_registered: None) -> None:
         assert obs.shape == (2, 40)
     finally:
         v.close()
+    with pytest.raises(ValueError, match="batch_estimators"):  # no batched form of "toy"
+        DeckLandingVectorEnv(
+            V2, 2, camera_model="projected", estimators=("ihrcf", "toy"), batch_estimators=True
+        )
 
 
 @pytest.fixture

@@ -36,9 +36,9 @@ def test_make_vec_uses_the_native_vector_env(make_vec: Callable[..., Any]) -> No
 def test_each_sub_env_reproduces_the_single_env_through_an_autoreset(
     make_vec: Callable[..., Any], make_env: Callable[..., gym.Env]
 ) -> None:
-    """Sub-env i of reset(seed=s) is the single env of seed s + i, step for step (observations to
-    1e-6: the batched estimators' rounding), also after its episode ends (next-step autoreset: the
-    following step returns the first observation of a new episode with reward 0)."""
+    """Sub-env i of reset(seed=s) is the single env of seed s + i, step for step, bit for bit, also
+    after its episode ends (next-step autoreset: the following step returns the first observation
+    of a new episode with reward 0)."""
     n, seed = 2, 100_000
     v = make_vec(n, max_episode_steps=60)
     singles = [make_env(V2, **OPTIONS, max_episode_steps=60) for _ in range(n)]
@@ -63,7 +63,7 @@ def test_each_sub_env_reproduces_the_single_env_through_an_autoreset(
                 s_obs[i], r, te, tr, _ = e.step(actions[i])
                 assert reward[i] == r and terminated[i] == te and truncated[i] == tr
                 ended[i] = te or tr
-            np.testing.assert_allclose(obs[i], s_obs[i], rtol=0, atol=1e-6)
+            np.testing.assert_array_equal(obs[i], s_obs[i])
     assert resets >= n  # every env went through an autoreset
 
 

@@ -29,13 +29,19 @@ from ihrcf_env.core.estimators.atda import ATDAEstimator, Candidate, atda_candid
 from ihrcf_env.core.estimators.base import DeckPoseSource, PoseEstimate, SensorFrame
 from ihrcf_env.core.estimators.fused import FusedEstimator
 from ihrcf_env.core.estimators.ihrcf import IHRCFEstimator
-from ihrcf_env.core.estimators.registry import EstimatorConfig
+from ihrcf_env.core.estimators.registry import BUILTIN_ESTIMATORS, ESTIMATORS, EstimatorConfig
 
 #: The estimator classes evaluated on arrays, by observation key.
 BATCHED: dict[str, type] = {"ihrcf": IHRCFEstimator, "atda": ATDAEstimator, "fused": FusedEstimator}
 
 #: A row's estimates (name -> estimate), as :meth:`DeckPoseEstimator.update` returns them.
 Estimates = dict[str, PoseEstimate]
+
+
+def batchable_names(names: Sequence[str]) -> bool:
+    """True when every estimator ``names`` registers is a built-in one of :data:`BATCHED` (not
+    re-registered by user code)."""
+    return bool(names) and all(n in BATCHED and ESTIMATORS.get(n) is BUILTIN_ESTIMATORS.get(n) for n in names)
 
 
 def batchable(sources: Mapping[str, DeckPoseSource]) -> bool:

@@ -61,6 +61,10 @@ ESTIMATORS: dict[str, EstimatorFactory] = {
 }
 
 
+#: The built-in estimators' factories (a name re-registered by user code no longer maps to its own).
+BUILTIN_ESTIMATORS: dict[str, EstimatorFactory] = dict(ESTIMATORS)
+
+
 def register_estimator(name: str, factory: EstimatorFactory, *, replace: bool = False) -> None:
     """Add the estimator ``name`` (an observation key) built by ``factory(config: EstimatorConfig)
     -> DeckPoseSource`` (whose ``name`` must be ``name``). Registering a taken name raises
