@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ihrcf_env.sim.batched.rays import RayHits, RayScene, cast_rays, nearest, self_hits, to_world
-from ihrcf_env.sim.sensors.tof import poses_key
+from ihrcf_env.sim.sensors.base import poses_key
 
 if TYPE_CHECKING:
     from ihrcf_env.sim.sensors.base import BodyState

@@ -117,10 +117,8 @@ class BatchedTagCamera:
         ends = targets - d * (RAY_MARGIN_M / np.sqrt((d * d).sum(axis=2)))[..., None]
         starts = np.broadcast_to(eye[:, None, :], ends.shape)
         hits = cast_rays(starts, ends - starts, 1.0, deck_position, deck_rotation, self.scene)
-        s_body = to_local(starts - position[:, None, :], rotation)
-        d_body = to_local(ends - starts, rotation)
-        f_self, _ = self_hits(s_body.reshape(-1, 3), d_body.reshape(-1, 3), 1.0)
-        blocked = hits.hit | np.isfinite(f_self).reshape(hits.hit.shape)
+        f_self = _own_fraction(starts, ends - starts, position, rotation)
+        blocked = hits.hit | np.isfinite(f_self)
         return np.asarray(blocked.any(axis=1), dtype=bool)
 
     def read(
@@ -291,12 +289,23 @@ class BatchedTagCamera:
         starts = eye[:, None, :]
         dirs = axis[:, None, :] * far
         hits = cast_rays(starts, dirs, 1.0, deck_position, deck_rotation, self.scene)
-        s_body = to_local(starts - position[:, None, :], rotation)
-        d_body = to_local(dirs, rotation)
-        f_self, _ = self_hits(s_body.reshape(-1, 3), d_body.reshape(-1, 3), 1.0)
         f = np.where(hits.hit[:, 0], hits.fraction[:, 0], np.inf)
-        f = np.minimum(f, f_self.reshape(-1))
+        f = np.minimum(f, _own_fraction(starts, dirs, position, rotation)[:, 0])
         down = -axis[:, 2]
         with np.errstate(divide="ignore", invalid="ignore"):
             fallback = np.where(down > 1e-3, eye[:, 2] / down, far)
         return np.where(np.isfinite(f), f * far, fallback)
+
+
+def _own_fraction(
+    starts: NDArray[np.float64],
+    segments: NDArray[np.float64],
+    position: NDArray[np.float64],
+    rotation: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """(N, R) fraction at which each segment ``starts + f segments`` (N, R, 3; world) enters its
+    drone's own collision boxes (``inf``: never), the drone at ``position`` with ``rotation``."""
+    s_body = to_local(starts - position[:, None, :], rotation)
+    d_body = to_local(np.broadcast_to(segments, s_body.shape), rotation)
+    f, _ = self_hits(s_body.reshape(-1, 3), d_body.reshape(-1, 3), 1.0)
+    return f.reshape(s_body.shape[:2])

@@ -100,3 +100,9 @@ def tag_reading(corners: NDArray[np.float64] | None, reason: str) -> dict[str, N
         "tag_reason": np.array(""),
         "tag_status": np.array(0),
     }
+
+
+def poses_key(*parts: NDArray) -> bytes:
+    """Arrays (what was cast, the drone's and the deck's poses) as one key: their float64 bytes.
+    A reading cast ahead for many worlds is taken only by a read at the same key."""
+    return b"".join(np.ascontiguousarray(a, dtype=np.float64).tobytes() for a in parts)

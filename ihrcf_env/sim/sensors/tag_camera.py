@@ -41,7 +41,7 @@ from ihrcf_env.core.detector_model import (
 from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 from ihrcf_env.sim.deck import Deck
-from ihrcf_env.sim.sensors.base import TAG_CAMERA, BodyState, tag_reading
+from ihrcf_env.sim.sensors.base import TAG_CAMERA, BodyState, poses_key, tag_reading
 from ihrcf_env.sim.sensors.camera import CameraConfig
 from ihrcf_env.sim.sensors.imaging import FULL_SCALE_DN, EpisodeImaging, draw_episode, image_motion_px
 
@@ -267,11 +267,7 @@ class ProjectedTagCamera:
     def poses_key(self, state: BodyState) -> tuple[bytes, NDArray[np.float64], NDArray[np.float64]]:
         """(key of the drone's pose in ``state`` and the deck's pose now, deck position, rotation)."""
         deck_pos, R_wd = self._deck_pose()
-        key = b"".join(
-            np.ascontiguousarray(a, dtype=np.float64).tobytes()
-            for a in (state.position, state.rotation, deck_pos, R_wd)
-        )
-        return key, deck_pos, R_wd
+        return poses_key(state.position, state.rotation, deck_pos, R_wd), deck_pos, R_wd
 
     def _read_closed_form(self, state: BodyState, rng: np.random.Generator) -> dict[str, NDArray]:
         """The batched read of this world alone, or the one cast ahead for it (which must be of

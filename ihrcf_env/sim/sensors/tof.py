@@ -48,7 +48,7 @@ from numpy.typing import NDArray
 from ihrcf_env.core.checks import check_fields, check_int, check_real, set_field
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.sim.noise import NoiseModel, NoNoise
-from ihrcf_env.sim.sensors.base import BodyState
+from ihrcf_env.sim.sensors.base import BodyState, poses_key
 
 if TYPE_CHECKING:
     from ihrcf_env.sim.batched.ranging import BatchedToF
@@ -185,11 +185,6 @@ class ToFConfig:
     def model(self) -> VL53L1X | None:
         """The cone model, or None for the ideal single ray."""
         return self.noise if isinstance(self.noise, VL53L1X) else TOF_PRESETS[self.noise]
-
-
-def poses_key(*parts: NDArray) -> bytes:
-    """Arrays (what was cast, the drone's and the deck's poses) as one key: their float64 bytes."""
-    return b"".join(np.ascontiguousarray(a, dtype=np.float64).tobytes() for a in parts)
 
 
 class ToFArray:
