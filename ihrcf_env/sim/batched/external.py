@@ -39,16 +39,10 @@ class ExternalInputs:
         self.times = times
         # navigation: rows with GNSS/INS errors; the others fly on the truth
         nav = [i for i, w in enumerate(worlds) if not w.navigation.ideal]
-        self._nav_rows = np.array(nav, dtype=np.intp)
-        self._nav_other: list[int] = []
-        tracks = []
-        for i in nav:
-            model = worlds[i].navigation
-            if isinstance(model, GNSSINSNavigation):
-                tracks.append(model.errors_at(times[i]))
-            else:
-                self._nav_other.append(i)
-        self._nav_rows = np.array([i for i in nav if i not in self._nav_other], dtype=np.intp)
+        gnss = [i for i in nav if isinstance(worlds[i].navigation, GNSSINSNavigation)]
+        self._nav_rows = np.array(gnss, dtype=np.intp)  # errors taken ahead, applied on arrays
+        self._nav_other = [i for i in nav if i not in gnss]  # other models: called per tick
+        tracks = [worlds[i].navigation.errors_at(times[i]) for i in gnss]  # type: ignore[attr-defined]
         if tracks:
             self._ep = np.stack([t[0] for t in tracks])  # (rows, steps, 3)
             self._ev = np.stack([t[1] for t in tracks])
