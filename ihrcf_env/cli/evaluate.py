@@ -13,7 +13,6 @@ import argparse
 import json
 import math
 import os
-import re
 import time
 from collections.abc import Sequence
 from typing import Any
@@ -23,7 +22,7 @@ import numpy as np
 
 from ihrcf_env import LANDING_V1_ID, LANDING_V2_ID
 from ihrcf_env.cli.common import MAX_SEED, int_in, make_parser, seed_type
-from ihrcf_env.core.metrics import wilson_interval
+from ihrcf_env.core.metrics import failure_groups, wilson_interval
 from ihrcf_env.envs.levels import LEVELS, TEST_SEEDS
 from ihrcf_env.experiments.episode import EpisodeResult, run_episodes
 from ihrcf_env.experiments.policies import (
@@ -51,32 +50,6 @@ def _stat(values: Sequence[float], unit: str, fmt: str = ".3f") -> str:
     return f"{np.mean(values):{fmt}} / {np.max(values):{fmt}} {unit}"
 
 
-_NUMBER = re.compile(r"-?\d+(?:\.\d+)?")
-
-
-def _failure_lines(episodes: Sequence[EpisodeResult]) -> list[tuple[str, int]]:
-    """The failures grouped by kind (crash reasons alike but for their numbers, or the outcome),
-    most frequent first; each shown with its real figures: a number that differs between the
-    episodes of a group reads ``lowest..highest``."""
-    groups: dict[str, list[str]] = {}
-    for e in episodes:
-        if e.outcome == "success":
-            continue
-        text = e.reason if e.outcome == "crash" and e.reason else e.outcome
-        groups.setdefault(_NUMBER.sub("\0", text), []).append(text)
-    out = []
-    for key, texts in groups.items():
-        numbers = [_NUMBER.findall(t) for t in texts]
-        parts = iter(key.split("\0"))
-        shown = next(parts)
-        for i, rest in enumerate(parts):
-            column = [row[i] for row in numbers]
-            lo, hi = min(column, key=float), max(column, key=float)
-            shown += (lo if float(lo) == float(hi) else f"{lo}..{hi}") + rest
-        out.append((shown, len(texts)))
-    return sorted(out, key=lambda item: -item[1])
-
-
 def summary(episodes: Sequence[EpisodeResult]) -> list[str]:
     """The report's lines; the last one is ``success K/N``."""
     n = len(episodes)
@@ -94,7 +67,7 @@ def summary(episodes: Sequence[EpisodeResult]) -> list[str]:
         f"centre {_stat(offsets, 'm')}",
         f"time to land (successes, mean / max): {_stat([e.time for e in ok], 's', '.1f')}",
     ]
-    failures = _failure_lines(episodes)
+    failures = failure_groups(episodes)
     if failures:
         lines.append("failures: " + "; ".join(f"{k} x{v}" for k, v in failures))
     lines.append(f"success {len(ok)}/{n}")

@@ -8,6 +8,7 @@ yaw (Z-Y-X Euler angles) in degrees wrapped to (-180, 180].
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -199,6 +200,32 @@ def _failure_key(r: EpisodeResult) -> str:
     if key.startswith("tilt") and key.endswith("at touchdown"):
         return "tilt >= 10 deg at touchdown"
     return key
+
+
+_NUMBER = re.compile(r"-?\d+(?:\.\d+)?")
+
+
+def failure_groups(episodes: Sequence[EpisodeResult]) -> list[tuple[str, int]]:
+    """The failures grouped by kind (crash reasons alike but for their numbers, or the outcome),
+    most frequent first; each shown with its real figures: a number that differs between the
+    episodes of a group reads ``lowest..highest``."""
+    groups: dict[str, list[str]] = {}
+    for e in episodes:
+        if e.outcome == "success":
+            continue
+        text = e.reason if e.outcome == "crash" and e.reason else e.outcome
+        groups.setdefault(_NUMBER.sub("\0", text), []).append(text)
+    out = []
+    for key, texts in groups.items():
+        numbers = [_NUMBER.findall(t) for t in texts]
+        parts = iter(key.split("\0"))
+        shown = next(parts)
+        for i, rest in enumerate(parts):
+            column = [row[i] for row in numbers]
+            lo, hi = min(column, key=float), max(column, key=float)
+            shown += (lo if float(lo) == float(hi) else f"{lo}..{hi}") + rest
+        out.append((shown, len(texts)))
+    return sorted(out, key=lambda item: -item[1])
 
 
 def _mean_max(values: Sequence[float]) -> tuple[float, float]:

@@ -41,6 +41,7 @@ from ihrcf_env.core.metrics import (
     PAPER_TABLE2,
     EpisodeResult,
     ErrorStats,
+    failure_groups,
     table2_markdown,
     table_columns,
 )
@@ -344,11 +345,7 @@ def _mean_max(values: Sequence[float]) -> tuple[float, float]:
 def landing_row(camera_model: str, results: Sequence[EpisodeResult]) -> LandingRow:
     """The table row of a set of landing episodes."""
     touched = [r for r in results if r.touched_down]
-    failures: dict[str, int] = {}
-    for r in results:
-        if r.outcome != "success":
-            key = "timeout" if r.outcome == "timeout" else _failure(r.reason)
-            failures[key] = failures.get(key, 0) + 1
+    failures = dict(failure_groups(results))
     return LandingRow(
         camera_model,
         len(results),
@@ -379,12 +376,6 @@ def run_landings(camera_model: str, episodes: int, seed: int = 0) -> LandingRow:
         env.close()
     print(f"landings {camera_model} done", flush=True)
     return landing_row(camera_model, results)
-
-
-def _failure(reason: str) -> str:
-    """A crash reason without its numbers (alike failures group together)."""
-    words = [w for w in reason.replace("(", " ").replace(")", " ").split() if not any(c.isdigit() for c in w)]
-    return " ".join(words[:6]) or "crash"
 
 
 def run(plan: Plan) -> Results:

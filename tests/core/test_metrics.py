@@ -12,6 +12,7 @@ from ihrcf_env.core.metrics import (
     EpisodeResult,
     error_stats,
     format_episode,
+    failure_groups,
     format_landing_summary,
     pose_errors,
     summarize_landings,
@@ -115,3 +116,19 @@ def test_landing_summary_groups_failures_and_formats() -> None:
     assert "commit=    - s speed=   - m/s tilt=   - deg" in format_episode(results[4])
     empty = summarize_landings([])
     assert empty.episodes == 0 and empty.success_rate == 0.0 and math.isnan(empty.speed_mean)
+
+
+def test_failure_groups_keep_the_figures() -> None:
+    """Alike crash reasons group with their figures as a range; other outcomes by name."""
+    results = [
+        EpisodeResult(0, "crash", "touched down 0.16 m from the tag centre (> 0.15 m)"),
+        EpisodeResult(1, "crash", "touched down 0.31 m from the tag centre (> 0.15 m)"),
+        EpisodeResult(2, "crash", "hit the ground"),
+        EpisodeResult(3, "timeout"),
+        EpisodeResult(4, "success"),
+    ]
+    assert failure_groups(results) == [
+        ("touched down 0.16..0.31 m from the tag centre (> 0.15 m)", 2),
+        ("hit the ground", 1),
+        ("timeout", 1),
+    ]
