@@ -203,13 +203,14 @@ def level_faults(faults: Mapping[str, Any] | None, has_camera: bool) -> Mapping[
     return {k: v for k, v in faults.items() if k != "camera_dropout"}
 
 
-def fused_params_for_tof(model: VL53L1X | None) -> FusedParams:
+def fused_params_for_tof(model: VL53L1X | None, task: str = "") -> FusedParams:
     """The fused filter's parameters for the env's ToF model: with the VL53L1X model (per-sensor
     constant offsets of sigma ``offset_sigma``) a common-mode range-offset state of prior sigma
-    ``offset_sigma / 2`` (the mean of four independent offsets); the ideal ToF (None): none."""
-    if model is None or model.offset_sigma <= 0:
-        return FusedParams()
-    return FusedParams(range_offset_sigma=model.offset_sigma / 2)
+    ``offset_sigma / 2`` (the mean of four independent offsets); the ideal ToF (None): none. On
+    ``task="landing-v2"`` (a ship deck, Froude-scaled: full-scale accelerations at a few times the
+    frequency) the position also restarts at agreeing measurements (``reseed_agreeing``)."""
+    offset = 0.0 if model is None or model.offset_sigma <= 0 else model.offset_sigma / 2
+    return FusedParams(range_offset_sigma=offset, reseed_agreeing=task == "landing-v2")
 
 
 @dataclass(frozen=True)
@@ -752,7 +753,7 @@ def make_config(
         calibration=cal,
         fused_params=None
         if is_raw
-        else (obs.fused_params if obs.fused_params is not None else fused_params_for_tof(tof.model)),
+        else (obs.fused_params if obs.fused_params is not None else fused_params_for_tof(tof.model, task)),
     )
     cfg = DeckLandingConfig(
         world=world,

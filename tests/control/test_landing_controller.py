@@ -185,3 +185,22 @@ def test_a_full_tof_plane_outvotes_a_disagreeing_estimate() -> None:
         assert m.tof_full and m.tof_height == pytest.approx(0.5)
         ctrl.act_measured(m)
         assert ctrl.height == pytest.approx(expected)
+
+
+def test_max_deck_fall_limits_how_fast_a_falling_deck_is_followed() -> None:
+    """In the drop the deck's heave velocity is fed forward; ``max_deck_fall`` clips a falling deck's
+    (a rising one is followed in full), so a drone does not chase a deck that is about to turn."""
+    cmds = {}
+    for fall in (math.inf, 0.1):
+        for deck_v in (-0.4, 0.2):
+            ctrl = LandingController(config=LandingConfig(commit_below=0.1, max_deck_fall=fall))
+            ctrl.act(_obs(0.8, (0.0, 0.0, 0.0)))
+            ctrl.act(_obs(0.5, (0.0, 0.0, 0.0)))
+            assert ctrl.phase == "drop"
+            ctrl.heave.x, ctrl.heave.v = ctrl.z_drone - 0.5, deck_v  # the deck below, moving
+            cmds[fall, deck_v] = float(ctrl.act(_obs(0.5, (0.0, 0.0, 0.0)))[2])
+    assert cmds[math.inf, -0.4] < -0.7  # followed: 0.4 m/s down plus the drop speed
+    assert cmds[0.1, -0.4] == pytest.approx(-0.1 - LandingConfig().drop_speed, abs=1e-6)  # clipped
+    assert cmds[0.1, 0.2] == cmds[math.inf, 0.2]
+    with pytest.raises(ValueError, match="max_deck_fall"):
+        LandingConfig(max_deck_fall=-1.0)

@@ -109,6 +109,7 @@ CONFIGS = {
     ),
     "ihrcf_only": (FusedParams(use_atda_position=False), None),
     "ranges_only": (FusedParams(range_only_update=True, drop_lost_track=True, max_rejections=3), K),
+    "reseed": (FusedParams(reseed_agreeing=True), K),
 }
 
 
@@ -125,6 +126,7 @@ def test_batched_fused_equals_single_filters(config: str) -> None:
     events = {"rejected": 0, "reinitialised": 0}
     few_ranges = 0
     ranges_only = 0  # frames with an accepted range-only update
+    reseeds = 0  # frames whose position restarted at agreeing measurements
     for k in range(STEPS):
         resets = np.array([k in hist[e][1] for e in range(n)])
         for e in np.flatnonzero(resets):
@@ -150,6 +152,7 @@ def test_batched_fused_equals_single_filters(config: str) -> None:
                 events[key] += bool(singles[e].diagnostics.get(key))
             accepted = [name for name, _ in singles[e].diagnostics.get("accepted", [])]
             ranges_only += "ranges.distance" in accepted
+            reseeds += "pos (reseeded)" in singles[e].diagnostics.get("reinitialised", [])
             diff = max(
                 np.abs(s.position - b.position).max(),
                 np.abs(s.rotation - b.rotation).max(),
@@ -175,6 +178,7 @@ def test_batched_fused_equals_single_filters(config: str) -> None:
         assert part in text, part
     assert events["rejected"] > 0 and few_ranges > 0
     assert (ranges_only > 20) == params.range_only_update, ranges_only
+    assert (reseeds > 0) == params.reseed_agreeing, reseeds
     assert valid_rows > n * STEPS * 0.4
 
 

@@ -185,3 +185,31 @@ def test_lost_track_filter_is_not_coasted_on() -> None:
         else:  # the defect: valid while 10 cm off
             assert run.valid[coast].all()
             assert np.nanmin(err[coast, 2]) > 80.0
+
+
+def test_reseed_follows_a_jump_that_both_measurements_agree_on() -> None:
+    """The deck jumps 10 cm with the tag in view: every position measurement is gated out. Without
+    ``reseed_agreeing`` the filter coasts on its wrong prediction until ``max_rejections`` and then
+    restarts (invalid while it converges again); with it, IHRCF and ATDA agree, so the position
+    restarts at them on the second rejected frame and the output stays valid and right."""
+    jump = 4.0
+
+    def deck(t: float) -> Pose:
+        R, pos = still_deck(t)
+        return R, pos + (np.array([0.0, 0.0, 0.1]) if t >= jump else 0.0)
+
+    assert FusedParams().reseed_agreeing is False
+    with pytest.raises(TypeError, match="reseed_agreeing"):
+        FusedParams(reseed_agreeing=1)  # type: ignore[arg-type]
+    for reseed in (False, True):
+        est = FusedEstimator(touch_pixels, RIG, TAG, K, params=FusedParams(reseed_agreeing=reseed))
+        run = simulate(5.0, deck, sigma_r=0.005, estimator=est)
+        t = np.array([f.time for f in run.frames])
+        after = np.flatnonzero(t >= jump + 2.5 / HZ)  # from the third frame after the jump
+        err = run.errors()  # per row: position error (mm) in column 2
+        if reseed:
+            assert run.valid[after].all()
+            assert np.nanmax(err[after, 2]) < 10.0
+        else:  # coasting 10 cm off, then converging again: wrong or invalid for 0.5 s or more
+            wrong = ~run.valid[after] | (np.nan_to_num(err[after, 2], nan=1e9) > 50.0)
+            assert wrong.sum() >= 10

@@ -228,3 +228,13 @@ def test_fused_range_offset_state_follows_the_tof_model(make_env):
     custom = FusedParams(min_updates=3)
     env = make_env(HOVER_ID, keep_image=False, sensor_preset="realistic", fused_params=custom)
     assert env.get_wrapper_attr("estimators")["fused"].params is custom
+
+
+def test_only_the_ship_deck_task_reseeds_the_fused_position() -> None:
+    """DeckLanding-v2 (a Froude-scaled ship deck) turns ``reseed_agreeing`` on; v1 and the hover task
+    keep the filter as it was."""
+    from ihrcf_env.envs.config import make_config
+
+    for task, on in (("landing-v2", True), ("landing-v1", False), ("hover", False)):
+        params = make_config(task=task, camera_model="projected").observation.fused_params
+        assert params is not None and params.reseed_agreeing is on, task

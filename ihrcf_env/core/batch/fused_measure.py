@@ -27,6 +27,7 @@ from ihrcf_env.core.frames import R_BODY_CAM
 
 if TYPE_CHECKING:
     from ihrcf_env.core.batch.fused import BatchFused
+    from ihrcf_env.core.estimators.fused_params import FusedParams
 
 F64 = NDArray[np.float64]
 Rows = NDArray[np.intp]
@@ -197,7 +198,12 @@ def measure(
     if use_at_pos:
         i = np.flatnonzero(cont & at_valid)
         if i.size:
-            P(i, *blocks.atda_position(at_p[i], R_wb[i]), (0, 3))
+            z2, R2 = blocks.atda_position(at_p[i], R_wb[i])
+            P(i, z2, R2, (0, 3))
+            if p.reseed_agreeing:  # both positions rejected: FusedEstimator._reseed
+                k = np.flatnonzero(hv[i] & pos.alive[i] & (P.ok[i] == 0) & (pos.rejected_run[i] > 0))
+                if k.size:
+                    P.ok[i[k]] += _reseed(pos, i[k], z1[i[k]], R1[i[k]], z2[k], R2[k], bf.gate[3], p)
     # counters
     for kf, ap in ((att, A), (pos, P)):
         m = cont & kf.alive & (ap.tried > 0)
@@ -214,6 +220,24 @@ def measure(
     parts.inner[rejected] = fr.ALL_REJECTED
     parts.inner[cont & ~rejected & ~ih_valid] = fr.IHRCF_FAILED
     return parts
+
+
+def _reseed(
+    kf: BatchImm, i: Rows, za: F64, Ra: F64, zb: F64, Rb: F64, gate: float, p: FusedParams
+) -> NDArray[np.int64]:
+    """``FusedEstimator._reseed`` of rows ``i`` (measurements ``a`` and ``b``); 1 where it did."""
+    d = za - zb
+    agree = ~(np.einsum("ni,ni->n", d, np.linalg.solve(Ra + Rb, d[:, :, None])[:, :, 0]) > gate)
+    j = np.flatnonzero(agree)
+    if j.size:
+        info_a, info_b = np.linalg.inv(Ra[j]), np.linalg.inv(Rb[j])
+        R = np.linalg.inv(info_a + info_b)
+        R = 0.5 * (R + R.transpose(0, 2, 1))
+        z = np.einsum(
+            "nij,nj->ni", R, np.einsum("nij,nj->ni", info_a, za[j]) + np.einsum("nij,nj->ni", info_b, zb[j])
+        )
+        kf.reseed(i[j], z, R, p.init_velocity_sigma**2)
+    return agree.astype(np.int64)
 
 
 def _range_noise(bf: BatchFused, frames: BatchFrames, rows: NDArray[np.bool_]) -> None:

@@ -122,6 +122,16 @@ class BatchImm:
     def drop(self, i: Rows | NDArray[np.bool_]) -> None:
         self.alive[i] = False
 
+    def reseed(self, i: Rows, z: F64, R: F64, rate_var: float) -> None:
+        """:meth:`Imm.reseed` of rows ``i``: values ``z`` (k, 3) with covariances ``R`` (k, 3, 3)."""
+        X, Ps = self.X[i], self.Ps[i]
+        X[:, :, 0:3] = z[:, None, :]
+        Ps[:, :, 0:3, :] = 0.0
+        Ps[:, :, :, 0:3] = 0.0
+        Ps[:, :, 0:3, 0:3] = R[:, None]
+        Ps[:, :, 3:6, 3:6] += rate_var * np.eye(3)
+        self.X[i], self.Ps[i] = X, 0.5 * (Ps + Ps.transpose(0, 1, 3, 2))
+
     def copy(self) -> BatchImm:
         out = object.__new__(BatchImm)
         out.__dict__.update(self.__dict__)

@@ -381,6 +381,14 @@ class FusedEstimator:
         if atda is not None and p.use_atda_position:
             pos.append(self._blocks.atda_position(atda, R_wb))
         pos_ok = apply(self._pos, pos, new_pos) if self._pos is not None else 0
+        if (
+            p.reseed_agreeing
+            and self._pos is not None
+            and not pos_ok
+            and len(pos) >= 2
+            and self._pos.rejected_run
+        ):
+            pos_ok = self._reseed(self._pos, pos[0], pos[1])
 
         for kf, tried, ok in ((self._att, len(att), att_ok), (self._pos, len(pos), pos_ok)):
             if kf is not None and tried:
@@ -399,6 +407,21 @@ class FusedEstimator:
         if not (att_ok or pos_ok):
             return "every measurement rejected by the gate"
         return "" if ihrcf is not None else f"IHRCF: {ihrcf_reason}"
+
+    def _reseed(self, kf: Imm, a: Measurement, b: Measurement) -> int:
+        """``reseed_agreeing``: both position measurements ``a`` and ``b`` of the position filter
+        ``kf`` were rejected, for a second frame in a row; if they agree with each other within the
+        gate, the prediction is what is wrong: the position restarts at their combination (the
+        rates kept, looser). Returns 1 if it did, else 0."""
+        d = a.z - b.z
+        if float(d @ np.linalg.solve(a.R + b.R, d)) > self._gate[3]:
+            return 0
+        info_a, info_b = np.linalg.inv(a.R), np.linalg.inv(b.R)
+        R = np.linalg.inv(info_a + info_b)
+        R = 0.5 * (R + R.T)
+        kf.reseed(R @ (info_a @ a.z + info_b @ b.z), R, self.params.init_velocity_sigma**2)
+        self.diagnostics["reinitialised"].append("pos (reseeded)")
+        return 1
 
     def _range_only(
         self, frame: SensorFrame, ranges: NDArray[np.float64], R_wb: NDArray[np.float64], t: float

@@ -82,6 +82,11 @@ class FusedParams:
         drop_lost_track: a filter whose every measurement was rejected for ``max_rejections``
             frames is dropped at once (the output turns invalid until a measurement starts it
             again) instead of coasting, still valid, until the next frame with a measurement.
+        reseed_agreeing: when every position measurement is rejected for a second frame in a row
+            but IHRCF's and ATDA's positions agree with each other within the gate, the prediction is what is
+            wrong (a deck that moved faster than the motion models allow through a gap in the
+            frames): the position restarts at the two measurements' combination, its rates kept
+            with ``init_velocity_sigma`` added, and the output stays valid.
     """
 
     tof_sigma: float = 0.010
@@ -122,6 +127,7 @@ class FusedParams:
     nominal_dt: float = 0.05
     range_only_update: bool = False
     drop_lost_track: bool = False
+    reseed_agreeing: bool = False
 
     def __post_init__(self) -> None:
         for f in fields(self):

@@ -289,6 +289,20 @@ class Imm:
         self._changed()
         return True, d2
 
+    def reseed(self, z: NDArray[np.float64], R: NDArray[np.float64], rate_var: float) -> None:
+        """Restart the values of every model at ``z`` (3,) with covariance ``R`` (3, 3), keeping the
+        rates and accelerations with ``rate_var`` added to the rates' variance and their correlation
+        with the old values dropped (a prediction that every measurement disagreed with; not for
+        angles)."""
+        X, Ps = self.X.copy(), self.Ps.copy()
+        X[:, 0:3] = z
+        Ps[:, 0:3, :] = 0.0
+        Ps[:, :, 0:3] = 0.0
+        Ps[:, 0:3, 0:3] = R
+        Ps[:, 3:6, 3:6] += rate_var * np.eye(3)
+        self.X, self.Ps = X, 0.5 * (Ps + Ps.transpose(0, 2, 1))
+        self._changed()
+
     def finite(self) -> bool:
         return bool(np.isfinite(self.X).all() and np.isfinite(self.Ps).all() and np.isfinite(self.mu).all())
 
