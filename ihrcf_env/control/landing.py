@@ -87,15 +87,18 @@ LANDING_BOUNDS: dict[str, tuple[float, float]] = {
     "heave_timeout": (0.0, 1e4),
     "max_deck_velocity": (0.0, 100.0),
     "max_deck_fall": (0.0, 100.0),
+    "drop_centred": (0.0, 100.0),
     "commit_below": (0.0, 100.0),
     "lean_tau": (0.0, 100.0),
     "dead_reckon": (0.0, 100.0),
 }
 #: Fields for which ``inf`` (the default) switches the feature off.
-LANDING_OFF_AT_INF = frozenset({"heave_timeout", "max_deck_velocity", "max_deck_fall", "commit_below"})
+LANDING_OFF_AT_INF = frozenset(
+    {"heave_timeout", "max_deck_velocity", "max_deck_fall", "commit_below", "drop_centred"}
+)
 LANDING_UNITS = {
     **{k: "m" for k in ("leg_length", "hold_height", "slow_zone", "centred_tolerance", "height_tolerance")},
-    **{k: "m" for k in ("tof_agreement", "reacquire_height", "commit_below")},
+    **{k: "m" for k in ("tof_agreement", "reacquire_height", "commit_below", "drop_centred")},
     **{k: "m/s" for k in ("approach_speed", "drop_speed", "touch_speed", "max_xy_speed", "max_deck_speed")},
     **{k: "m/s" for k in ("reacquire_speed", "max_deck_velocity", "max_deck_fall")},
     **{k: "s" for k in ("settle_time", "tag_timeout", "drop_lag", "reacquire_after", "heave_timeout")},
@@ -160,6 +163,10 @@ class LandingConfig:
     # falls): a deck's heave turns round within a fraction of its period, faster than its filtered
     # velocity, and a drone still chasing it down then meets it rising.
     max_deck_fall: float = math.inf
+    # In the drop, while the tag is in view but more than ``drop_centred`` m off the camera's axis
+    # (the axis point with ``axis_centring``), the descent pauses (the drone rides the heave) until
+    # centring brings it back, so the tag does not leave the view early (inf: off).
+    drop_centred: float = math.inf
     # A teacher's option (DAgger, ``ihrcf_env.rl.imitation``): once the tag has been seen and the
     # drone is more than ``commit_below`` m under the hold height, the drop is committed (the
     # learner's own early descent is labelled as a drop, not as a climb back to the hold; inf: off).
@@ -516,6 +523,8 @@ class LandingController:
         if self.phase == "drop":
             clearance = (h - c.leg_length) if h is not None else c.slow_zone
             speed = c.drop_speed if clearance > c.slow_zone else c.touch_speed
+            if m.tag_xy is not None and float(np.hypot(*(m.tag_xy - self.axis_point()))) > c.drop_centred:
+                speed = 0.0  # recentre before going on down
             vz = max(self.deck_velocity, -c.max_deck_fall) - speed
             if m.tag_xy is not None:  # keep centring while the tag is still in view
                 vx, vy = self._centring(m.tag_xy)

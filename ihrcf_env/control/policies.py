@@ -51,9 +51,14 @@ V1_LANDING_CONFIG = LandingConfig(
 #: for that limit, deck normals from the ToF only when all four beams are on the deck, a looser
 #: centring tolerance in gusts, a lost tag dead-reckoned on the autopilot's velocity through the
 #: last part of the drop, and the ToF height kept over a disagreeing estimate when all four beams
-#: lie on the deck.
+#: lie on the deck. The heading follows the tag's (the square tag's edges along the image's, so
+#: the tag stays in the view lower down), and the heave is hardly fed forward (0.05 m/s at most): a
+#: Froude-scaled ship deck heaves with periods near a second, and its filtered velocity lags it by
+#: a quarter period, so feeding it forward makes the touchdown harder, not softer.
 V2_LANDING_CONFIG = dataclasses.replace(
     V1_LANDING_CONFIG,
+    k_yaw=1.0,
+    max_deck_velocity=0.05,
     axis_centring=True,
     relative_tilt=True,
     full_plane_tilt=True,

@@ -204,3 +204,22 @@ def test_max_deck_fall_limits_how_fast_a_falling_deck_is_followed() -> None:
     assert cmds[0.1, 0.2] == cmds[math.inf, 0.2]
     with pytest.raises(ValueError, match="max_deck_fall"):
         LandingConfig(max_deck_fall=-1.0)
+
+
+def test_drop_centred_pauses_the_descent_while_the_tag_is_off_axis() -> None:
+    """With ``drop_centred`` the drop pauses (vertical command = the deck's heave, here still) while
+    the tag in view is farther off the axis than that; centred, or lost from view, it goes on."""
+    vz = {}
+    for limit in (math.inf, 0.08):
+        for tag_x in (0.0, 0.12, None):
+            ctrl = LandingController(config=LandingConfig(commit_below=0.1, drop_centred=limit))
+            ctrl.act(_obs(0.8, (0.0, 0.0, 0.0)))
+            ctrl.act(_obs(0.5, (0.0, 0.0, 0.0)))
+            assert ctrl.phase == "drop"
+            ctrl.heave.x, ctrl.heave.v = ctrl.z_drone - 0.5, 0.0  # a still deck below
+            vz[limit, tag_x] = float(_leaning(ctrl, 0.0, 0.5, tag_x)[2])
+    drop = -LandingConfig().drop_speed
+    for tag_x in (0.0, 0.12, None):
+        assert vz[math.inf, tag_x] == pytest.approx(drop, abs=0.05), tag_x
+    assert vz[0.08, 0.0] == vz[math.inf, 0.0] and vz[0.08, None] == vz[math.inf, None]
+    assert abs(vz[0.08, 0.12]) < 0.05  # paused
