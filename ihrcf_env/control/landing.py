@@ -86,21 +86,17 @@ LANDING_BOUNDS: dict[str, tuple[float, float]] = {
     "reacquire_height": (0.0, 100.0),
     "heave_timeout": (0.0, 1e4),
     "max_deck_velocity": (0.0, 100.0),
-    "max_deck_fall": (0.0, 100.0),
-    "drop_centred": (0.0, 100.0),
     "commit_below": (0.0, 100.0),
     "lean_tau": (0.0, 100.0),
     "dead_reckon": (0.0, 100.0),
 }
 #: Fields for which ``inf`` (the default) switches the feature off.
-LANDING_OFF_AT_INF = frozenset(
-    {"heave_timeout", "max_deck_velocity", "max_deck_fall", "commit_below", "drop_centred"}
-)
+LANDING_OFF_AT_INF = frozenset({"heave_timeout", "max_deck_velocity", "commit_below"})
 LANDING_UNITS = {
     **{k: "m" for k in ("leg_length", "hold_height", "slow_zone", "centred_tolerance", "height_tolerance")},
-    **{k: "m" for k in ("tof_agreement", "reacquire_height", "commit_below", "drop_centred")},
+    **{k: "m" for k in ("tof_agreement", "reacquire_height", "commit_below")},
     **{k: "m/s" for k in ("approach_speed", "drop_speed", "touch_speed", "max_xy_speed", "max_deck_speed")},
-    **{k: "m/s" for k in ("reacquire_speed", "max_deck_velocity", "max_deck_fall")},
+    **{k: "m/s" for k in ("reacquire_speed", "max_deck_velocity")},
     **{k: "s" for k in ("settle_time", "tag_timeout", "drop_lag", "reacquire_after", "heave_timeout")},
     **{k: "s" for k in ("lean_tau", "dead_reckon")},
     **{k: "rad" for k in ("commit_tilt", "max_tilt_now")},
@@ -159,14 +155,6 @@ class LandingConfig:
     # clipped to +-``max_deck_velocity`` (m/s) where it is used (inf: as before).
     heave_timeout: float = math.inf
     max_deck_velocity: float = math.inf
-    # In the drop, a falling deck is followed at most at ``max_deck_fall`` m/s (inf: as fast as it
-    # falls): a deck's heave turns round within a fraction of its period, faster than its filtered
-    # velocity, and a drone still chasing it down then meets it rising.
-    max_deck_fall: float = math.inf
-    # In the drop, while the tag is in view but more than ``drop_centred`` m off the camera's axis
-    # (the axis point with ``axis_centring``), the descent pauses (the drone rides the heave) until
-    # centring brings it back, so the tag does not leave the view early (inf: off).
-    drop_centred: float = math.inf
     # A teacher's option (DAgger, ``ihrcf_env.rl.imitation``): once the tag has been seen and the
     # drone is more than ``commit_below`` m under the hold height, the drop is committed (the
     # learner's own early descent is labelled as a drop, not as a climb back to the hold; inf: off).
@@ -523,9 +511,7 @@ class LandingController:
         if self.phase == "drop":
             clearance = (h - c.leg_length) if h is not None else c.slow_zone
             speed = c.drop_speed if clearance > c.slow_zone else c.touch_speed
-            if m.tag_xy is not None and float(np.hypot(*(m.tag_xy - self.axis_point()))) > c.drop_centred:
-                speed = 0.0  # recentre before going on down
-            vz = max(self.deck_velocity, -c.max_deck_fall) - speed
+            vz = self.deck_velocity - speed
             if m.tag_xy is not None:  # keep centring while the tag is still in view
                 vx, vy = self._centring(m.tag_xy)
             elif self.last_tag is not None and self.since_tag <= c.dead_reckon:
