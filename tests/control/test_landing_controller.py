@@ -185,4 +185,3 @@ def test_a_full_tof_plane_outvotes_a_disagreeing_estimate() -> None:
         assert m.tof_full and m.tof_height == pytest.approx(0.5)
         ctrl.act_measured(m)
         assert ctrl.height == pytest.approx(expected)
-
