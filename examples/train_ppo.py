@@ -46,7 +46,7 @@ def main(argv: list[str] | None = None) -> int:
         env_kw["reward_weights"] = dict(args.reward_weights)
     if args.max_episode_steps is not None:
         env_kw["max_episode_steps"] = args.max_episode_steps
-    thunk = functools.partial(make_env, env_id, args.camera_model, **env_kw)
+    thunk = functools.partial(make_env, env_id, args.camera_model, args.frame_stack, **env_kw)
     try:
         inputs = policy_inputs(thunk, args.drop_inputs)  # None: all
     except ValueError as e:

@@ -25,16 +25,29 @@ class PolicyError(ValueError):
 
 
 class SB3Policy:
-    """A saved stable-baselines3 model as a :class:`~ihrcf_env.control.policies.Policy`."""
+    """A saved stable-baselines3 model as a :class:`~ihrcf_env.control.policies.Policy`.
 
-    def __init__(self, model: Any) -> None:
+    ``frames`` > 1: the model reads the last ``frames`` flat observations, oldest first (trained with
+    ``make_env(frame_stack=frames)``); the policy keeps them, the first of an episode repeated before
+    it as Gymnasium's ``FrameStackObservation`` does, so it acts on the env's own observation."""
+
+    def __init__(self, model: Any, frames: int = 1) -> None:
         self.model = model
+        self.frames = frames
+        self._stack: np.ndarray | None = None
 
     def reset(self) -> None:
-        pass
+        self._stack = None
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        action, _ = self.model.predict(obs, deterministic=True)
+        x = np.asarray(obs)
+        if self.frames > 1:
+            if self._stack is None:
+                self._stack = np.repeat(x[None], self.frames, axis=0)
+            else:
+                self._stack = np.concatenate([self._stack[1:], x[None]])
+            x = self._stack
+        action, _ = self.model.predict(x, deterministic=True)
         return np.asarray(action, dtype=np.float32)
 
 
@@ -64,6 +77,10 @@ def load_sb3(path: str, algo: str, env: gym.Env) -> SB3Policy:
             f"--policy {path!r}: cannot be loaded as a stable-baselines3 {algo} model: {e}"
         ) from None
     space, want = model.observation_space, env.observation_space
+    frames = 1
+    if isinstance(space, gym.spaces.Box) and isinstance(want, gym.spaces.Box) and len(space.shape) == 2:
+        frames = space.shape[0]  # a frame-stacked policy: compare with the env's space stacked
+        want = gym.spaces.Box(np.stack([want.low] * frames), np.stack([want.high] * frames), dtype=want.dtype)
     same = (
         isinstance(space, gym.spaces.Box)
         and isinstance(want, gym.spaces.Box)
@@ -81,7 +98,7 @@ def load_sb3(path: str, algo: str, env: gym.Env) -> SB3Policy:
             f"--policy {path!r}: its action space {model.action_space} does not match the env's "
             f"{env.action_space}"
         )
-    return SB3Policy(model)
+    return SB3Policy(model, frames)
 
 
 def with_deck_motion(

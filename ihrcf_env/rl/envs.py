@@ -37,21 +37,30 @@ def default_env_id() -> str:
     return V1_ID if V1_ID in registry else V0_ID
 
 
-def make_env(env_id: str | None = None, camera_model: str = "projected", **kwargs: Any) -> gym.Env:
+def make_env(
+    env_id: str | None = None, camera_model: str = "projected", frame_stack: int = 1, **kwargs: Any
+) -> gym.Env:
     """A learning env: ``gym.make(env_id, camera_model=camera_model, **kwargs)`` with
     ``info["is_success"]`` guaranteed at episode end (v0 is made with ``flatten=True``).
 
     ``camera_model="projected"`` (no rendering) is the fast training camera, ``"rendered"`` the
-    TinyRenderer one. Other keyword arguments go to the env (``max_episode_steps`` to ``gym.make``)."""
+    TinyRenderer one. ``frame_stack`` > 1 gives the last ``frame_stack`` observations, oldest first
+    (shape ``(frame_stack, D)``; Gymnasium's ``FrameStackObservation``, the first observation of an
+    episode repeated before it): the memory of a policy without a recurrent state. Other keyword
+    arguments go to the env (``max_episode_steps`` to ``gym.make``)."""
     env_id = default_env_id() if env_id is None else env_id
     if not isinstance(env_id, str) or env_id not in registry:
         raise ValueError(f"env_id must be a registered Gymnasium id, got {env_id!r}")
+    if isinstance(frame_stack, bool) or not isinstance(frame_stack, int) or not 1 <= frame_stack <= 64:
+        raise ValueError(f"frame_stack must be an int in [1, 64], got {frame_stack!r}")
     if env_id == V0_ID:
         kwargs.setdefault("flatten", True)
     env = gym.make(env_id, camera_model=camera_model, **kwargs)
     if not isinstance(env.observation_space, gym.spaces.Box):
         env.close()
         raise ValueError(f"{env_id} gives a {type(env.observation_space).__name__} observation: need a Box")
+    if frame_stack > 1:
+        return SuccessInfo(gym.wrappers.FrameStackObservation(env, frame_stack))
     return SuccessInfo(env)
 
 
@@ -84,12 +93,16 @@ def input_indices(slices: Mapping[str, slice], drop: Sequence[str]) -> list[int]
 
 
 def policy_inputs(make: Callable[[], gym.Env], drop: Sequence[str]) -> list[int] | None:
-    """:func:`input_indices` of the env ``make()`` makes (made, read, closed); None if ``drop`` is
-    empty (the policy reads everything)."""
+    """:func:`input_indices` of the env ``make()`` makes (made, read, closed), in every frame of a
+    stacked observation (indices into its flattened form); None if ``drop`` is empty (the policy
+    reads everything)."""
     if not drop:
         return None
     env = make()
     try:
-        return input_indices(env.get_wrapper_attr("obs_slices"), drop)
+        keep = input_indices(env.get_wrapper_attr("obs_slices"), drop)
+        shape = env.observation_space.shape or (0,)
     finally:
         env.close()
+    frames, size = (1, shape[0]) if len(shape) == 1 else shape
+    return [k * size + i for k in range(frames) for i in keep]

@@ -61,8 +61,8 @@ def collect(
     """Fly ``episodes`` episodes (at least; all envs run until the count is reached) on the SB3
     vector env ``venv`` with the expert (``learner=None``) or the learner's deterministic action plus
     ``noise`` (action units, from ``rng``); every step is labelled by ``experts[k]`` (one per env,
-    reset at each episode start). Returns (observations, expert actions clipped to [-1, 1],
-    successes, episodes flown)."""
+    reset at each episode start; it reads the newest frame of a stacked observation). Returns
+    (observations, expert actions clipped to [-1, 1], successes, episodes flown)."""
     n = venv.num_envs
     if len(experts) != n:
         raise ValueError(f"need one expert per env ({n}), got {len(experts)}")
@@ -77,7 +77,7 @@ def collect(
     observations, actions = [], []
     flown = landed = 0
     while flown < episodes:
-        label = np.stack([np.asarray(experts[k].act(obs[k]), dtype=np.float32) for k in range(n)])
+        label = np.stack([np.asarray(experts[k].act(_latest(obs[k])), dtype=np.float32) for k in range(n)])
         observations.append(np.array(obs, dtype=np.float32, copy=True))
         actions.append(np.clip(label, -1.0, 1.0))
         if learner is None:
@@ -93,6 +93,11 @@ def collect(
                 landed += bool(infos[k].get("is_success", False))
                 experts[k].reset()
     return np.concatenate(observations), np.concatenate(actions), landed, flown
+
+
+def _latest(obs: np.ndarray) -> np.ndarray:
+    """The newest frame of a stacked observation (``(frames, D)``, oldest first); a flat one as is."""
+    return obs[-1] if np.ndim(obs) == 2 else obs
 
 
 def fit_policy(

@@ -30,6 +30,7 @@ INT_OPTIONS = (
     ("--dagger-rounds", 0, 0, "DAgger warm start from the scripted landing (0: off)"),
     ("--dagger-episodes", 30, 1, "episodes per DAgger round"),
     ("--critic-warmup-steps", 50_000, 0, "after DAgger: PPO steps that train the critic only"),
+    ("--frame-stack", 1, 1, "observations the policy reads, the newest last (its memory)"),
 )
 
 
@@ -81,6 +82,10 @@ def parse_args(
         ap.error("--workers: only with --vector (SubprocVecEnv already runs one process per env)")
     if args.workers < 1:
         ap.error(f"--workers: at least 1, got {args.workers}")
+    if args.frame_stack > 64:
+        ap.error(f"--frame-stack must be <= 64, got {args.frame_stack}")
+    if args.vector and args.frame_stack > 1:
+        ap.error("--vector: the native vector env gives single observations; use --frame-stack without it")
     if args.vector and args.curriculum_steps:
         ap.error("--vector: the start curriculum wraps single envs; use it without --vector")
     args.env_id = env_id

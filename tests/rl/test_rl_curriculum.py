@@ -98,3 +98,25 @@ def test_input_indices_drop_named_fields(env: StartCurriculum) -> None:
             input_indices(slices, bad)
     with pytest.raises(ValueError, match="leaves no observation"):
         input_indices({"all": slice(0, 2), "a": slice(0, 2)}, ["a"])
+
+
+def test_frame_stack_gives_the_last_observations_and_stacked_inputs(closing) -> None:
+    plain = closing(make_env("ihrcf_env/DeckLanding-v1", "projected"))
+    stacked = closing(make_env("ihrcf_env/DeckLanding-v1", "projected", frame_stack=3))
+    n = plain.observation_space.shape[0]
+    assert stacked.observation_space.shape == (3, n)
+    first, _ = stacked.reset(seed=4)
+    flat, _ = plain.reset(seed=4)
+    np.testing.assert_array_equal(first, np.stack([flat] * 3))  # the first observation repeated
+    action = np.array([0.0, 0.0, -0.3, 0.0], dtype=np.float32)
+    seen = [flat] * 3
+    for _ in range(4):
+        obs, *_ = stacked.step(action)
+        seen.append(plain.step(action)[0])
+        np.testing.assert_array_equal(obs, np.stack(seen[-3:]))  # oldest first, newest last
+    keep = input_indices(plain.get_wrapper_attr("obs_slices"), ["ihrcf"])
+    made = policy_inputs(lambda: make_env("ihrcf_env/DeckLanding-v1", "projected", 2), ["ihrcf"])
+    assert made == keep + [n + i for i in keep]
+    for bad in (0, 65, 2.0, True):
+        with pytest.raises(ValueError, match="frame_stack"):
+            make_env("ihrcf_env/DeckLanding-v1", "projected", frame_stack=bad)

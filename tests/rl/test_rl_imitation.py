@@ -154,3 +154,30 @@ def test_train_ppo_with_dagger_logs_rounds_and_evaluates_the_warm_start(
         with pytest.raises(SystemExit):
             train_ppo.main([*bad, "--out", str(out)])
         assert bad[0] in capsys.readouterr().err  # argparse names the option
+
+
+def test_a_frame_stacked_policy_runs_on_the_flat_env(closing, tmp_path: Path) -> None:
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from ihrcf_env.control.policies import BlindDescent
+    from ihrcf_env.experiments.policies import make_policy
+    from ihrcf_env.rl.envs import make_env
+    from ihrcf_env.rl.imitation import collect
+
+    venv = closing(DummyVecEnv([lambda: make_env(V1, "projected", 3, max_episode_steps=20)]))
+    obs, act, _, flown = collect(venv, [BlindDescent(0.3)], episodes=1, seed=30_000)
+    assert flown == 1 and obs.shape[1:] == (3, venv.observation_space.shape[1]) and len(act) == len(obs)
+    model = _model(venv)
+    model.save(tmp_path / "stacked.zip")
+    flat = closing(make_env(V1, "projected", max_episode_steps=20))
+    stacked = closing(make_env(V1, "projected", 3, max_episode_steps=20))
+    policy = make_policy(str(tmp_path / "stacked.zip"), flat)  # keeps its own stack of flat observations
+    o, _ = flat.reset(seed=5)
+    s, _ = stacked.reset(seed=5)
+    policy.reset()
+    for _ in range(5):
+        a = policy.act(o)
+        np.testing.assert_array_equal(a, model.predict(s, deterministic=True)[0])
+        o, *_ = flat.step(a)
+        s, *_ = stacked.step(a)

@@ -205,7 +205,11 @@ def test_train_ppo_on_the_native_vector_env(tmp_path: Path, capsys: pytest.Captu
     assert f"(camera_model={CAMERA}, 2 envs, vector env)" in text and "128 steps in" in text
     assert PPO.load(out / "final.zip", device="cpu").num_timesteps == 128
     assert [int(r["timesteps"]) for r in read_csv(out / "eval.csv")] == [128]
-    for bad in (["--curriculum-steps", "100"], ["--env-id", "ihrcf_env/DeckHover-v0"]):
+    for bad in (
+        ["--curriculum-steps", "100"],
+        ["--env-id", "ihrcf_env/DeckHover-v0"],
+        ["--frame-stack", "2"],
+    ):
         with pytest.raises(SystemExit) as e:
             train_ppo.main(["--vector", "--out", str(out), *bad])
         assert e.value.code == 2
@@ -218,3 +222,7 @@ def test_train_ppo_on_the_native_vector_env(tmp_path: Path, capsys: pytest.Captu
     with pytest.raises(SystemExit) as e:
         train_ppo.main(["--workers", "2", "--out", str(out2)])
     assert e.value.code == 2 and "--workers" in capsys.readouterr().err
+    for frames in ("0", "65"):
+        with pytest.raises(SystemExit) as e:
+            train_ppo.main(["--frame-stack", frames, "--out", str(out2)])
+        assert e.value.code == 2 and "--frame-stack" in capsys.readouterr().err
