@@ -85,16 +85,8 @@ def main(argv: list[str] | None = None) -> int:
         callbacks.append(sb3.CriticWarmupCallback(args.critic_warmup_steps))
         if not resume:  # DAgger, then the warm-started policy's evaluation (at 0 PPO steps)
             seed0 = DAGGER_SEED_BASE + 100 * args.seed
-            rounds, episodes = args.dagger_rounds, args.dagger_episodes
             warm_start(
-                model,
-                venv,
-                thunk,
-                rounds,
-                episodes,
-                seed0,
-                out / "dagger.csv",
-                commit_within=args.commit_within,
+                model, venv, thunk, args.dagger_rounds, args.dagger_episodes, seed0, out / "dagger.csv"
             )
             evaluator.init_callback(model)
             evaluator.evaluate()

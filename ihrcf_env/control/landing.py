@@ -87,15 +87,14 @@ LANDING_BOUNDS: dict[str, tuple[float, float]] = {
     "heave_timeout": (0.0, 1e4),
     "max_deck_velocity": (0.0, 100.0),
     "commit_below": (0.0, 100.0),
-    "commit_below_within": (0.0, 100.0),
     "lean_tau": (0.0, 100.0),
     "dead_reckon": (0.0, 100.0),
 }
 #: Fields for which ``inf`` (the default) switches the feature off.
-LANDING_OFF_AT_INF = frozenset({"heave_timeout", "max_deck_velocity", "commit_below", "commit_below_within"})
+LANDING_OFF_AT_INF = frozenset({"heave_timeout", "max_deck_velocity", "commit_below"})
 LANDING_UNITS = {
     **{k: "m" for k in ("leg_length", "hold_height", "slow_zone", "centred_tolerance", "height_tolerance")},
-    **{k: "m" for k in ("tof_agreement", "reacquire_height", "commit_below", "commit_below_within")},
+    **{k: "m" for k in ("tof_agreement", "reacquire_height", "commit_below")},
     **{k: "m/s" for k in ("approach_speed", "drop_speed", "touch_speed", "max_xy_speed", "max_deck_speed")},
     **{k: "m/s" for k in ("reacquire_speed", "max_deck_velocity")},
     **{k: "s" for k in ("settle_time", "tag_timeout", "drop_lag", "reacquire_after", "heave_timeout")},
@@ -160,9 +159,6 @@ class LandingConfig:
     # drone is more than ``commit_below`` m under the hold height, the drop is committed (the
     # learner's own early descent is labelled as a drop, not as a climb back to the hold; inf: off).
     commit_below: float = math.inf
-    # ... and only while the tag is within ``commit_below_within`` m of the centring point (inf:
-    # anywhere): further off, the learner's early descent is labelled as a climb back and centring.
-    commit_below_within: float = math.inf
     # Leaning into the wind (options for v2, all off by default). ``axis_centring``: centre the tag
     # on the camera's optical axis rather than straight below (the drone holds upwind of the tag by
     # its height times the tangent of its lean, low-passed with time constant ``lean_tau`` s, so the
@@ -501,8 +497,7 @@ class LandingController:
             near = h is not None and abs(h - c.hold_height) < c.height_tolerance
             if self.phase == "approach" and near:
                 self.phase = "hold"
-            within = off_axis is None or off_axis < c.commit_below_within  # tag out of view: commit
-            if self.seen_tag and h is not None and h < c.hold_height - c.commit_below and within:
+            if self.seen_tag and h is not None and h < c.hold_height - c.commit_below:
                 self.phase = "drop"  # the teacher's option (LandingConfig.commit_below)
                 self.commit_time = self.t
             if self.phase == "hold":

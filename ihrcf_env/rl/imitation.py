@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -182,14 +181,12 @@ def warm_start(
     csv_path: str | Path,
     noise: float = 0.05,
     commit_below: float = 0.1,
-    commit_within: float = math.inf,
 ) -> list[Round]:
     """:func:`dagger` with the scripted landing as the expert (its layout read from one
     ``make_env()`` env, closed after; the task's tunables
     (:data:`~ihrcf_env.control.policies.LANDING_CONFIGS`) with
     ``commit_below``: the learner cannot see the expert's wait-or-drop state, so once it has
-    descended ``commit_below`` m under the hold height the expert labels a drop, not a climb back;
-    ``commit_within``: only with the tag that near the centring point, ``commit_below_within``),
+    descended ``commit_below`` m under the hold height the expert labels a drop, not a climb back),
     one row per round in ``csv_path`` (:data:`DAGGER_FIELDS`) and a printed line."""
     probe = make_env()
     log = CsvLog(csv_path, DAGGER_FIELDS)
@@ -218,7 +215,7 @@ def warm_start(
     try:
         task = str(getattr(probe.unwrapped, "task_name", ""))
         base = LANDING_CONFIGS.get(task, V1_LANDING_CONFIG)
-        config = dataclasses.replace(base, commit_below=commit_below, commit_below_within=commit_within)
+        config = dataclasses.replace(base, commit_below=commit_below)
         expert = functools.partial(ScriptedLanding.from_env, probe, config=config)
         return dagger(model, venv, expert, rounds, episodes, seed, noise, log=write)
     finally:

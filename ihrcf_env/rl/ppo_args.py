@@ -4,7 +4,6 @@ checks, kept apart so the example stays a thin script (no stable-baselines3 impo
 from __future__ import annotations
 
 import argparse
-import math
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -69,20 +68,11 @@ def parse_args(
     ap.add_argument("--gamma", type=float, default=0.99)
     ap.add_argument("--drop-inputs", nargs="*", default=[], help="observation fields the policy ignores")
     ap.add_argument("--net-arch", type=int, nargs="+", default=[64, 64], help="hidden layer sizes")
-    ap.add_argument(
-        "--commit-within",
-        type=float,
-        default=math.inf,
-        help="DAgger: the teacher labels the learner's early descent as its drop only with the tag "
-        "within this many m of the centring point (default: anywhere)",
-    )
     ap.add_argument("--max-wall-min", type=float, default=None, help="wall budget (min), resumes counted")
     args = ap.parse_args(None if argv is None else list(argv))
     for flag, _, least, _ in INT_OPTIONS:
         if getattr(args, flag[2:].replace("-", "_")) < least:
             ap.error(f"{flag} must be >= {least}")
-    if not args.commit_within > 0:
-        ap.error(f"--commit-within must be > 0 (m), got {args.commit_within}")
     if args.max_wall_min is not None and not args.max_wall_min > 0:
         ap.error("--max-wall-min must be > 0 (minutes)")
     env_id = args.env_id or default_env_id()

@@ -150,7 +150,7 @@ def test_train_ppo_with_dagger_logs_rounds_and_evaluates_the_warm_start(
     model = PPO.load(out / "final.zip", device="cpu")
     (ext,) = norm_extractors(model)
     assert float(ext.count) == int(rows[-1]["samples"])  # the DAgger data's statistics, kept by PPO
-    for bad in (["--dagger-episodes", "0"], ["--drop-inputs", "nonsense"], ["--commit-within", "0"]):
+    for bad in (["--dagger-episodes", "0"], ["--drop-inputs", "nonsense"]):
         with pytest.raises(SystemExit):
             train_ppo.main([*bad, "--out", str(out)])
         assert bad[0] in capsys.readouterr().err  # argparse names the option
