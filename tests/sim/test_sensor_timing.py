@@ -77,12 +77,22 @@ def test_default_observations_are_unchanged() -> None:
         warnings.simplefilter("ignore", DeprecationWarning)
         env = gym.make("ihrcf_env/DeckLanding-v1", camera_model="projected")
     try:
+        slices = env.get_wrapper_attr("obs_slices")
         flat = [np.asarray(env.reset(seed=3)[0], np.float64)]
         for _ in range(40):
             flat.append(np.asarray(env.step(ACTION)[0], np.float64))
     finally:
         env.close()
-    np.testing.assert_allclose(np.array(flat), np.array(recorded["landing_v1"]), rtol=1e-6, atol=1e-7)
+    got_v1, want_v1 = np.array(flat), np.array(recorded["landing_v1"])
+    assert got_v1.shape == want_v1.shape
+    solved = np.zeros(got_v1.shape[1], bool)
+    for name in ("atda", "fused"):  # PnP's iterative refinement and the filter fed by it
+        solved[slices[name]] = True
+    # sensors, navigation and IHRCF's closed-form fit: float rounding only
+    np.testing.assert_allclose(got_v1[:, ~solved], want_v1[:, ~solved], rtol=1e-6, atol=1e-7)
+    # cv2's solvePnP converges to within ~1e-6 of its recorded result across builds of OpenCV,
+    # numpy and CPUs: 2e-5 (m in position, unit-vector components in the normal) is 0.02 mm / 1e-3 deg
+    np.testing.assert_allclose(got_v1[:, solved], want_v1[:, solved], rtol=0.0, atol=2e-5)
 
 
 def test_default_config_has_no_timing() -> None:
