@@ -83,9 +83,24 @@ def rodrigues_vector(R: F64) -> F64:
     return np.where((small & ~(c > 0))[:, None], half, out)
 
 
-def rodrigues(r: F64) -> tuple[F64, F64]:
-    """Rotation matrices (M, 9) row-major of rotation vectors r (M, 3) and their derivatives
-    (M, 3, 9), ``[:, i, k]`` = d R_k / d r_i (``cv2.Rodrigues``' formulas)."""
+_EYE9 = np.array([1.0, 0, 0, 0, 1.0, 0, 0, 0, 1.0])
+#: d [u]x / d u_i, row-major (the skew matrix's derivative along each axis).
+_D_RX = np.array(
+    [[0, 0, 0, 0, 0, -1.0, 0, 1.0, 0], [0, 0, 1.0, 0, 0, 0, -1.0, 0, 0], [0, -1.0, 0, 1.0, 0, 0, 0, 0, 0]]
+)
+#: Where each u_i (column) enters d (u u^T) / d u_j (rows j, entries k of the row-major 3 x 3):
+#: (j, k, i, factor) with d(u u^T)_k / d u_j = factor * u_i.
+_DRRT_TERMS = (
+    (0, 0, 0, 2.0), (0, 1, 1, 1.0), (0, 2, 2, 1.0), (0, 3, 1, 1.0), (0, 6, 2, 1.0),
+    (1, 1, 0, 1.0), (1, 3, 0, 1.0), (1, 4, 1, 2.0), (1, 5, 2, 1.0), (1, 7, 2, 1.0),
+    (2, 2, 0, 1.0), (2, 5, 1, 1.0), (2, 6, 0, 1.0), (2, 7, 1, 1.0), (2, 8, 2, 2.0),
+)  # fmt: skip
+
+
+def rodrigues(r: F64, jacobian: bool = True) -> tuple[F64, F64]:
+    """Rotation matrices (M, 9) row-major of rotation vectors r (M, 3) and, with ``jacobian``,
+    their derivatives (M, 3, 9), ``[:, i, k]`` = d R_k / d r_i (else an empty array)
+    (``cv2.Rodrigues``' formulas)."""
     theta = np.sqrt(r[:, 0] * r[:, 0] + r[:, 1] * r[:, 1] + r[:, 2] * r[:, 2])
     tiny = theta < _DBL_EPSILON
     th = np.where(tiny, 1.0, theta)
@@ -94,44 +109,37 @@ def rodrigues(r: F64) -> tuple[F64, F64]:
     it = 1.0 / th
     u = r * it[:, None]
     ux, uy, uz = u[:, 0], u[:, 1], u[:, 2]
-    zero = np.zeros_like(ux)
-    rrt = np.stack([ux * ux, ux * uy, ux * uz, uy * ux, uy * uy, uy * uz, uz * ux, uz * uy, uz * uz], 1)
-    rx = np.stack([zero, -uz, uy, uz, zero, -ux, -uy, ux, zero], 1)
-    eye = np.array([1.0, 0, 0, 0, 1.0, 0, 0, 0, 1.0])
-    R = c[:, None] * eye + c1[:, None] * rrt + s[:, None] * rx
-    drrt = np.stack(
-        [
-            np.stack([ux + ux, uy, uz, uy, zero, zero, uz, zero, zero], 1),
-            np.stack([zero, ux, zero, ux, uy + uy, uz, zero, uz, zero], 1),
-            np.stack([zero, zero, ux, zero, zero, uy, ux, uy, uz + uz], 1),
-        ],
-        1,
-    )
-    d_rx = np.array(
-        [[0, 0, 0, 0, 0, -1.0, 0, 1.0, 0], [0, 0, 1.0, 0, 0, 0, -1.0, 0, 0], [0, -1.0, 0, 1.0, 0, 0, 0, 0, 0]]
-    )
+    m = len(r)
+    rrt = np.empty((m, 9))
+    rrt[:, 0], rrt[:, 1], rrt[:, 2] = ux * ux, ux * uy, ux * uz
+    rrt[:, 3], rrt[:, 4], rrt[:, 5] = uy * ux, uy * uy, uy * uz
+    rrt[:, 6], rrt[:, 7], rrt[:, 8] = uz * ux, uz * uy, uz * uz
+    rx = np.zeros((m, 9))
+    rx[:, 1], rx[:, 2], rx[:, 3] = -uz, uy, uz
+    rx[:, 5], rx[:, 6], rx[:, 7] = -ux, -uy, ux
+    R = c[:, None] * _EYE9 + c1[:, None] * rrt + s[:, None] * rx
+    if not jacobian:
+        if tiny.any():
+            R = np.where(tiny[:, None], _EYE9, R)
+        return R, np.empty(0)
+    drrt = np.zeros((m, 3, 9))
+    for j, k, i, factor in _DRRT_TERMS:
+        drrt[:, j, k] = u[:, i] + u[:, i] if factor == 2.0 else u[:, i]
     a0 = -s[:, None] * u
     a1 = (s - 2.0 * c1 * it)[:, None] * u
     a2 = (c1 * it)[:, None, None]
     a3 = (c - s * it)[:, None] * u
     a4 = (s * it)[:, None, None]
     dR = (
-        a0[:, :, None] * eye
+        a0[:, :, None] * _EYE9
         + a1[:, :, None] * rrt[:, None, :]
         + a2 * drrt
         + a3[:, :, None] * rx[:, None, :]
-        + a4 * d_rx
+        + a4 * _D_RX
     )
     if tiny.any():
-        d_tiny = np.array(
-            [
-                [0, 0, 0, 0, 0, -1.0, 0, 1.0, 0],
-                [0, 0, 1.0, 0, 0, 0, -1.0, 0, 0],
-                [0, -1.0, 0, 1.0, 0, 0, 0, 0, 0],
-            ]
-        )
-        R = np.where(tiny[:, None], eye, R)
-        dR = np.where(tiny[:, None, None], d_tiny, dR)
+        R = np.where(tiny[:, None], _EYE9, R)
+        dR = np.where(tiny[:, None, None], _D_RX, dR)
     return R, dR
 
 
@@ -148,7 +156,7 @@ def project(cam: _Camera, obj: F64, p: F64, px: F64, jacobian: bool) -> tuple[F6
     point, of the marker points ``obj`` (P, 3) at poses ``p`` (M, 6) = (rvec, tvec); with
     ``jacobian``, d residual / d p (M, 2 P, 6) (else an empty array). ``projectPoints``' formulas."""
     k0, k1, k2, k3, k4 = cam.k
-    R, dR = rodrigues(p[:, :3])
+    R, dR = rodrigues(p[:, :3], jacobian)
     t = p[:, 3:]
     X, Y, Z = obj[:, 0], obj[:, 1], obj[:, 2]
     x = R[:, 0, None] * X + R[:, 1, None] * Y + R[:, 2, None] * Z + t[:, 0, None]  # (M, P)
@@ -172,28 +180,33 @@ def project(cam: _Camera, obj: F64, p: F64, px: F64, jacobian: bool) -> tuple[F6
         return res, np.empty(0)
     J = np.empty((len(p), 2 * len(X), 6))
 
-    dc = k0 + 2.0 * k1 * r2 + 3.0 * k4 * r4
+    dc = (k0 + 2.0 * k1 * r2 + 3.0 * k4 * r4)[:, None]
+    xb, yb, r2b, r4b, cb = x[:, None], y[:, None], r2[:, None], r4[:, None], cdist[:, None]
 
-    def chain(dxd: F64, dyd: F64, col: int) -> None:
-        dr2 = 2.0 * x * dxd + 2.0 * y * dyd
+    def chain(dxd: F64, dyd: F64, rotation: bool) -> tuple[F64, F64]:
+        """d (u, v) of the derivatives (M, C, P) of the normalised point (columns side by side)."""
+        dr2 = 2.0 * xb * dxd + 2.0 * yb * dyd
         # (cv2 writes the translation columns' dcdist expanded, the rotation columns' factored)
-        dcdist = k0 * dr2 + 2.0 * k1 * r2 * dr2 + 3.0 * k4 * r4 * dr2 if col >= 3 else dc * dr2
-        da1 = 2.0 * (x * dyd + y * dxd)
-        dmx = dxd * cdist + x * dcdist + k2 * da1 + k3 * (dr2 + 4.0 * x * dxd)
-        dmy = dyd * cdist + y * dcdist + k2 * (dr2 + 4.0 * y * dyd) + k3 * da1
-        J[:, 0::2, col] = cam.fx * dmx
-        J[:, 1::2, col] = cam.fy * dmy
+        dcdist = dc * dr2 if rotation else k0 * dr2 + 2.0 * k1 * r2b * dr2 + 3.0 * k4 * r4b * dr2
+        da1 = 2.0 * (xb * dyd + yb * dxd)
+        dmx = dxd * cb + xb * dcdist + k2 * da1 + k3 * (dr2 + 4.0 * xb * dxd)
+        dmy = dyd * cb + yb * dcdist + k2 * (dr2 + 4.0 * yb * dyd) + k3 * da1
+        return cam.fx * dmx, cam.fy * dmy
 
-    zero = np.zeros_like(x)
-    chain(z, zero, 3)
-    chain(zero, z, 4)
-    chain(-x * z, -y * z, 5)
-    for j in range(3):
-        d = dR[:, j]
-        dx0 = d[:, 0, None] * X + d[:, 1, None] * Y + d[:, 2, None] * Z
-        dy0 = d[:, 3, None] * X + d[:, 4, None] * Y + d[:, 5, None] * Z
-        dz0 = d[:, 6, None] * X + d[:, 7, None] * Y + d[:, 8, None] * Z
-        chain(z * (dx0 - x * dz0), z * (dy0 - y * dz0), j)
+    m, n_pt = x.shape
+    dxt, dyt = np.zeros((m, 3, n_pt)), np.zeros((m, 3, n_pt))
+    dxt[:, 0], dyt[:, 1] = z, z
+    dxt[:, 2], dyt[:, 2] = -x * z, -y * z
+    ju, jv = chain(dxt, dyt, False)
+    J[:, 0::2, 3:] = ju.transpose(0, 2, 1)
+    J[:, 1::2, 3:] = jv.transpose(0, 2, 1)
+    dx0 = dR[:, :, 0, None] * X + dR[:, :, 1, None] * Y + dR[:, :, 2, None] * Z  # (M, 3, P)
+    dy0 = dR[:, :, 3, None] * X + dR[:, :, 4, None] * Y + dR[:, :, 5, None] * Z
+    dz0 = dR[:, :, 6, None] * X + dR[:, :, 7, None] * Y + dR[:, :, 8, None] * Z
+    zb = z[:, None]
+    ju, jv = chain(zb * (dx0 - xb * dz0), zb * (dy0 - yb * dz0), True)
+    J[:, 0::2, :3] = ju.transpose(0, 2, 1)
+    J[:, 1::2, :3] = jv.transpose(0, 2, 1)
     return res, J
 
 

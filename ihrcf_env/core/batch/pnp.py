@@ -89,7 +89,7 @@ def pnp_candidates(
     rvec, t_all, energy, _ = refine_cv_lm(
         Km, d, rodrigues_vector(R_all), t_all, obj, px2, max_iter=MAX_LM_ITER if refine else 0
     )
-    R_all, err = rodrigues(rvec)[0].reshape(-1, 3, 3), np.sqrt(energy / 4.0)
+    R_all, err = rodrigues(rvec, False)[0].reshape(-1, 3, 3), np.sqrt(energy / 4.0)
     R2, t2, err2 = R_all.reshape(n_env, 2, 3, 3), t_all.reshape(n_env, 2, 3), err.reshape(n_env, 2)
     usable = (
         np.isfinite(err2) & np.isfinite(t2).all(axis=2) & np.isfinite(R2).all(axis=(2, 3)) & (t2[..., 2] > 0)
