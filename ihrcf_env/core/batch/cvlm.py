@@ -159,9 +159,9 @@ def project(cam: _Camera, obj: F64, p: F64, px: F64, jacobian: bool) -> tuple[F6
     R, dR = rodrigues(p[:, :3], jacobian)
     t = p[:, 3:]
     X, Y, Z = obj[:, 0], obj[:, 1], obj[:, 2]
-    x = R[:, 0, None] * X + R[:, 1, None] * Y + R[:, 2, None] * Z + t[:, 0, None]  # (M, P)
-    y = R[:, 3, None] * X + R[:, 4, None] * Y + R[:, 5, None] * Z + t[:, 1, None]
-    z = R[:, 6, None] * X + R[:, 7, None] * Y + R[:, 8, None] * Z + t[:, 2, None]
+    R3 = R.reshape(-1, 3, 3, 1)
+    cam_pts = R3[:, :, 0] * X + R3[:, :, 1] * Y + R3[:, :, 2] * Z + t[:, :, None]  # (M, 3, P)
+    x, y, z = cam_pts[:, 0], cam_pts[:, 1], cam_pts[:, 2]
     z = np.where(z != 0.0, 1.0 / np.where(z != 0.0, z, 1.0), 1.0)
     x, y = x * z, y * z
     r2 = x * x + y * y
@@ -200,9 +200,9 @@ def project(cam: _Camera, obj: F64, p: F64, px: F64, jacobian: bool) -> tuple[F6
     ju, jv = chain(dxt, dyt, False)
     J[:, 0::2, 3:] = ju.transpose(0, 2, 1)
     J[:, 1::2, 3:] = jv.transpose(0, 2, 1)
-    dx0 = dR[:, :, 0, None] * X + dR[:, :, 1, None] * Y + dR[:, :, 2, None] * Z  # (M, 3, P)
-    dy0 = dR[:, :, 3, None] * X + dR[:, :, 4, None] * Y + dR[:, :, 5, None] * Z
-    dz0 = dR[:, :, 6, None] * X + dR[:, :, 7, None] * Y + dR[:, :, 8, None] * Z
+    dR3 = dR.reshape(-1, 3, 3, 3, 1)
+    d_pts = dR3[:, :, :, 0] * X + dR3[:, :, :, 1] * Y + dR3[:, :, :, 2] * Z  # (M, 3 params, 3, P)
+    dx0, dy0, dz0 = d_pts[:, :, 0], d_pts[:, :, 1], d_pts[:, :, 2]
     zb = z[:, None]
     ju, jv = chain(zb * (dx0 - xb * dz0), zb * (dy0 - yb * dz0), True)
     J[:, 0::2, :3] = ju.transpose(0, 2, 1)
@@ -262,7 +262,7 @@ def refine_cv_lm(
         it = np.zeros(n, dtype=np.int64)
         while len(rows):
             A, lm_diag = _damped(jtj, diag, lam)
-            x = solve6(A.copy(), -jtb)
+            x = solve6(A, -jtb)
             jac_change = -0.5 * _sum(x * (jtb - lm_diag * x))
             x_norm = _sum(x * x)
             # geodesic acceleration
