@@ -66,7 +66,8 @@ def _serve(conn: Connection, env_id: str, num_envs: int, options: dict[str, Any]
 def merge_infos(parts: Sequence[dict[str, Any]], sizes: Sequence[int]) -> dict[str, Any]:
     """The ``info`` of the concatenated envs from each part's vector ``info`` (part ``k`` over
     ``sizes[k]`` envs): every key an array over all the envs; where a part lacks a key, its envs
-    hold the array's zero (``None`` for objects) with the ``_key`` mask False."""
+    hold the array's zero (``None`` for objects; arrays per env, such as ``final_obs``, keep their
+    shape) with the ``_key`` mask False."""
     keys: list[str] = []
     for part in parts:
         keys.extend(k for k in part if k not in keys)
@@ -78,6 +79,7 @@ def merge_infos(parts: Sequence[dict[str, Any]], sizes: Sequence[int]) -> dict[s
             continue
         present = [np.asarray(v) for v in values if v is not None]
         dtype = np.result_type(*present) if present else np.dtype(object)
+        per_env = present[0].shape[1:] if present else ()  # the shape of one env's value
         filled = []
         for v, n in zip(values, sizes, strict=True):
             if v is not None:
@@ -86,7 +88,9 @@ def merge_infos(parts: Sequence[dict[str, Any]], sizes: Sequence[int]) -> dict[s
                 filled.append(np.zeros(n, dtype=bool))
             else:
                 filled.append(
-                    np.full(n, None, dtype=object) if dtype.kind == "O" else np.zeros(n, dtype=dtype)
+                    np.full((n, *per_env), None, dtype=object)
+                    if dtype.kind == "O"
+                    else np.zeros((n, *per_env), dtype=dtype)
                 )
         out[key] = np.concatenate(filled)
     return out

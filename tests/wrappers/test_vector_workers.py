@@ -66,6 +66,18 @@ def test_merging_infos_fills_what_a_part_lacks() -> None:
     np.testing.assert_array_equal(m["d"]["_y"], [True, False, False])
 
 
+def test_merging_infos_keeps_the_shape_of_per_env_arrays() -> None:
+    """An episode that ends in one part only (``final_obs`` (n, D) there, absent in the other):
+    the other part's envs hold zero rows of the same shape, before or after the part that has it."""
+    obs = np.arange(6.0, dtype=np.float32).reshape(2, 3)
+    part = {"final_obs": obs, "_final_obs": np.array([True, False])}
+    for parts, sizes, rows in (([part, {}], [2, 1], slice(0, 2)), (([{}, part], [1, 2], slice(1, 3)))):
+        m = merge_infos(parts, sizes)
+        assert m["final_obs"].shape == (3, 3) and m["final_obs"].dtype == np.float32
+        np.testing.assert_array_equal(m["final_obs"][rows], obs)
+        assert m["_final_obs"].sum() == 1
+
+
 @pytest.mark.parametrize(
     ("workers", "error"), [(0, ValueError), (5, ValueError), (1.5, TypeError), ("2", TypeError)]
 )
