@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ihrcf_env.core.batch.lm import solve6
+from ihrcf_env.core.batch.lm import HAT, solve6
 
 F64 = NDArray[np.float64]
 
@@ -84,17 +84,6 @@ def rodrigues_vector(R: F64) -> F64:
 
 
 _EYE9 = np.array([1.0, 0, 0, 0, 1.0, 0, 0, 0, 1.0])
-#: d [u]x / d u_i, row-major (the skew matrix's derivative along each axis).
-_D_RX = np.array(
-    [[0, 0, 0, 0, 0, -1.0, 0, 1.0, 0], [0, 0, 1.0, 0, 0, 0, -1.0, 0, 0], [0, -1.0, 0, 1.0, 0, 0, 0, 0, 0]]
-)
-#: Where each u_i (column) enters d (u u^T) / d u_j (rows j, entries k of the row-major 3 x 3):
-#: (j, k, i, factor) with d(u u^T)_k / d u_j = factor * u_i.
-_DRRT_TERMS = (
-    (0, 0, 0, 2.0), (0, 1, 1, 1.0), (0, 2, 2, 1.0), (0, 3, 1, 1.0), (0, 6, 2, 1.0),
-    (1, 1, 0, 1.0), (1, 3, 0, 1.0), (1, 4, 1, 2.0), (1, 5, 2, 1.0), (1, 7, 2, 1.0),
-    (2, 2, 0, 1.0), (2, 5, 1, 1.0), (2, 6, 0, 1.0), (2, 7, 1, 1.0), (2, 8, 2, 2.0),
-)  # fmt: skip
 
 
 def rodrigues(r: F64, jacobian: bool = True) -> tuple[F64, F64]:
@@ -118,13 +107,14 @@ def rodrigues(r: F64, jacobian: bool = True) -> tuple[F64, F64]:
     rx[:, 1], rx[:, 2], rx[:, 3] = -uz, uy, uz
     rx[:, 5], rx[:, 6], rx[:, 7] = -ux, -uy, ux
     R = c[:, None] * _EYE9 + c1[:, None] * rrt + s[:, None] * rx
+    if tiny.any():
+        R = np.where(tiny[:, None], _EYE9, R)
     if not jacobian:
-        if tiny.any():
-            R = np.where(tiny[:, None], _EYE9, R)
         return R, np.empty(0)
-    drrt = np.zeros((m, 3, 9))
-    for j, k, i, factor in _DRRT_TERMS:
-        drrt[:, j, k] = u[:, i] + u[:, i] if factor == 2.0 else u[:, i]
+    drrt = np.zeros((m, 3, 9))  # d (u u^T) / d u_j, row j
+    drrt[:, 0, 0], drrt[:, 0, 1], drrt[:, 0, 2], drrt[:, 0, 3], drrt[:, 0, 6] = ux + ux, uy, uz, uy, uz
+    drrt[:, 1, 1], drrt[:, 1, 3], drrt[:, 1, 4], drrt[:, 1, 5], drrt[:, 1, 7] = ux, ux, uy + uy, uz, uz
+    drrt[:, 2, 2], drrt[:, 2, 5], drrt[:, 2, 6], drrt[:, 2, 7], drrt[:, 2, 8] = ux, uy, ux, uy, uz + uz
     a0 = -s[:, None] * u
     a1 = (s - 2.0 * c1 * it)[:, None] * u
     a2 = (c1 * it)[:, None, None]
@@ -135,11 +125,10 @@ def rodrigues(r: F64, jacobian: bool = True) -> tuple[F64, F64]:
         + a1[:, :, None] * rrt[:, None, :]
         + a2 * drrt
         + a3[:, :, None] * rx[:, None, :]
-        + a4 * _D_RX
+        + a4 * HAT
     )
     if tiny.any():
-        R = np.where(tiny[:, None], _EYE9, R)
-        dR = np.where(tiny[:, None, None], _D_RX, dR)
+        dR = np.where(tiny[:, None, None], HAT, dR)
     return R, dR
 
 

@@ -35,10 +35,11 @@ LAM_REJECT = 1e-3
 
 _EYE3 = np.eye(3)
 _DIAG6 = (np.arange(6), np.arange(6))
-# (M, 3) rotation vectors @ _HAT -> (M, 9) skew matrices [w]x, row-major (exact: one term per entry)
-_HAT = np.zeros((3, 9))
-_HAT[2, 1], _HAT[1, 2], _HAT[0, 5] = -1.0, 1.0, -1.0
-_HAT[2, 3], _HAT[1, 6], _HAT[0, 7] = 1.0, -1.0, 1.0
+#: (M, 3) rotation vectors @ HAT -> (M, 9) skew matrices [w]x, row-major (exact: one term per
+#: entry); row i is also d [w]x / d w_i.
+HAT = np.zeros((3, 9))
+HAT[2, 1], HAT[1, 2], HAT[0, 5] = -1.0, 1.0, -1.0
+HAT[2, 3], HAT[1, 6], HAT[0, 7] = 1.0, -1.0, 1.0
 
 
 def _sum_last(a: F64) -> F64:
@@ -111,7 +112,7 @@ def _rotation(w: F64) -> F64:
     th = np.sqrt(np.where(small, 1.0, th2))
     a = np.where(small, 1.0 - th2 / 6.0, np.sin(th) / th)
     b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(th)) / (th * th))
-    W = (w @ _HAT).reshape(-1, 3, 3)
+    W = (w @ HAT).reshape(-1, 3, 3)
     return (
         (1.0 - b * th2)[:, None, None] * _EYE3
         + a[:, None, None] * W
