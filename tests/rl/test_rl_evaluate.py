@@ -18,8 +18,7 @@ POLICY = Path(__file__).resolve().parents[2] / "examples" / "policies" / "ppo_la
 
 def test_evaluate_cli_runs_the_shipped_policy() -> None:
     pytest.importorskip("stable_baselines3")
-    if not POLICY.is_file():
-        pytest.skip(f"no shipped policy at {POLICY} (train one with examples/train_ppo.py)")
+    assert POLICY.is_file(), f"the shipped policy {POLICY} is missing"
     cmd = [
         sys.executable,
         "-m",
@@ -54,8 +53,7 @@ def test_the_v2_policy_runs_the_benchmark_protocol() -> None:
     """The shipped DeckLanding-v2 policy through the protocol CLI (``--level``), projected camera,
     the calm level's first 4 test seeds: it loads (its observation detected) and lands on some."""
     pytest.importorskip("stable_baselines3")
-    if not POLICY_V2.is_file():
-        pytest.skip(f"no shipped policy at {POLICY_V2}")
+    assert POLICY_V2.is_file(), f"the shipped policy {POLICY_V2} is missing"
     cmd = [sys.executable, "-m", "ihrcf_env.evaluate", "--level", "calm", "--policy", str(POLICY_V2)]
     cmd += ["--episodes", "4", "--camera-model", "projected"]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
