@@ -31,6 +31,7 @@ def _error(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
         (["--policy", "blind:-0.3"], "--policy"),
         (["--policy", "blind:2.0"], "--policy"),  # beyond max_velocity[2]
         (["--policy", "missing_policy.zip"], "--policy"),
+        (["--policy", "missing_policy.npz"], "--policy"),
         (["--policy", "blind:0.3", "--episodes", "0"], "--episodes"),
         (["--policy", "blind:0.3", "--env-id", "ihrcf_env/Nothing-v9"], "--env-id"),
         (["--policy", "blind:0.3", "--camera-model", "painted"], "--camera-model"),
@@ -52,6 +53,36 @@ def test_a_file_that_is_not_a_policy(tmp_path: Path, capsys: pytest.CaptureFixtu
     err = _error(capsys, ["--policy", str(junk), "--max-steps", "1"])
     assert "--policy" in err and str(junk) in err
     assert ("not installed" in err) or ("cannot be loaded" in err)
+
+
+def _gru_for(obs_size: int, path: Path) -> Path:
+    from ihrcf_env.control.gru_policy import WEIGHTS, GruPolicy
+
+    sizes = {"D": obs_size, "E": 4, "H": 3, "3H": 9, "F": 2, "A": 4}
+    w = {k: np.zeros(tuple(sizes[x] for x in dims)) for k, dims in WEIGHTS.items()}
+    w["std"] = np.ones(obs_size)
+    w["b_o"] = np.array([0.0, 0.0, -0.5, 0.0])  # descend at half the action scale
+    GruPolicy(w, list(range(obs_size)), obs_size).save(path)
+    return path
+
+
+def test_a_recurrent_policy_runs_and_its_deck_motion_observation_is_detected(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A saved ``.npz`` runs in numpy; one that reads the ``deck_motion=True`` observation gets it."""
+    import gymnasium as gym
+
+    env = gym.make("ihrcf_env/DeckLanding-v2", deck_motion=True, camera_model="projected")
+    size = env.observation_space.shape[0]
+    env.close()
+    path = _gru_for(size, tmp_path / "gru.npz")
+    argv = ["--level", "calm", "--policy", str(path), "--episodes", "1", "--max-steps", "10", "--quiet"]
+    assert main([*argv, "--camera-model", "projected"]) == 0
+    out = capsys.readouterr().out
+    assert "trained with deck_motion=True" in out and out.strip().splitlines()[-1] == "success 0/1"
+    wrong = _gru_for(size + 3, tmp_path / "wrong.npz")
+    err = _error(capsys, ["--level", "calm", "--policy", str(wrong), "--max-steps", "1"])
+    assert "--policy" in err and "wrong.npz" in err and f"{size + 3} values" in err
 
 
 @pytest.mark.rl  # needs stable-baselines3: runs in the [rl] venv (`pytest -m rl`, .ci/run)

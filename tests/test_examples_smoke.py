@@ -63,7 +63,10 @@ def test_examples_are_thin() -> None:
         assert len(path.read_text().splitlines()) <= 150, path.name
 
 
-@pytest.mark.parametrize(("name", "module"), [("train_ppo", "stable_baselines3"), ("train_rllib", "ray")])
+@pytest.mark.parametrize(
+    ("name", "module"),
+    [("train_ppo", "stable_baselines3"), ("train_rllib", "ray"), ("train_recurrent", "torch")],
+)
 def test_training_without_the_rl_extra_says_how_to_install_it(
     capsys: pytest.CaptureFixture[str], name: str, module: str
 ) -> None:
@@ -72,3 +75,10 @@ def test_training_without_the_rl_extra_says_how_to_install_it(
     assert example(name).main([]) == 2
     out = capsys.readouterr().out.strip()
     assert len(out.splitlines()) == 1 and 'pip install ".[rl]"' in out, out
+
+
+@pytest.mark.parametrize("flag", ["--episodes", "--workers", "--epochs", "--rounds"])
+def test_recurrent_training_names_a_bad_count(capsys: pytest.CaptureFixture[str], flag: str) -> None:
+    with pytest.raises(SystemExit) as e:
+        example("train_recurrent").main([flag, "-1"])
+    assert e.value.code == 2 and flag in capsys.readouterr().err

@@ -81,6 +81,7 @@ POLICY is one of
   scripted   the package's landing controller on the landing observation (own sensing only,
              never ground truth); needs a landing env ({LANDING_V1_ID} or {LANDING_V2_ID})
   blind:VZ   constant descent at VZ m/s (> 0), no lateral command
+  FILE.npz   a saved recurrent policy (ihrcf_env.control.gru_policy; numpy only)
   FILE.zip   a saved stable-baselines3 policy (--algo names its class), run deterministically;
              needs stable-baselines3 (pip install ".[rl]")
 
@@ -132,7 +133,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="an env option (repeatable); VALUE is read as JSON (true, 0.5, a dict) or else as text",
     )
     ap.add_argument(
-        "--policy", required=True, help="scripted | blind:VZ | a stable-baselines3 .zip (required)"
+        "--policy",
+        required=True,
+        help="scripted | blind:VZ | a recurrent .npz | a stable-baselines3 .zip (required)",
     )
     ap.add_argument("--episodes", type=int_in(1), default=10, help="episodes, one seed each (>= 1)")
     ap.add_argument(
@@ -188,9 +191,11 @@ def _check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
         ours = ", ".join(k for k, v in gym.registry.items() if v.namespace == "ihrcf_env")
         ap.error(f"argument --env-id: {args.env_id!r} is not an ihrcf_env landing env (one of {ours})")
     spec = args.policy
-    if not (spec == "scripted" or spec.startswith("blind:") or spec.endswith(".zip") or os.path.exists(spec)):
+    saved = spec.endswith((".zip", ".npz"))
+    if not (spec == "scripted" or spec.startswith("blind:") or saved or os.path.exists(spec)):
         ap.error(
-            f"argument --policy: {spec!r} is not 'scripted', 'blind:VZ' or a saved stable-baselines3 .zip"
+            f"argument --policy: {spec!r} is not 'scripted', 'blind:VZ', a saved recurrent .npz or a "
+            "saved stable-baselines3 .zip"
         )
     if spec == "scripted" and args.env_id not in (LANDING_V1_ID, LANDING_V2_ID):
         ap.error(f"argument --policy: scripted needs a landing observation: use --env-id {LANDING_V2_ID}")
@@ -201,7 +206,7 @@ def _check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
             ap.error(f"argument --policy: {spec!r}: VZ must be a number of m/s, e.g. blind:0.3")
         if not (math.isfinite(vz) and vz > 0):
             ap.error(f"argument --policy: {spec!r}: VZ must be a positive descent speed (m/s)")
-    if spec.endswith(".zip") and not os.path.isfile(spec):
+    if saved and not os.path.isfile(spec):
         ap.error(f"argument --policy: no such file {spec!r}")
 
 

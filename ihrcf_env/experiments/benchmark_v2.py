@@ -4,8 +4,9 @@ Runs the benchmark protocol (the test seeds of :data:`~ihrcf_env.envs.levels.TES
 level and baseline and writes the table as Markdown (``docs/benchmark-v2.md`` by default), stamped
 like the results page: per level the blind descent (``blind:0.3``) and the scripted landing
 (:class:`~ihrcf_env.control.policies.ScriptedLanding`) with the projected camera; with
-``--policy FILE.zip`` a saved stable-baselines3 policy too; on ``--both-cameras`` levels (default
-``moderate``) the scripted landing and the saved policy with the rendered camera as well. Each row
+``--policy FILE ...`` saved policies too (a stable-baselines3 ``.zip``, a recurrent ``.npz``); on
+``--both-cameras`` levels (default ``moderate``) the scripted landing and the saved policies with the
+rendered camera as well. Each row
 is one policy on one level and camera: success with its 95 % Wilson interval and the touchdown
 figures. ``--jobs N`` runs rows in N processes. ``--cache DIR`` keeps each finished row as a JSON
 file and reuses it when the same row (level, policy file and its content, camera, episodes,
@@ -53,14 +54,15 @@ class Job:
 
 def label(policy: str) -> str:
     """The table's name of a policy spec (a saved policy by its file name)."""
-    return os.path.basename(policy) if policy.endswith(".zip") else policy
+    return os.path.basename(policy) if policy.endswith((".zip", ".npz")) else policy
 
 
-def plan(episodes: int, policy: str | None, both_cameras: Sequence[str]) -> list[Job]:
-    """The rows to run, in table order."""
+def plan(episodes: int, policies: str | Sequence[str] | None, both_cameras: Sequence[str]) -> list[Job]:
+    """The rows to run, in table order (``policies``: saved policy files, one or several)."""
+    saved = [policies] if isinstance(policies, str) else list(policies or [])
     jobs = []
     for level in LEVELS:
-        specs = [*BASELINES, *([policy] if policy else [])]
+        specs = [*BASELINES, *saved]
         jobs += [Job(level, s, "projected", episodes) for s in specs]
         if level in both_cameras:
             jobs += [Job(level, s, "rendered", episodes) for s in specs if s != "blind:0.3"]
@@ -70,7 +72,7 @@ def plan(episodes: int, policy: str | None, both_cameras: Sequence[str]) -> list
 def cache_key(job: Job) -> str:
     """A file name for ``job``'s row: its fields, the policy file's content and the version."""
     text = f"{job.level}|{job.policy}|{job.camera_model}|{job.episodes}|{ihrcf_env.__version__}"
-    if job.policy.endswith(".zip"):
+    if job.policy.endswith((".zip", ".npz")):
         text += "|" + hashlib.sha256(Path(job.policy).read_bytes()).hexdigest()
     return hashlib.sha256(text.encode()).hexdigest()[:24] + ".json"
 
@@ -145,7 +147,8 @@ def page_markdown(rows: Mapping[Job, LandingRow], stamp: Stamp) -> str:
             f"test seeds from {TEST_SEEDS.start} up, the same seeds for every policy and camera. "
             "`blind:0.3` descends at 0.3 m/s with no lateral command; `scripted` is the package's landing "
             "controller on the fused estimate (own sensing only); a `.zip` is a saved stable-baselines3 "
-            "policy ([learning](learning.md)). The same figures for one row: "
+            "policy, a `.npz` a saved recurrent policy ([learning](learning.md)). The same figures for one "
+            "row: "
             "`ihrcf-evaluate --level L --policy P --episodes N --camera-model C`.",
             "",
             table_markdown(rows),
@@ -157,7 +160,12 @@ def page_markdown(rows: Mapping[Job, LandingRow], stamp: Stamp) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--episodes", type=int, default=len(TEST_SEEDS), help="test seeds per row (default: all)")
-    ap.add_argument("--policy", default=None, help="a saved stable-baselines3 PPO policy (.zip) to add")
+    ap.add_argument(
+        "--policy",
+        nargs="*",
+        default=[],
+        help="saved policies to add (a stable-baselines3 PPO .zip, a recurrent .npz)",
+    )
     ap.add_argument(
         "--both-cameras",
         nargs="*",
@@ -173,8 +181,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         ap.error(f"argument --episodes: must be in 1..{len(TEST_SEEDS)}")
     if not 1 <= args.jobs <= 64:
         ap.error("argument --jobs: must be in 1..64")
-    if args.policy is not None and not os.path.isfile(args.policy):
-        ap.error(f"argument --policy: no such file {args.policy!r}")
+    for path in args.policy:
+        if not os.path.isfile(path):
+            ap.error(f"argument --policy: no such file {path!r}")
     jobs = plan(args.episodes, args.policy, args.both_cameras)
     argv_shown = list(sys.argv[1:] if argv is None else argv)
     command = shlex.join(["python", "-m", "ihrcf_env.experiments.benchmark_v2", *argv_shown])

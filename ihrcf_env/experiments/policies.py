@@ -1,8 +1,10 @@
-"""Policies by name for evaluation: ``scripted``, ``blind:VZ`` or a saved stable-baselines3 model.
+"""Policies by name for evaluation: ``scripted``, ``blind:VZ``, a saved recurrent policy (``.npz``)
+or a saved stable-baselines3 model (``.zip``).
 
 :func:`make_policy` turns a POLICY spec into a :class:`~ihrcf_env.control.policies.Policy` for an
 env; :func:`make_env_for` builds the env a saved policy was trained on (with ``deck_motion=True`` if
-its observation needs it). stable-baselines3 (the ``[rl]`` extra) is imported only for a ``.zip``.
+its observation needs it). stable-baselines3 (the ``[rl]`` extra) is imported only for a ``.zip``; a
+``.npz`` (:class:`~ihrcf_env.control.gru_policy.GruPolicy`) runs in numpy.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import gymnasium as gym
 import numpy as np
 
 from ihrcf_env import LANDING_V1_ID
+from ihrcf_env.control.gru_policy import GruPolicy
 from ihrcf_env.control.policies import BlindDescent, Policy, ScriptedLanding
 
 SB3_ALGOS = ("PPO", "SAC", "TD3", "A2C", "DDPG")
@@ -101,11 +104,28 @@ def load_sb3(path: str, algo: str, env: gym.Env) -> SB3Policy:
     return SB3Policy(model, frames)
 
 
+def load_gru(path: str, env: gym.Env) -> GruPolicy:
+    """Load the recurrent policy ``path`` (a ``.npz``) and check its observation against ``env``'s."""
+    try:
+        policy = GruPolicy.load(path)
+    except ValueError as e:
+        raise PolicyError(f"--policy {e}") from None
+    shape = getattr(env.observation_space, "shape", None)
+    if shape != (policy.obs_size,):
+        raise PolicyError(
+            f"--policy {path!r}: it reads a flat observation of {policy.obs_size} values, the env gives "
+            f"{_brief(env.observation_space)} (another env id, estimator set or --deck-motion?)"
+        )
+    if env.action_space.shape != (policy.weights["w_o"].shape[0],):
+        raise PolicyError(f"--policy {path!r}: its actions do not match the env's {env.action_space}")
+    return policy
+
+
 def with_deck_motion(
     env_id: str, kwargs: dict[str, Any], spec: str, algo: str
 ) -> tuple[gym.Env, Policy] | None:
     """(env, policy) with ``deck_motion=True`` if a saved policy fits that observation, else None."""
-    if not spec.endswith(".zip"):
+    if not spec.endswith((".zip", ".npz")):
         return None
     try:
         env = gym.make(env_id, **kwargs, deck_motion=True)
@@ -143,12 +163,15 @@ def make_policy(spec: str, env: gym.Env, algo: str = "PPO") -> Policy:
             return BlindDescent(vz, max_velocity)
         except (TypeError, ValueError) as e:
             raise PolicyError(f"--policy {spec!r}: {e}") from None
-    if spec.endswith(".zip") or os.path.exists(spec):
+    if spec.endswith((".zip", ".npz")) or os.path.exists(spec):
         if not os.path.isfile(spec):
             raise PolicyError(f"--policy {spec!r}: no such file")
+        if spec.endswith(".npz"):
+            return load_gru(spec, env)
         return load_sb3(spec, algo, env)
     raise PolicyError(
-        f"--policy {spec!r}: not 'scripted', 'blind:VZ' or a saved stable-baselines3 model (.zip)"
+        f"--policy {spec!r}: not 'scripted', 'blind:VZ', a saved recurrent policy (.npz) or a saved "
+        "stable-baselines3 model (.zip)"
     )
 
 

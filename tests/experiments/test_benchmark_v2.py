@@ -22,6 +22,14 @@ def test_plan_runs_every_level_and_the_rendered_camera_on_moderate() -> None:
         (j.level, j.policy, j.camera_model) for j in with_policy
     }
     assert all(j.episodes == 100 for j in with_policy)
+    two = plan(100, ["a.zip", "b.npz"], ["moderate"])
+    moderate = [(j.policy, j.camera_model) for j in two if j.level == "moderate"]
+    assert moderate == [
+        (p, c)
+        for c in ("projected", "rendered")
+        for p in ("blind:0.3", "scripted", "a.zip", "b.npz")
+        if not (p == "blind:0.3" and c == "rendered")
+    ]
 
 
 def test_one_row_runs_the_test_seeds() -> None:

@@ -1,0 +1,342 @@
+"""DAgger on whole episodes for a recurrent landing policy (:class:`~ihrcf_env.control.gru_policy.GruPolicy`).
+
+The scripted landing carries state from step to step (filtered heave and tilt, a low-passed lean,
+a dead-reckoned tag, how long it has waited at the hold height) that one observation does not
+show, so a memoryless policy imitates it only partly. Here the learner is a GRU (:class:`GruNet`)
+and DAgger (Ross, Gordon and Bagnell 2011) is run on sequences: round 0 flies the scripted landing;
+every later round flies the current learner (its action plus Gaussian ``noise``) while the scripted
+landing runs alongside on the same observations and labels every step; after each round the GRU is
+regressed (mean squared error, back-propagation through whole episodes) on every episode so far,
+its input normaliser set to the data's statistics. After each round the learner also flies the
+validation seeds without noise; the best round on them is kept (``best.npz``).
+
+Episodes are flown by single envs in ``workers`` processes (:func:`fly`), each with its own env and
+expert; the policy they fly is the numpy :class:`~ihrcf_env.control.gru_policy.GruPolicy`, so the
+workers do not need PyTorch. Needs the ``[rl]`` extra (torch) for the fit.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import dataclasses
+import multiprocessing as mp
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch as th
+
+from ihrcf_env.control.gru_policy import GruPolicy
+from ihrcf_env.control.policies import LANDING_CONFIGS, V1_LANDING_CONFIG, ScriptedLanding
+from ihrcf_env.rl.curves import CsvLog
+from ihrcf_env.rl.envs import input_indices, make_env
+
+#: Columns of the recurrent DAgger log (``timesteps``: env steps flown so far).
+RECURRENT_FIELDS = (
+    "timesteps",
+    "round",
+    "expert_flies",
+    "episodes",
+    "successes",
+    "samples",
+    "loss",
+    "val_episodes",
+    "val_successes",
+    "wall_s",
+)
+
+
+class GruNet(th.nn.Module):
+    """The trainable form of :class:`~ihrcf_env.control.gru_policy.GruPolicy` (the same equations)."""
+
+    mean: th.Tensor
+    std: th.Tensor
+
+    def __init__(
+        self, n_in: int, embed: int = 128, hidden: int = 128, head: int = 64, n_act: int = 4
+    ) -> None:
+        super().__init__()
+        self.register_buffer("mean", th.zeros(n_in))
+        self.register_buffer("std", th.ones(n_in))
+        self.embed = th.nn.Linear(n_in, embed)
+        self.gru = th.nn.GRU(embed, hidden, batch_first=True)
+        self.head = th.nn.Linear(hidden, head)
+        self.out = th.nn.Linear(head, n_act)
+
+    def forward(self, x: th.Tensor, h0: th.Tensor | None = None) -> tuple[th.Tensor, th.Tensor]:
+        """Actions (B, T, A), unclipped, and the last state (1, B, H) for inputs (B, T, D)."""
+        z = th.clamp((x - self.mean) / self.std, -10.0, 10.0)
+        y, h = self.gru(th.tanh(self.embed(z)), h0)
+        return self.out(th.tanh(self.head(y))), h
+
+    def set_normaliser(self, x: np.ndarray, floor: float = 1e-2) -> None:
+        """Input mean and std (floored at ``floor``) from the rows of ``x`` (N, D)."""
+        self.mean.copy_(th.as_tensor(x.mean(axis=0), dtype=th.float32))
+        self.std.copy_(th.as_tensor(np.maximum(x.std(axis=0), floor), dtype=th.float32))
+
+    def export(self, inputs: Sequence[int], obs_size: int, meta: dict[str, Any]) -> GruPolicy:
+        """This network as a numpy :class:`GruPolicy` reading ``inputs`` of the flat observation."""
+
+        sd = {k: v.detach().cpu().numpy().astype(np.float64) for k, v in self.state_dict().items()}
+        names = {
+            "mean": "mean",
+            "std": "std",
+            "w_e": "embed.weight",
+            "b_e": "embed.bias",
+            "w_ih": "gru.weight_ih_l0",
+            "w_hh": "gru.weight_hh_l0",
+            "b_ih": "gru.bias_ih_l0",
+            "b_hh": "gru.bias_hh_l0",
+            "w_h": "head.weight",
+            "b_h": "head.bias",
+            "w_o": "out.weight",
+            "b_o": "out.bias",
+        }
+        w = {k: sd[v] for k, v in names.items()}
+        return GruPolicy(w, inputs, obs_size, meta)
+
+
+@dataclass
+class Episode:
+    """One flown episode: its observations (T, obs_size), the expert's labels (T, 4) in [-1, 1],
+    whether it landed and its outcome."""
+
+    seed: int
+    obs: np.ndarray
+    labels: np.ndarray
+    success: bool
+    outcome: str
+
+
+# --- the worker processes: one env and one expert each -------------------------------------------
+_WORKER: dict[str, Any] = {}
+
+
+def _init_worker(env_id: str, env_kw: dict[str, Any], commit_below: float) -> None:
+    env = make_env(env_id, "projected", **env_kw)
+    task = str(getattr(env.unwrapped, "task_name", ""))
+    config = dataclasses.replace(LANDING_CONFIGS.get(task, V1_LANDING_CONFIG), commit_below=commit_below)
+    _WORKER["env"] = env
+    _WORKER["expert"] = ScriptedLanding.from_env(env, config=config)
+
+
+def fly(seed: int, policy: GruPolicy | None, noise: float, label: bool = True) -> Episode:
+    """Fly one episode from ``reset(seed=seed)`` in this worker's env: the expert when ``policy``
+    is None, else ``policy`` plus Gaussian ``noise`` (action units; seeded by ``seed``). With
+    ``label`` every step is labelled by the expert running alongside."""
+    env, expert = _WORKER["env"], _WORKER["expert"]
+    rng = np.random.default_rng(seed)
+    obs, _ = env.reset(seed=seed)
+    expert.reset()
+    if policy is not None:
+        policy.reset()
+    observations, labels = [], []
+    while True:
+        if label or policy is None:
+            target = np.clip(expert.act(obs), -1.0, 1.0)
+            if label:
+                observations.append(np.asarray(obs, dtype=np.float32))
+                labels.append(np.asarray(target, dtype=np.float32))
+        if policy is None:
+            action = target
+        else:
+            action = policy.act(obs)
+            if noise > 0:
+                action = action + noise * rng.standard_normal(action.shape)
+        obs, _, terminated, truncated, info = env.step(np.clip(action, -1.0, 1.0).astype(np.float32))
+        if terminated or truncated:
+            break
+    n = len(observations)
+    return Episode(
+        seed,
+        np.stack(observations) if n else np.zeros((0, env.observation_space.shape[0]), np.float32),
+        np.stack(labels) if n else np.zeros((0, 4), np.float32),
+        bool(info.get("is_success", False)),
+        str(info.get("outcome", "")),
+    )
+
+
+class Pool:
+    """``workers`` processes flying episodes with :func:`fly` (``spawn``: no state shared)."""
+
+    def __init__(self, env_id: str, env_kw: dict[str, Any], workers: int, commit_below: float) -> None:
+        ctx = mp.get_context("spawn")
+        self._ex = cf.ProcessPoolExecutor(
+            workers, mp_context=ctx, initializer=_init_worker, initargs=(env_id, env_kw, commit_below)
+        )
+
+    def fly(
+        self, seeds: Sequence[int], policy: GruPolicy | None, noise: float, label: bool = True
+    ) -> list[Episode]:
+        """Episodes from ``seeds`` (in order), flown in parallel."""
+        futures = [self._ex.submit(fly, int(s), policy, noise, label) for s in seeds]
+        return [f.result() for f in futures]
+
+    def close(self) -> None:
+        self._ex.shutdown(cancel_futures=True)
+
+
+def fit(
+    net: GruNet,
+    episodes: Sequence[Episode],
+    inputs: Sequence[int],
+    epochs: int,
+    lr: float = 1e-3,
+    batch: int = 16,
+    seed: int = 0,
+) -> float:
+    """Regress ``net`` on the expert's labels of ``episodes`` (MSE over their steps, whole
+    episodes back-propagated, Adam, gradient norm clipped at 1) after setting its normaliser to
+    their observations; returns the last epoch's mean loss per step."""
+    eps = [e for e in episodes if len(e.obs)]
+    if not eps:
+        raise ValueError("fit: no labelled steps")
+    idx = list(inputs)
+    net.set_normaliser(np.concatenate([e.obs[:, idx] for e in eps]))
+    opt = th.optim.Adam(net.parameters(), lr=lr)
+    gen = th.Generator().manual_seed(seed)
+    loss_mean = float("nan")
+    for _ in range(epochs):
+        order = th.randperm(len(eps), generator=gen).tolist()
+        total = steps = 0.0
+        for start in range(0, len(order), batch):
+            chunk = [eps[i] for i in order[start : start + batch]]
+            t_max = max(len(e.obs) for e in chunk)
+            x = np.zeros((len(chunk), t_max, len(idx)), np.float32)
+            y = np.zeros((len(chunk), t_max, chunk[0].labels.shape[1]), np.float32)
+            m = np.zeros((len(chunk), t_max), np.float32)
+            for k, e in enumerate(chunk):
+                x[k, : len(e.obs)] = e.obs[:, idx]
+                y[k, : len(e.obs)] = e.labels
+                m[k, : len(e.obs)] = 1.0
+            pred, _ = net(th.as_tensor(x))
+            mask = th.as_tensor(m)
+            err = ((pred - th.as_tensor(y)) ** 2).mean(dim=-1)
+            loss = (err * mask).sum() / mask.sum()
+            opt.zero_grad()
+            loss.backward()
+            th.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
+            opt.step()
+            total += loss.item() * float(mask.sum())
+            steps += float(mask.sum())
+        loss_mean = total / steps
+    return loss_mean
+
+
+@dataclass
+class RunConfig:
+    """A recurrent DAgger run (:func:`train`)."""
+
+    env_id: str
+    out: Path
+    env_kw: dict[str, Any] = dataclasses.field(default_factory=dict)
+    drop_inputs: tuple[str, ...] = ()
+    rounds: int = 10
+    episodes: int = 32
+    val_seeds: tuple[int, ...] = ()
+    seed_base: int = 30_000
+    noise: float = 0.05
+    epochs: int = 20
+    first_epochs: int = 60
+    lr: float = 1e-3
+    embed: int = 128
+    hidden: int = 128
+    head: int = 64
+    workers: int = 2
+    commit_below: float = 0.1
+    max_wall_min: float | None = None
+    seed: int = 0
+
+
+def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
+    """Recurrent DAgger (module docstring); writes ``round_R.npz`` per round, ``best.npz`` (the best
+    round on ``val_seeds``, or the last without them), ``final.npz``, ``dagger.csv`` and
+    ``checkpoint.pt`` (every episode and the network: a stopped run continues with :func:`train`
+    on the same ``out``). Returns the best policy."""
+    th.manual_seed(cfg.seed)
+    cfg.out.mkdir(parents=True, exist_ok=True)
+    probe = make_env(cfg.env_id, "projected", **cfg.env_kw)
+    try:
+        inputs = input_indices(probe.get_wrapper_attr("obs_slices"), cfg.drop_inputs)
+        obs_size = int(probe.observation_space.shape[0])  # type: ignore[index]
+    finally:
+        probe.close()
+    net = GruNet(len(inputs), cfg.embed, cfg.hidden, cfg.head)
+    meta = {
+        "env_id": cfg.env_id,
+        "env_options": cfg.env_kw,
+        "drop_inputs": list(cfg.drop_inputs),
+        "trainer": "ihrcf_env.rl.recurrent (DAgger on episodes)",
+    }
+    ckpt_path = cfg.out / "checkpoint.pt"
+    data: list[Episode] = []
+    history: list[dict[str, Any]] = []
+    start_round, best_val, wall0 = 0, -1, 0.0
+    if ckpt_path.exists():
+        state = th.load(ckpt_path, weights_only=False)
+        net.load_state_dict(state["net"])
+        data, history = state["data"], state["history"]
+        start_round, best_val, wall0 = state["round"] + 1, state["best_val"], state["wall"]
+        log(f"resuming after round {state['round']} ({len(data)} episodes)")
+    log_csv = CsvLog(cfg.out / "dagger.csv", RECURRENT_FIELDS)
+    for row in history:
+        log_csv.write(row)
+    t0 = time.time() - wall0
+    deadline = None if cfg.max_wall_min is None else t0 + 60.0 * cfg.max_wall_min
+    pool = Pool(cfg.env_id, cfg.env_kw, cfg.workers, cfg.commit_below)
+    policy = net.export(inputs, obs_size, meta)
+    try:
+        for r in range(start_round, cfg.rounds + 1):
+            seeds = range(cfg.seed_base + 1000 * r, cfg.seed_base + 1000 * r + cfg.episodes)
+            flown = pool.fly(seeds, None if r == 0 else policy, cfg.noise)
+            data += flown
+            loss = fit(
+                net, data, inputs, cfg.first_epochs if r == 0 else cfg.epochs, cfg.lr, seed=cfg.seed + r
+            )
+            policy = net.export(inputs, obs_size, {**meta, "round": r})
+            policy.save(cfg.out / f"round_{r}.npz")
+            val = pool.fly(cfg.val_seeds, policy, 0.0, label=False) if cfg.val_seeds else []
+            val_ok = sum(e.success for e in val)
+            if not cfg.val_seeds or val_ok >= best_val:
+                best_val = val_ok
+                policy.save(cfg.out / "best.npz")
+            row = {
+                "timesteps": sum(len(e.obs) for e in data),
+                "round": r,
+                "expert_flies": int(r == 0),
+                "episodes": len(flown),
+                "successes": sum(e.success for e in flown),
+                "samples": sum(len(e.obs) for e in data),
+                "loss": loss,
+                "val_episodes": len(val),
+                "val_successes": val_ok,
+                "wall_s": round(time.time() - t0, 1),
+            }
+            history.append(row)
+            log_csv.write(row)
+            th.save(
+                {
+                    "net": net.state_dict(),
+                    "data": data,
+                    "history": history,
+                    "round": r,
+                    "best_val": best_val,
+                    "wall": time.time() - t0,
+                },
+                ckpt_path,
+            )
+            log(
+                f"round {r}: {'expert' if r == 0 else 'learner'} landed {row['successes']}/{len(flown)}, "
+                f"{row['samples']} samples, loss {loss:.2e}, validation {val_ok}/{len(val)}, "
+                f"wall {row['wall_s']:.0f} s"
+            )
+            if deadline is not None and time.time() > deadline:
+                log(f"wall budget of {cfg.max_wall_min} min reached after round {r}")
+                break
+    finally:
+        pool.close()
+    policy.save(cfg.out / "final.npz")
+    return GruPolicy.load(cfg.out / "best.npz")
