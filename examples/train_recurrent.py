@@ -38,12 +38,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--epochs", type=int, default=20, help="fit epochs per learner round")
     ap.add_argument("--first-epochs", type=int, default=60, help="fit epochs after the expert's round")
     ap.add_argument("--lr", type=float, default=1e-3)
+    ap.add_argument("--polish-epochs", type=int, default=0, help="a final fit on all episodes (0: none)")
+    ap.add_argument("--polish-lr", type=float, default=3e-4, help="its learning rate")
     ap.add_argument("--hidden", type=int, default=128, help="GRU state size")
     ap.add_argument("--workers", type=int, default=2, help="processes flying episodes")
     ap.add_argument("--max-wall-min", type=float, default=None, help="stop after the round that passes it")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
-    for name, least in (("rounds", 0), ("episodes", 1), ("val_episodes", 0), ("epochs", 1), ("workers", 1)):
+    for name, least in (
+        ("rounds", 0),
+        ("episodes", 1),
+        ("val_episodes", 0),
+        ("epochs", 1),
+        ("workers", 1),
+        ("polish_epochs", 0),
+    ):
         if getattr(args, name) < least:
             ap.error(f"--{name.replace('_', '-')} must be >= {least}")
     try:
@@ -71,6 +80,8 @@ def main(argv: list[str] | None = None) -> int:
         args.epochs,
         args.first_epochs,
         args.lr,
+        polish_epochs=args.polish_epochs,
+        polish_lr=args.polish_lr,
         hidden=args.hidden,
         workers=args.workers,
         max_wall_min=args.max_wall_min,

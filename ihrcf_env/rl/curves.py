@@ -43,7 +43,7 @@ class CsvLog:
             writer.writeheader()
             writer.writerows({k: r.get(k, "") for k in self.fields} for r in kept)
 
-    def write(self, row: Mapping[str, float | int]) -> None:
+    def write(self, row: Mapping[str, float | int | str]) -> None:
         """Append one row; ``row`` must have exactly the header's fields."""
         if set(row) != set(self.fields):
             raise ValueError(f"row keys {sorted(row)} differ from the fields {sorted(self.fields)}")

@@ -34,11 +34,13 @@ from ihrcf_env.control.policies import LANDING_CONFIGS, V1_LANDING_CONFIG, Scrip
 from ihrcf_env.rl.curves import CsvLog
 from ihrcf_env.rl.envs import input_indices, make_env
 
-#: Columns of the recurrent DAgger log (``timesteps``: env steps flown so far).
+#: Columns of the recurrent DAgger log (``timesteps``: env steps flown so far; ``stage``: ``expert``
+#: (round 0), ``learner`` (a DAgger round) or ``polish`` (the final fit after the last round, with
+#: that round's number; no episodes flown)).
 RECURRENT_FIELDS = (
     "timesteps",
     "round",
-    "expert_flies",
+    "stage",
     "episodes",
     "successes",
     "samples",
@@ -247,6 +249,8 @@ class RunConfig:
     head: int = 64
     workers: int = 2
     commit_below: float = 0.1
+    polish_epochs: int = 0
+    polish_lr: float = 3e-4
     max_wall_min: float | None = None
     seed: int = 0
 
@@ -255,7 +259,9 @@ def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
     """Recurrent DAgger (module docstring); writes ``round_R.npz`` per round, ``best.npz`` (the best
     round on ``val_seeds``, or the last without them), ``final.npz``, ``dagger.csv`` and
     ``checkpoint.pt`` (every episode and the network: a stopped run continues with :func:`train`
-    on the same ``out``). Returns the best policy."""
+    on the same ``out``). With ``polish_epochs`` the last round is followed by a longer fit on all
+    the episodes at ``polish_lr`` (``polished.npz``, validated and ranked like a round). Returns the
+    best policy."""
     th.manual_seed(cfg.seed)
     cfg.out.mkdir(parents=True, exist_ok=True)
     probe = make_env(cfg.env_id, "projected", **cfg.env_kw)
@@ -274,12 +280,13 @@ def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
     ckpt_path = cfg.out / "checkpoint.pt"
     data: list[Episode] = []
     history: list[dict[str, Any]] = []
-    start_round, best_val, wall0 = 0, -1, 0.0
+    start_round, best_val, wall0, polished = 0, -1, 0.0, False
     if ckpt_path.exists():
         state = th.load(ckpt_path, weights_only=False)
         net.load_state_dict(state["net"])
         data, history = state["data"], state["history"]
         start_round, best_val, wall0 = state["round"] + 1, state["best_val"], state["wall"]
+        polished = state.get("polished", False) and start_round > cfg.rounds
         log(f"resuming after round {state['round']} ({len(data)} episodes)")
     log_csv = CsvLog(cfg.out / "dagger.csv", RECURRENT_FIELDS)
     for row in history:
@@ -288,6 +295,35 @@ def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
     deadline = None if cfg.max_wall_min is None else t0 + 60.0 * cfg.max_wall_min
     pool = Pool(cfg.env_id, cfg.env_kw, cfg.workers, cfg.commit_below)
     policy = net.export(inputs, obs_size, meta)
+
+    def record(
+        r: int, stage: str, flown: list[Episode], loss: float, policy: GruPolicy, done: bool
+    ) -> dict[str, Any]:
+        """Validate ``policy``, keep it as ``best.npz`` if it is, log the row, save the checkpoint."""
+        nonlocal best_val
+        val = pool.fly(cfg.val_seeds, policy, 0.0, label=False) if cfg.val_seeds else []
+        val_ok = sum(e.success for e in val)
+        if not cfg.val_seeds or val_ok >= best_val:
+            best_val = val_ok
+            policy.save(cfg.out / "best.npz")
+        row: dict[str, Any] = {
+            "timesteps": sum(len(e.obs) for e in data),
+            "round": r,
+            "stage": stage,
+            "episodes": len(flown),
+            "successes": sum(e.success for e in flown),
+            "samples": sum(len(e.obs) for e in data),
+            "loss": loss,
+            "val_episodes": len(val),
+            "val_successes": val_ok,
+            "wall_s": round(time.time() - t0, 1),
+        }
+        history.append(row)
+        log_csv.write(row)
+        state = {"net": net.state_dict(), "data": data, "history": history, "round": r}
+        th.save({**state, "best_val": best_val, "wall": time.time() - t0, "polished": done}, ckpt_path)
+        return row
+
     try:
         for r in range(start_round, cfg.rounds + 1):
             seeds = range(cfg.seed_base + 1000 * r, cfg.seed_base + 1000 * r + cfg.episodes)
@@ -298,44 +334,24 @@ def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
             )
             policy = net.export(inputs, obs_size, {**meta, "round": r})
             policy.save(cfg.out / f"round_{r}.npz")
-            val = pool.fly(cfg.val_seeds, policy, 0.0, label=False) if cfg.val_seeds else []
-            val_ok = sum(e.success for e in val)
-            if not cfg.val_seeds or val_ok >= best_val:
-                best_val = val_ok
-                policy.save(cfg.out / "best.npz")
-            row = {
-                "timesteps": sum(len(e.obs) for e in data),
-                "round": r,
-                "expert_flies": int(r == 0),
-                "episodes": len(flown),
-                "successes": sum(e.success for e in flown),
-                "samples": sum(len(e.obs) for e in data),
-                "loss": loss,
-                "val_episodes": len(val),
-                "val_successes": val_ok,
-                "wall_s": round(time.time() - t0, 1),
-            }
-            history.append(row)
-            log_csv.write(row)
-            th.save(
-                {
-                    "net": net.state_dict(),
-                    "data": data,
-                    "history": history,
-                    "round": r,
-                    "best_val": best_val,
-                    "wall": time.time() - t0,
-                },
-                ckpt_path,
-            )
+            row = record(r, "expert" if r == 0 else "learner", flown, loss, policy, False)
             log(
-                f"round {r}: {'expert' if r == 0 else 'learner'} landed {row['successes']}/{len(flown)}, "
-                f"{row['samples']} samples, loss {loss:.2e}, validation {val_ok}/{len(val)}, "
-                f"wall {row['wall_s']:.0f} s"
+                f"round {r}: {row['stage']} landed {row['successes']}/{len(flown)}, "
+                f"{row['samples']} samples, loss {loss:.2e}, validation {row['val_successes']}/"
+                f"{row['val_episodes']}, wall {row['wall_s']:.0f} s"
             )
             if deadline is not None and time.time() > deadline:
                 log(f"wall budget of {cfg.max_wall_min} min reached after round {r}")
                 break
+        if cfg.polish_epochs and not polished and data:
+            loss = fit(net, data, inputs, cfg.polish_epochs, cfg.polish_lr, seed=cfg.seed + 100_000)
+            policy = net.export(inputs, obs_size, {**meta, "round": "polish"})
+            policy.save(cfg.out / "polished.npz")
+            row = record(int(history[-1]["round"]), "polish", [], loss, policy, True)
+            log(
+                f"polish: {cfg.polish_epochs} epochs at lr {cfg.polish_lr:g}, loss {loss:.2e}, validation "
+                f"{row['val_successes']}/{row['val_episodes']}, wall {row['wall_s']:.0f} s"
+            )
     finally:
         pool.close()
     policy.save(cfg.out / "final.npz")

@@ -75,13 +75,23 @@ def test_a_tiny_run_writes_its_policies_and_resumes(tmp_path: Path) -> None:
         assert (tmp_path / name).is_file(), name
     with (tmp_path / "dagger.csv").open() as f:
         rows = list(csv.DictReader(f))
-    assert [r["round"] for r in rows] == ["0", "1"] and rows[0]["expert_flies"] == "1"
+    assert [r["round"] for r in rows] == ["0", "1"] and [r["stage"] for r in rows] == ["expert", "learner"]
     assert all(r["val_episodes"] == "1" for r in rows)
     assert int(rows[1]["samples"]) > int(rows[0]["samples"]) > 0
-    # a longer run on the same folder continues after round 1 with the data kept
-    more = RunConfig(**{**cfg.__dict__, "rounds": 2})
+    # a longer run on the same folder continues after round 1 with the data kept, then polishes
+    more = RunConfig(**{**cfg.__dict__, "rounds": 2, "polish_epochs": 2})
     lines.clear()
     train(more, lines.append)
     assert lines[0].startswith("resuming after round 1")
+    assert lines[-1].startswith("polish: 2 epochs") and (tmp_path / "polished.npz").is_file()
     with (tmp_path / "dagger.csv").open() as f:
-        assert [r["round"] for r in csv.DictReader(f)] == ["0", "1", "2"]
+        rows = list(csv.DictReader(f))
+    assert [(r["round"], r["stage"]) for r in rows] == [
+        ("0", "expert"),
+        ("1", "learner"),
+        ("2", "learner"),
+        ("2", "polish"),
+    ]
+    lines.clear()
+    train(more, lines.append)  # nothing left to do: no round flown, no second polish
+    assert len(lines) == 1 and lines[0].startswith("resuming after round 2")
