@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -183,3 +184,19 @@ def test_policies_are_pure_and_checked() -> None:
     R = level_from_up(up)
     assert R @ up == pytest.approx([0.0, 0.0, 1.0])
     assert R @ R.T == pytest.approx(np.eye(3))
+
+
+GRU_V2 = Path(__file__).resolve().parents[1] / "examples" / "policies" / "gru_landing_v2.npz"
+
+
+def test_the_shipped_recurrent_policy_lands_without_pytorch(capsys: pytest.CaptureFixture[str]) -> None:
+    """The shipped DeckLanding-v2 GRU through the protocol CLI in the default install (numpy only):
+    the calm level's first 4 test seeds, projected camera, its deck_motion observation detected."""
+    assert GRU_V2.is_file(), f"the shipped policy {GRU_V2} is missing"
+    argv = ["--level", "calm", "--policy", str(GRU_V2), "--episodes", "4", "--camera-model", "projected"]
+    assert main([*argv, "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "trained with deck_motion=True" in out
+    # it lands these 4 on this machine: allow one unlucky episode on another CPU, not a policy
+    # that no longer lands
+    assert re.fullmatch(r"success [34]/4", out.strip().splitlines()[-1]), out[-2000:]

@@ -345,7 +345,7 @@ def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
                 break
         if cfg.polish_epochs and not polished and data:
             loss = fit(net, data, inputs, cfg.polish_epochs, cfg.polish_lr, seed=cfg.seed + 100_000)
-            policy = net.export(inputs, obs_size, {**meta, "round": "polish"})
+            policy = net.export(inputs, obs_size, {**meta, "round": history[-1]["round"], "stage": "polish"})
             policy.save(cfg.out / "polished.npz")
             row = record(int(history[-1]["round"]), "polish", [], loss, policy, True)
             log(
