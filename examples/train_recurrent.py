@@ -58,6 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         import torch as th
 
+        from ihrcf_env.rl.ppo_args import DAGGER_SEED_BASE, EVAL_SEED_BASE
         from ihrcf_env.rl.recurrent import RunConfig, train
     except ModuleNotFoundError as e:
         print(f'{e.name} is not installed: this example needs the [rl] extra (pip install ".[rl]")')
@@ -66,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     env_kw: dict[str, object] = {"deck_motion": True} if args.deck_motion else {}
     if args.level is not None:
         env_kw["level"] = args.level
-    val0 = 20_000 + args.val_offset
+    val0 = EVAL_SEED_BASE + args.val_offset
     cfg = RunConfig(
         args.env_id,
         args.out,
@@ -75,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
         args.rounds,
         args.episodes,
         tuple(range(val0, val0 + args.val_episodes)),
-        30_000 + 100 * args.seed,
+        DAGGER_SEED_BASE + 100 * args.seed,
         args.noise,
         args.epochs,
         args.first_epochs,

@@ -33,6 +33,7 @@ from ihrcf_env.control.gru_policy import GruPolicy
 from ihrcf_env.control.policies import LANDING_CONFIGS, V1_LANDING_CONFIG, ScriptedLanding
 from ihrcf_env.rl.curves import CsvLog
 from ihrcf_env.rl.envs import input_indices, make_env
+from ihrcf_env.rl.ppo_args import DAGGER_SEED_BASE
 
 #: Columns of the recurrent DAgger log (``timesteps``: env steps flown so far; ``stage``: ``expert``
 #: (round 0), ``learner`` (a DAgger round) or ``polish`` (the final fit after the last round, with
@@ -239,7 +240,7 @@ class RunConfig:
     rounds: int = 10
     episodes: int = 32
     val_seeds: tuple[int, ...] = ()
-    seed_base: int = 30_000
+    seed_base: int = DAGGER_SEED_BASE
     noise: float = 0.05
     epochs: int = 20
     first_epochs: int = 60
