@@ -5,19 +5,33 @@ from __future__ import annotations
 
 import csv
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
+from ihrcf_env.control.gru_policy import GruPolicy
+
 pytestmark = pytest.mark.rl
-th = pytest.importorskip("torch")
-
-from ihrcf_env.control.gru_policy import GruPolicy  # noqa: E402
-from ihrcf_env.rl.recurrent import Episode, GruNet, RunConfig, fit, train  # noqa: E402
 
 
-def test_the_exported_policy_computes_what_the_network_does() -> None:
-    net = GruNet(6, 16, 12, 8)
+@pytest.fixture
+def th() -> Any:
+    """torch (the test is skipped without the ``[rl]`` extra; imported here, not at collection, so
+    the default run deselects these tests instead of skipping the module)."""
+    return pytest.importorskip("torch")
+
+
+@pytest.fixture
+def rec(th: Any) -> Any:
+    """``ihrcf_env.rl.recurrent`` (it imports torch)."""
+    import ihrcf_env.rl.recurrent as rec
+
+    return rec
+
+
+def test_the_exported_policy_computes_what_the_network_does(th: Any, rec: Any) -> None:
+    net = rec.GruNet(6, 16, 12, 8)
     net.set_normaliser(np.random.default_rng(0).normal(size=(50, 6)))
     policy = net.export(list(range(1, 7)), 7, {})
     x = np.random.default_rng(1).normal(size=(30, 7)).astype(np.float32)
@@ -27,7 +41,7 @@ def test_the_exported_policy_computes_what_the_network_does() -> None:
     np.testing.assert_allclose(got, np.clip(ref[0].numpy(), -1, 1), atol=1e-5)
 
 
-def test_the_fit_learns_a_label_that_needs_memory() -> None:
+def test_the_fit_learns_a_label_that_needs_memory(th: Any, rec: Any) -> None:
     """The label is the sign shown at the first step only: a memoryless fit cannot beat a loss of
     about 1 on it (half the steps see no sign); the GRU carries it through the episode."""
     rng = np.random.default_rng(2)
@@ -38,10 +52,10 @@ def test_the_fit_learns_a_label_that_needs_memory() -> None:
         obs[0, 0] = sign
         labels = np.zeros((20, 4), np.float32)
         labels[:, 0] = 0.8 * sign
-        episodes.append(Episode(k, obs, labels, True, "success"))
+        episodes.append(rec.Episode(k, obs, labels, True, "success"))
     th.manual_seed(0)
-    net = GruNet(3, 16, 16, 16)
-    loss = fit(net, episodes, [0, 1, 2], epochs=60, lr=3e-3, batch=8)
+    net = rec.GruNet(3, 16, 16, 16)
+    loss = rec.fit(net, episodes, [0, 1, 2], epochs=60, lr=3e-3, batch=8)
     assert loss < 0.02  # 0.64 / 4 per step for a constant 0 prediction
     policy = net.export([0, 1, 2], 3, {})
     for sign in (-1.0, 1.0):
@@ -52,8 +66,8 @@ def test_the_fit_learns_a_label_that_needs_memory() -> None:
         assert np.all(np.sign(actions[5:, 0]) == sign)
 
 
-def test_a_tiny_run_writes_its_policies_and_resumes(tmp_path: Path) -> None:
-    cfg = RunConfig(
+def test_a_tiny_run_writes_its_policies_and_resumes(tmp_path: Path, rec: Any) -> None:
+    cfg = rec.RunConfig(
         "ihrcf_env/DeckLanding-v2",
         tmp_path,
         {"level": "calm", "max_episode_steps": 40},
@@ -69,7 +83,7 @@ def test_a_tiny_run_writes_its_policies_and_resumes(tmp_path: Path) -> None:
         workers=1,
     )
     lines: list[str] = []
-    best = train(cfg, lines.append)
+    best = rec.train(cfg, lines.append)
     assert isinstance(best, GruPolicy) and best.hidden_size == 8
     for name in ("best.npz", "final.npz", "round_0.npz", "round_1.npz", "dagger.csv", "checkpoint.pt"):
         assert (tmp_path / name).is_file(), name
@@ -79,9 +93,9 @@ def test_a_tiny_run_writes_its_policies_and_resumes(tmp_path: Path) -> None:
     assert all(r["val_episodes"] == "1" for r in rows)
     assert int(rows[1]["samples"]) > int(rows[0]["samples"]) > 0
     # a longer run on the same folder continues after round 1 with the data kept, then polishes
-    more = RunConfig(**{**cfg.__dict__, "rounds": 2, "polish_epochs": 2})
+    more = rec.RunConfig(**{**cfg.__dict__, "rounds": 2, "polish_epochs": 2})
     lines.clear()
-    train(more, lines.append)
+    rec.train(more, lines.append)
     assert lines[0].startswith("resuming after round 1")
     assert lines[-1].startswith("polish: 2 epochs") and (tmp_path / "polished.npz").is_file()
     with (tmp_path / "dagger.csv").open() as f:
@@ -93,5 +107,5 @@ def test_a_tiny_run_writes_its_policies_and_resumes(tmp_path: Path) -> None:
         ("2", "polish"),
     ]
     lines.clear()
-    train(more, lines.append)  # nothing left to do: no round flown, no second polish
+    rec.train(more, lines.append)  # nothing left to do: no round flown, no second polish
     assert len(lines) == 1 and lines[0].startswith("resuming after round 2")

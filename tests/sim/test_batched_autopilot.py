@@ -16,7 +16,7 @@ import pytest
 from ihrcf_env.sim import drone
 from ihrcf_env.sim.batched import autopilot as batched_autopilot
 from ihrcf_env.sim.batched.autopilot import BatchedVelocityController
-from ihrcf_env.sim.batched.floatmath import hypot2, hypot_over, remainder, yaw_quaternions
+from ihrcf_env.sim.batched.floatmath import atan2, hypot2, hypot_over, remainder, yaw_quaternions
 from ihrcf_env.sim.batched.mixer import BatchedMixer
 from ihrcf_env.sim.drone import QuadParams, Quadrotor, VelocityController, VelocityGains
 
@@ -166,3 +166,16 @@ def test_hypot_over_decides_as_math_hypot():
         assert np.array_equal(over, h > lim)
         assert np.array_equal(got[over], h[over])
     assert hypot_over(np.array([1e-170]), np.array([0.0]), 0.0)[0][0]
+
+
+def test_atan2_is_math_atan2_on_this_cpu():
+    """Quadrants, axes, signed zeros and wide magnitudes: the same bits as ``math.atan2`` (numpy's
+    SIMD ``arctan2`` on AVX-512 CPUs is not)."""
+    rng = np.random.default_rng(11)
+    y = np.concatenate([rng.normal(size=5000) * 10.0 ** rng.integers(-8, 8, 5000), [0.0, -0.0, 1.0, -1.0]])
+    x = np.concatenate([rng.normal(size=5000) * 10.0 ** rng.integers(-8, 8, 5000), [-0.0, 0.0, 0.0, -0.0]])
+    ref = np.array([math.atan2(a, b) for a, b in zip(y, x, strict=True)])
+    got = atan2(y, x)
+    assert got.dtype == np.float64 and got.shape == y.shape
+    assert np.array_equal(got.view(np.int64), ref.view(np.int64))
+    assert atan2(np.ones((2, 3)), np.ones((2, 3))).shape == (2, 3)

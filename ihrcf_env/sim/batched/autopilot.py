@@ -19,7 +19,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.sim.batched.dynamics import motor_lag
-from ihrcf_env.sim.batched.floatmath import hypot2, hypot_over, matrices_from_quaternions, remainder
+from ihrcf_env.sim.batched.floatmath import (
+    atan2,
+    hypot2,
+    hypot_over,
+    matrices_from_quaternions,
+    remainder,
+)
 from ihrcf_env.sim.batched.mixer import BatchedMixer
 
 if TYPE_CHECKING:
@@ -127,7 +133,7 @@ class BatchedVelocityController:
         r00, r01, r02 = r[:, 0, 0], r[:, 0, 1], r[:, 0, 2]
         r10, r11, r12 = r[:, 1, 0], r[:, 1, 1], r[:, 1, 2]
         r20, r21, r22 = r[:, 2, 0], r[:, 2, 1], r[:, 2, 2]
-        yaw = np.arctan2(r10, r00)
+        yaw = atan2(r10, r00)
         cy, sy = np.cos(yaw), np.sin(yaw)
         sp_x, sp_y, sp_z, sp_r = setpoint[:, 0], setpoint[:, 1], setpoint[:, 2], setpoint[:, 3]
         vc0, vc1, vc2 = cy * sp_x - sy * sp_y, sy * sp_x + cy * sp_y, sp_z

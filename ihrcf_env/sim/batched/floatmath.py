@@ -4,6 +4,8 @@ same way, so that a batched row equals its scalar counterpart bit for bit.
 * :func:`hypot2`: Python's ``math.hypot(x, y)`` (CPython's own correctly-rounded-in-practice
   algorithm, which differs from C's ``hypot`` and so from ``numpy.hypot`` in the last bit);
 * :func:`remainder`: ``math.remainder(x, y)`` (IEEE 754 remainder, ties to the even quotient);
+* :func:`atan2`: ``math.atan2(y, x)`` (the C library's; numpy's own SIMD ``arctan2``, used on CPUs
+  with AVX-512, differs from it in the last bit for some inputs);
 * :func:`matrices_from_quaternions`: PyBullet's ``getMatrixFromQuaternion`` (Bullet's
   ``btMatrix3x3::setRotation`` formula, double precision).
 
@@ -12,6 +14,8 @@ a row depends on that row's inputs only.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numpy.typing import NDArray
@@ -79,6 +83,16 @@ def hypot_over(x: Array, y: Array, limit: Array | float) -> tuple[NDArray[np.boo
         return near, approx
     h = hypot2(x, y)
     return h > lim, h
+
+
+_ATAN2 = np.frompyfunc(math.atan2, 2, 1)
+
+
+def atan2(y: Array, x: Array) -> Array:
+    """``math.atan2(y, x)`` elementwise (float64, the C library's result on every CPU)."""
+    return np.asarray(
+        _ATAN2(np.asarray(y, dtype=np.float64), np.asarray(x, dtype=np.float64)), dtype=np.float64
+    )
 
 
 def remainder(x: Array, y: float) -> Array:
