@@ -77,7 +77,6 @@ def test_csv_and_figures(short_run: tuple[Recording, str], tmp_path: Path) -> No
     err = data[valid, header.index("ihrcf_z_m")] - data[valid, header.index("gt_z_m")]
     assert np.abs(err).mean() < 0.01
 
-    pytest.importorskip("matplotlib")
     from ihrcf_env.experiments.figures import save_figures
 
     paths = save_figures(rec, tmp_path / "figs")
