@@ -301,12 +301,18 @@ class Wind:
     def velocity_at(self, times: Sequence[float]) -> NDArray[np.float64]:
         """Wind velocity (len(times), 3) (world, m/s) at each of ``times`` (s), as the force
         (:meth:`__call__`) sees it."""
-        out = np.empty((len(times), 3))
-        mx, my, mz = self.mean
-        for m, t in enumerate(times):
-            gx, gy, gz = self.gust(t)
-            out[m] = (mx + gx, my + gy, mz + gz)
-        return out
+        t = np.asarray(times, dtype=np.float64).reshape(-1)
+        gust = np.zeros((t.size, 3))
+        if t.size and not (self._rng is None or self.params.turbulence == 0 or self.mean_speed == 0):
+            u = np.maximum(t, 0.0) / self.params.sample_dt  # as gust(t), on arrays
+            k = u.astype(np.int64)
+            while int(k.max()) + 1 >= len(self._samples):
+                self._extend()
+            k0 = int(k.min())
+            samples = np.array(self._samples[k0 : int(k.max()) + 2])
+            a, b = samples[k - k0], samples[k + 1 - k0]
+            gust = a + (u - k)[:, None] * (b - a)
+        return np.asarray(self.mean, dtype=np.float64) + gust
 
     def __call__(
         self, t: float, position: Sequence[float], velocity: Sequence[float]

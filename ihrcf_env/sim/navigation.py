@@ -234,6 +234,19 @@ class GNSSINSNavigation:
         w = self._w
         self._white = [w * z[3], w * z[4], w * z[5]]
 
+    def take_draws(self, count: int) -> list[list[float]]:
+        """The normal draws (6 per step) of the next ``count`` steps, consumed as ``count`` calls
+        of the step would consume them (for a batched step of the same error process)."""
+        out: list[list[float]] = []
+        while len(out) < count:
+            if self._i >= len(self._block):
+                self._block = self._rng.standard_normal((self._BLOCK, 6)).tolist()
+                self._i = 0
+            take = min(count - len(out), len(self._block) - self._i)
+            out.extend(self._block[self._i : self._i + take])
+            self._i += take
+        return out
+
     def advance(self, t: float) -> None:
         """Bring the error to time ``t`` (s); a time before the current one only moves the clock."""
         k = int(round(t / self.dt))

@@ -34,6 +34,7 @@ from ihrcf_env.core.checks import check_bool, check_int
 from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
 from ihrcf_env.sim.batched.loop import advance
+from ihrcf_env.wrappers.vector_info import stack_infos
 from ihrcf_env.wrappers.vector_obs import batched_observations
 
 #: Largest ``num_envs`` (each env holds a physics client).
@@ -114,21 +115,19 @@ class DeckLandingVectorEnv(VectorEnv):
         """Reset every env (``reset(seed=s)``: env ``i`` with seed ``s + i``; ``options`` to each)."""
         self._check_open()
         seeds = env_seeds(seed, self.num_envs)
-        infos: dict[str, Any] = {}
-        obs = []
         self._was_reset = True
         self._autoreset[:] = False
         if self._batched is not None:
             rows = self._batched.run(None, [], range(self.num_envs), seeds, options)
-            for i in range(self.num_envs):
-                obs.append(rows[i].obs)
-                infos = self._add_info(infos, rows[i].info, i)
-            return np.stack(obs), infos
-        for i, (env, s) in enumerate(zip(self._envs, seeds, strict=True)):
+            return np.stack([rows[i].obs for i in range(self.num_envs)]), stack_infos(
+                [rows[i].info for i in range(self.num_envs)]
+            )
+        obs, infos = [], []
+        for env, s in zip(self._envs, seeds, strict=True):
             o, info = env.reset(seed=s, options=options)
             obs.append(o)
-            infos = self._add_info(infos, info, i)
-        return np.stack(obs), infos
+            infos.append(info)
+        return np.stack(obs), stack_infos(infos)
 
     def step(
         self, actions: Any
@@ -141,8 +140,6 @@ class DeckLandingVectorEnv(VectorEnv):
         rewards = np.zeros(n, dtype=np.float64)
         terminated = np.zeros(n, dtype=bool)
         truncated = np.zeros(n, dtype=bool)
-        infos: dict[str, Any] = {}
-        obs = []
         if not self._was_reset:
             raise gym.error.ResetNeeded("step: reset the vector env first")
         if self._numpy_physics:
@@ -150,19 +147,21 @@ class DeckLandingVectorEnv(VectorEnv):
         same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
         if self._batched is not None:
             return self._step_batched(a, same_step)
+        obs, infos = [], []
         for i, env in enumerate(self._envs):
+            final: dict[str, Any] = {}
             if self._autoreset[i]:
                 o, info = env.reset()
             else:
                 o, r, terminated[i], truncated[i], info = env.step(a[i])
                 rewards[i] = float(r)
                 if same_step and (terminated[i] or truncated[i]):
-                    infos = self._add_info(infos, {"final_obs": o, "final_info": info}, i)
+                    final = {"final_obs": o, "final_info": info}
                     o, info = env.reset()
             obs.append(o)
-            infos = self._add_info(infos, info, i)
+            infos.append({**final, **info} if final else info)
         self._autoreset = (terminated | truncated) & (not same_step)
-        return np.stack(obs), rewards, terminated, truncated, infos
+        return np.stack(obs), rewards, terminated, truncated, stack_infos(infos)
 
     def _step_batched(
         self, a: NDArray[Any], same_step: bool
@@ -178,17 +177,17 @@ class DeckLandingVectorEnv(VectorEnv):
         final: dict[int, Any] = {}
         if same_step and ended.size:
             final = self._batched.run(None, [], ended)
-        infos: dict[str, Any] = {}
-        obs = []
+        obs, infos = [], []
         for i in range(n):
             row = rows[i]
             if i in final:
-                infos = self._add_info(infos, {"final_obs": row.obs, "final_info": row.info}, i)
-                row = final[i]
-            obs.append(row.obs)
-            infos = self._add_info(infos, row.info, i)
+                obs.append(final[i].obs)
+                infos.append({"final_obs": row.obs, "final_info": row.info, **final[i].info})
+            else:
+                obs.append(row.obs)
+                infos.append(row.info)
         self._autoreset = (terminated | truncated) & (not same_step)
-        return np.stack(obs), rewards, terminated, truncated, infos
+        return np.stack(obs), rewards, terminated, truncated, stack_infos(infos)
 
     def _advance_together(self, actions: NDArray[Any]) -> None:
         """Numpy physics: apply the actions of the envs that step now and advance all their worlds

@@ -76,3 +76,24 @@ def test_no_disturbances_no_forces() -> None:
     outside = ExternalInputs(worlds, np.zeros(2, np.int64), STEPS, DT)  # type: ignore[arg-type]
     pos = np.ones((2, 3))
     assert outside.forces(0, pos, pos) is None and not outside.navigating
+
+
+def test_wind_velocity_at_equals_its_scalar_gusts() -> None:
+    """``Wind.velocity_at`` (on arrays) equals mean + ``gust(t)`` tick by tick, across block
+    extensions, for a turbulent wind, a calm one and a wind without turbulence."""
+    winds = [
+        Wind(WindParams(mean_speed_min=4.0, mean_speed_max=12.0)),
+        Wind(WindParams(mean_speed_min=0.0, mean_speed_max=0.0)),
+        Wind(WindParams(mean_speed_min=3.0, mean_speed_max=3.0, turbulence=0.0)),
+    ]
+    for k, wind in enumerate(winds):
+        wind.reset(np.random.default_rng(k))
+        twin = Wind(wind.params)
+        twin.reset(np.random.default_rng(k))
+        for start in (0, 1, 5000, 5012, 90000):
+            times = [float(t) for t in (start + np.arange(STEPS)) * DT]
+            got = wind.velocity_at(times)
+            for m, t in enumerate(times):
+                g = twin.gust(t)
+                want = [wind.mean[0] + g[0], wind.mean[1] + g[1], wind.mean[2] + g[2]]
+                assert got[m].tolist() == want, (k, start, m)

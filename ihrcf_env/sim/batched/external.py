@@ -3,8 +3,8 @@ autopilot's navigation errors and the disturbance forces, as :func:`~ihrcf_env.s
 needs them at each physics tick.
 
 Both are the worlds' own objects. The part of them that does not depend on the drone's state is
-taken from each object once per control step for all its ticks (the GNSS/INS error process,
-:meth:`GNSSINSNavigation.errors_at <ihrcf_env.sim.navigation.GNSSINSNavigation.errors_at>`; the
+taken from each object once per control step for all its ticks (the GNSS/INS error processes, all
+worlds' on arrays, :func:`~ihrcf_env.sim.batched.navigation.error_tracks`; the
 wind's velocity, :meth:`Wind.velocity_at <ihrcf_env.sim.disturbances.Wind.velocity_at>`); what
 does depend on it is evaluated on arrays at each tick with the scalar code's operations in its
 order, so every row equals the world's own calls bit for bit. Other disturbances (user classes)
@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from ihrcf_env.sim.batched.navigation import error_tracks
 from ihrcf_env.sim.disturbances import ConstantForce, Wind, disturbance_force
 from ihrcf_env.sim.navigation import GNSSINSNavigation
 
@@ -42,11 +43,10 @@ class ExternalInputs:
         gnss = [i for i in nav if isinstance(worlds[i].navigation, GNSSINSNavigation)]
         self._nav_rows = np.array(gnss, dtype=np.intp)  # errors taken ahead, applied on arrays
         self._nav_other = [i for i in nav if i not in gnss]  # other models: called per tick
-        tracks = [worlds[i].navigation.errors_at(times[i]) for i in gnss]  # type: ignore[attr-defined]
-        if tracks:
-            self._ep = np.stack([t[0] for t in tracks])  # (rows, steps, 3)
-            self._ev = np.stack([t[1] for t in tracks])
-            self._w = np.stack([t[2] for t in tracks])
+        if gnss:
+            navs: list[GNSSINSNavigation] = [worlds[i].navigation for i in gnss]  # type: ignore[misc]
+            track_times = ((ticks0[self._nav_rows, None] + np.arange(steps)) * dt).astype(np.float64)
+            self._ep, self._ev, self._w = error_tracks(navs, track_times)  # (rows, steps, 3)
             self._inv = np.array([worlds[i].navigation._inv_tp for i in self._nav_rows])[:, None]
         # disturbances: k-th disturbance of each row, batched where it is the simulator's own
         self.any_disturbance = any(w.disturbances for w in worlds)
