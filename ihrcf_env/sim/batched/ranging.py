@@ -32,6 +32,7 @@ class BatchedToF:
         self.max_range = float(max_range)
         self.scene = scene
         self.model = model
+        self._same: dict[int, tuple[BatchedToF, bool]] = {}  # same_as, per other sensor set
         axis = np.tile([0.0, 0.0, -1.0], (4, 1))
         self._axis = self._mount(self.positions_body, axis)
         if model is not None:
@@ -40,6 +41,20 @@ class BatchedToF:
             n = model.rays
             self._cone = self._mount(np.repeat(self.positions_body, n, axis=0), np.tile(dirs_body, (4, 1)))
             self._gain = model.flat_gain
+
+    def same_as(self, other: BatchedToF) -> bool:
+        """True when ``other`` casts the same rays in the same scene (one batched call serves the
+        worlds of both); remembered per ``other`` (both are fixed once made)."""
+        known = self._same.get(id(other))
+        if known is None or known[0] is not other:
+            same = (
+                self.scene == other.scene
+                and self.max_range == other.max_range
+                and self.model == other.model
+                and np.array_equal(self.positions_body, other.positions_body)
+            )
+            known = self._same[id(other)] = (other, same)
+        return known[1]
 
     def _mount(
         self, starts: NDArray[np.float64], dirs: NDArray[np.float64]
@@ -168,9 +183,4 @@ def _same_rays(a: ToFArray, b: ToFArray) -> bool:
     """True when two sensors cast the same rays in the same scene (one batched call serves both)."""
     ca, cb = a.closed_form, b.closed_form
     assert ca is not None and cb is not None
-    return ca is cb or (
-        ca.scene == cb.scene
-        and ca.max_range == cb.max_range
-        and ca.model == cb.model
-        and np.array_equal(ca.positions_body, cb.positions_body)
-    )
+    return ca is cb or ca.same_as(cb)
