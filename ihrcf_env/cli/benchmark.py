@@ -13,6 +13,7 @@ import contextlib
 import dataclasses
 import math
 import os
+import statistics
 import sys
 import tempfile
 import time
@@ -34,6 +35,8 @@ from ihrcf_env.experiments.speed import (
 )
 from ihrcf_env.experiments.vector_speed import (
     ACTIONS,
+    PairedSpeed,
+    VectorSpeed,
     markdown_table,
     process_speed,
     single_speed,
@@ -45,6 +48,8 @@ from ihrcf_env.wrappers.vector import MAX_ENVS
 MILD_DISTORTION = (-0.05, 0.0)
 #: ``--vector``'s N when it has no values.
 VECTOR_NS = (1, 8, 32, 128)
+#: Most rounds of ``--rounds``.
+MAX_ROUNDS = 100
 #: Most processes of ``--processes``.
 MAX_PROCESSES = 64
 #: Options of the envs the vector comparison times (as ``gym.make`` gives them otherwise).
@@ -88,39 +93,48 @@ def _camera_mode_report(steps: int, frames: int, vector: bool) -> list[str]:
 
 def _vector_report(args: argparse.Namespace, cores: list[int] | None) -> list[str]:
     """Time the single env and the vector env for each N (and each number of processes, each
-    pinned to its own core of ``cores`` when given); print and return the markdown table."""
+    pinned to its own core of ``cores`` when given) in ``args.rounds`` rounds, each starting with
+    the single env; print and return the markdown table (medians over the rounds)."""
     ns = list(args.vector) or list(VECTOR_NS)
     common = {"env_id": args.id, "warmup": args.warmup, "actions": args.actions, **VECTOR_OPTIONS}
     pinned = "pinned to one core" if cores else "not pinned"
     head = (
         f"{args.id}, camera_model=projected, {args.actions} actions: single env {args.steps} steps, "
         f"vector env ({args.physics} physics) {args.vector_steps} steps per N, {args.warmup} untimed "
-        f"first ({pinned})"
+        f"first ({pinned}); {args.rounds} round(s), each timing the single env and then every "
+        "configuration, ratios taken within a round"
     )
     print(head, flush=True)
-    single = single_speed(steps=args.steps, **common)
-    print(f"single env: {single:.1f} steps/s", flush=True)
-    rows = []
     # the same N envs (and seeds) with PyBullet's physics: the envs stepped in turn
     backends = ("pybullet", args.physics) if args.physics != "pybullet" else ("pybullet",)
-    for n in ns:
-        for p in args.processes:
-            for physics in backends:
-                if p == 1:
-                    row = vector_speed(num_envs=n, steps=args.vector_steps, **common, physics=physics)
-                else:
-                    row = process_speed(
-                        num_envs=n,
-                        processes=p,
-                        steps=args.vector_steps,
-                        cores=cores,
-                        **common,
-                        physics=physics,
+    singles: list[float] = []
+    runs: dict[tuple[int, int, str], list[VectorSpeed]] = {}
+    for k in range(args.rounds):
+        single = single_speed(steps=args.steps, **common)
+        singles.append(single)
+        print(f"round {k + 1}: single env {single:.1f} steps/s", flush=True)
+        for n in ns:
+            for p in args.processes:
+                for physics in backends:
+                    if p == 1:
+                        row = vector_speed(num_envs=n, steps=args.vector_steps, **common, physics=physics)
+                    else:
+                        row = process_speed(
+                            num_envs=n,
+                            processes=p,
+                            steps=args.vector_steps,
+                            cores=cores,
+                            **common,
+                            physics=physics,
+                        )
+                    row = dataclasses.replace(row, physics=physics)
+                    print(
+                        f"round {k + 1}: N={n}, {physics}, {p} process(es): {row.env_steps_per_s:.1f} "
+                        f"env-steps/s ({row.ratio(single):.2f}x)",
+                        flush=True,
                     )
-                row = dataclasses.replace(row, physics=physics)
-                print(f"N={n}, {physics}, {p} process(es): {row.env_steps_per_s:.1f} env-steps/s", flush=True)
-                rows.append(row)
-    table = markdown_table(single, rows)
+                    runs.setdefault((n, p, physics), []).append(row)
+    table = markdown_table(statistics.median(singles), [PairedSpeed.of(r, singles) for r in runs.values()])
     print()
     print("\n".join(table))
     return [head + ".", "", *table]
@@ -217,6 +231,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="the vector env's physics (the single env runs the default, pybullet)",
     )
     vec.add_argument("--vector-steps", type=int_in(1), default=20, help="timed vector steps per N")
+    vec.add_argument(
+        "--rounds",
+        type=int_in(1, MAX_ROUNDS),
+        default=3,
+        help="rounds of the comparison, each timing the single env and then every configuration "
+        "(the ratios are taken within a round, the table shows their median)",
+    )
     vec.add_argument("--warmup", type=int_in(0), default=5, help="untimed steps before each timing")
     vec.add_argument("--actions", choices=ACTIONS, default="random", help="actions of the timed steps")
     ap.add_argument(

@@ -6,7 +6,9 @@ ends and that reset counts as one step, as the vector env's next-step autoreset 
 on it, so both loops run the same episodes. ``P`` processes (:func:`process_speed`) each make and
 step their own vector env of N, pinned to their own core where the OS allows it, start together and
 report the aggregate env steps per second over the span from the first start to the last end. The
-figures depend on the machine and on what else runs on it.
+figures depend on the machine and on what else runs on it; a machine whose speed drifts is better
+measured in rounds (:class:`PairedSpeed`): each configuration timed right after the single env,
+the ratio taken within the round, the median over the rounds reported.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import queue
+import statistics
 import time
 import warnings
 from collections.abc import Callable, Iterator, Sequence
@@ -46,6 +49,31 @@ class VectorSpeed:
     def ratio(self, single_steps_per_s: float) -> float:
         """Env steps per second per core over the single env's steps per second (one core)."""
         return self.env_steps_per_s / self.cores / single_steps_per_s
+
+
+@dataclass(frozen=True)
+class PairedSpeed:
+    """One configuration timed in rounds, each round beside a timing of the single env:
+    ``speed`` with the median env steps per second over the rounds, ``ratios`` each round's
+    per-core ratio to that round's single env."""
+
+    speed: VectorSpeed
+    ratios: tuple[float, ...]
+
+    @classmethod
+    def of(cls, runs: Sequence[VectorSpeed], singles: Sequence[float]) -> PairedSpeed:
+        """The rounds' ``runs`` of one configuration and the single env's steps/s of each round."""
+        if not runs or len(runs) != len(singles):
+            raise ValueError(f"one single-env figure per round: {len(runs)} runs, {len(singles)} figures")
+        median = statistics.median(r.env_steps_per_s for r in runs)
+        first = runs[0]
+        speed = VectorSpeed(first.num_envs, first.processes, first.cores, median, first.physics)
+        return cls(speed, tuple(r.ratio(s) for r, s in zip(runs, singles, strict=True)))
+
+    @property
+    def ratio(self) -> float:
+        """The median of the rounds' ratios."""
+        return statistics.median(self.ratios)
 
 
 def _check_actions(actions: str) -> str:
@@ -213,16 +241,24 @@ def process_speed(
     return VectorSpeed(num_envs, processes, used, processes * num_envs * steps / (end - start))
 
 
-def markdown_table(single_steps_per_s: float, rows: Sequence[VectorSpeed]) -> list[str]:
-    """The table's lines: the single env first (N and processes "-"), then one row per run."""
+def markdown_table(single_steps_per_s: float, rows: Sequence[VectorSpeed | PairedSpeed]) -> list[str]:
+    """The table's lines: the single env first (N and processes "-"), then one row per run; a
+    :class:`PairedSpeed` row shows the median of its rounds' ratios and their range."""
     lines = [
-        "| N | physics | processes | env-steps/s | per core | ratio to single (per core) |",
-        "|---|---|---|---|---|---|",
-        f"| single env | pybullet | 1 | {single_steps_per_s:.1f} | {single_steps_per_s:.1f} | 1.00 |",
+        "| N | physics | processes | env-steps/s | per core | ratio to single (per core) | rounds' range |",
+        "|---|---|---|---|---|---|---|",
+        f"| single env | pybullet | 1 | {single_steps_per_s:.1f} | {single_steps_per_s:.1f} | 1.00 | - |",
     ]
-    for r in rows:
+    for row in rows:
+        r = row.speed if isinstance(row, PairedSpeed) else row
+        ratio = row.ratio if isinstance(row, PairedSpeed) else r.ratio(single_steps_per_s)
+        spread = (
+            f"{min(row.ratios):.2f}-{max(row.ratios):.2f}"
+            if isinstance(row, PairedSpeed) and len(row.ratios) > 1
+            else "-"
+        )
         lines.append(
             f"| {r.num_envs} | {r.physics or '-'} | {r.processes} | {r.env_steps_per_s:.1f} | "
-            f"{r.env_steps_per_s / r.cores:.1f} | {r.ratio(single_steps_per_s):.2f} |"
+            f"{r.env_steps_per_s / r.cores:.1f} | {ratio:.2f} | {spread} |"
         )
     return lines
