@@ -80,7 +80,7 @@ def vector_episodes(env_id: str, n: int, seed: int, **options: Any) -> tuple[lis
         seen: list[list[NDArray[np.float32]]] = [[obs[i].copy()] for i in range(n)]
         outcomes = [""] * n
         active = np.ones(n, dtype=bool)
-        zero = np.zeros(vec.single_action_space.shape, dtype=np.float32)  # type: ignore[arg-type]
+        zero = np.zeros(vec.single_action_space.shape or (), dtype=np.float32)
         while active.any():
             actions = np.stack([policies[i].act(obs[i]) if active[i] else zero for i in range(n)])
             obs, _, terminated, truncated, info = vec.step(actions)
