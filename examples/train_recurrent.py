@@ -9,6 +9,9 @@ without PyTorch::
     python -m ihrcf_env.evaluate --policy out/gru-v2/best.npz --level moderate --episodes 100 \
         --camera-model rendered
 
+``--vector-envs 32 --physics numpy`` flies the episodes in one native vector env of 32 envs (over
+``--workers`` processes) instead of single envs.
+
 Writes to ``--out``: ``best.npz`` (the best round on the validation seeds), ``final.npz``,
 ``round_R.npz``, ``dagger.csv`` and ``checkpoint.pt`` (run the same command again to continue a
 stopped run). Seeds: DAgger round r flies 30_000 + 100 SEED + 1000 r and up; validation flies
@@ -42,6 +45,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--polish-lr", type=float, default=3e-4, help="its learning rate")
     ap.add_argument("--hidden", type=int, default=128, help="GRU state size")
     ap.add_argument("--workers", type=int, default=2, help="processes flying episodes")
+    ap.add_argument(
+        "--vector-envs",
+        type=int,
+        default=0,
+        help="fly in one vector env of this many envs over --workers processes (0: single envs)",
+    )
+    ap.add_argument("--physics", default="pybullet", choices=("pybullet", "numpy"), help="flyers' physics")
     ap.add_argument("--max-wall-min", type=float, default=None, help="stop after the round that passes it")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
@@ -51,6 +61,7 @@ def main(argv: list[str] | None = None) -> int:
         ("val_episodes", 0),
         ("epochs", 1),
         ("workers", 1),
+        ("vector_envs", 0),
         ("polish_epochs", 0),
     ):
         if getattr(args, name) < least:
@@ -85,6 +96,8 @@ def main(argv: list[str] | None = None) -> int:
         polish_lr=args.polish_lr,
         hidden=args.hidden,
         workers=args.workers,
+        vector_envs=args.vector_envs,
+        physics=args.physics,
         max_wall_min=args.max_wall_min,
         seed=args.seed,
     )

@@ -10,16 +10,16 @@ regressed (mean squared error, back-propagation through whole episodes) on every
 its input normaliser set to the data's statistics. After each round the learner also flies the
 validation seeds without noise; the best round on them is kept (``best.npz``).
 
-Episodes are flown by single envs in ``workers`` processes (:func:`fly`), each with its own env and
-expert; the policy they fly is the numpy :class:`~ihrcf_env.control.gru_policy.GruPolicy`, so the
-workers do not need PyTorch. Needs the ``[rl]`` extra (torch) for the fit.
+Episodes are flown (:mod:`ihrcf_env.rl.episodes`) by single envs in ``workers`` processes, each
+with its own env and expert, or with ``vector_envs`` > 0 by one native vector env of that many envs
+(over ``workers`` processes), an expert per env; the policy they fly is the numpy
+:class:`~ihrcf_env.control.gru_policy.GruPolicy`, so the flyers do not need PyTorch. Needs the
+``[rl]`` extra (torch) for the fit.
 """
 
 from __future__ import annotations
 
-import concurrent.futures as cf
 import dataclasses
-import multiprocessing as mp
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -30,9 +30,9 @@ import numpy as np
 import torch as th
 
 from ihrcf_env.control.gru_policy import GruPolicy
-from ihrcf_env.control.policies import LANDING_CONFIGS, V1_LANDING_CONFIG, ScriptedLanding
 from ihrcf_env.rl.curves import CsvLog
 from ihrcf_env.rl.envs import input_indices, make_env
+from ihrcf_env.rl.episodes import Episode, Pool, VectorFlyer
 from ihrcf_env.rl.ppo_args import DAGGER_SEED_BASE
 
 #: Columns of the recurrent DAgger log (``timesteps``: env steps flown so far; ``stage``: ``expert``
@@ -102,86 +102,6 @@ class GruNet(th.nn.Module):
         return GruPolicy(w, inputs, obs_size, meta)
 
 
-@dataclass
-class Episode:
-    """One flown episode: its observations (T, obs_size), the expert's labels (T, 4) in [-1, 1],
-    whether it landed and its outcome."""
-
-    seed: int
-    obs: np.ndarray
-    labels: np.ndarray
-    success: bool
-    outcome: str
-
-
-# --- the worker processes: one env and one expert each -------------------------------------------
-_WORKER: dict[str, Any] = {}
-
-
-def _init_worker(env_id: str, env_kw: dict[str, Any], commit_below: float) -> None:
-    env = make_env(env_id, "projected", **env_kw)
-    task = str(getattr(env.unwrapped, "task_name", ""))
-    config = dataclasses.replace(LANDING_CONFIGS.get(task, V1_LANDING_CONFIG), commit_below=commit_below)
-    _WORKER["env"] = env
-    _WORKER["expert"] = ScriptedLanding.from_env(env, config=config)
-
-
-def fly(seed: int, policy: GruPolicy | None, noise: float, label: bool = True) -> Episode:
-    """Fly one episode from ``reset(seed=seed)`` in this worker's env: the expert when ``policy``
-    is None, else ``policy`` plus Gaussian ``noise`` (action units; seeded by ``seed``). With
-    ``label`` every step is labelled by the expert running alongside."""
-    env, expert = _WORKER["env"], _WORKER["expert"]
-    rng = np.random.default_rng(seed)
-    obs, _ = env.reset(seed=seed)
-    expert.reset()
-    if policy is not None:
-        policy.reset()
-    observations, labels = [], []
-    while True:
-        if label or policy is None:
-            target = np.clip(expert.act(obs), -1.0, 1.0)
-            if label:
-                observations.append(np.asarray(obs, dtype=np.float32))
-                labels.append(np.asarray(target, dtype=np.float32))
-        if policy is None:
-            action = target
-        else:
-            action = policy.act(obs)
-            if noise > 0:
-                action = action + noise * rng.standard_normal(action.shape)
-        obs, _, terminated, truncated, info = env.step(np.clip(action, -1.0, 1.0).astype(np.float32))
-        if terminated or truncated:
-            break
-    n = len(observations)
-    return Episode(
-        seed,
-        np.stack(observations) if n else np.zeros((0, env.observation_space.shape[0]), np.float32),
-        np.stack(labels) if n else np.zeros((0, 4), np.float32),
-        bool(info.get("is_success", False)),
-        str(info.get("outcome", "")),
-    )
-
-
-class Pool:
-    """``workers`` processes flying episodes with :func:`fly` (``spawn``: no state shared)."""
-
-    def __init__(self, env_id: str, env_kw: dict[str, Any], workers: int, commit_below: float) -> None:
-        ctx = mp.get_context("spawn")
-        self._ex = cf.ProcessPoolExecutor(
-            workers, mp_context=ctx, initializer=_init_worker, initargs=(env_id, env_kw, commit_below)
-        )
-
-    def fly(
-        self, seeds: Sequence[int], policy: GruPolicy | None, noise: float, label: bool = True
-    ) -> list[Episode]:
-        """Episodes from ``seeds`` (in order), flown in parallel."""
-        futures = [self._ex.submit(fly, int(s), policy, noise, label) for s in seeds]
-        return [f.result() for f in futures]
-
-    def close(self) -> None:
-        self._ex.shutdown(cancel_futures=True)
-
-
 def fit(
     net: GruNet,
     episodes: Sequence[Episode],
@@ -249,6 +169,10 @@ class RunConfig:
     hidden: int = 128
     head: int = 64
     workers: int = 2
+    #: 0: single envs in ``workers`` processes; N: one vector env of N envs over ``workers``
+    vector_envs: int = 0
+    #: the flyers' physics (``physics`` of the envs; not part of the policy's env options)
+    physics: str = "pybullet"
     commit_below: float = 0.1
     polish_epochs: int = 0
     polish_lr: float = 3e-4
@@ -294,7 +218,12 @@ def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
         log_csv.write(row)
     t0 = time.time() - wall0
     deadline = None if cfg.max_wall_min is None else t0 + 60.0 * cfg.max_wall_min
-    pool = Pool(cfg.env_id, cfg.env_kw, cfg.workers, cfg.commit_below)
+    fly_kw = {**cfg.env_kw, "physics": cfg.physics}
+    pool: Pool | VectorFlyer = (
+        VectorFlyer(cfg.env_id, fly_kw, cfg.vector_envs, cfg.workers, cfg.commit_below)
+        if cfg.vector_envs
+        else Pool(cfg.env_id, fly_kw, cfg.workers, cfg.commit_below)
+    )
     policy = net.export(inputs, obs_size, meta)
 
     def record(

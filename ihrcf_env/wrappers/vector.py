@@ -98,6 +98,8 @@ class DeckLandingVectorEnv(VectorEnv):
             self.close_extras()
             raise ValueError("batch_estimators: these envs' observation cannot be batched (see vector_obs)")
         self._was_reset = False
+        #: each env's last observation (the rows a partial reset leaves)
+        self._obs: list[Any] = [None] * n
 
     @property
     def batch_estimators(self) -> bool:
@@ -112,22 +114,38 @@ class DeckLandingVectorEnv(VectorEnv):
     def reset(
         self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[NDArray[Any], dict[str, Any]]:
-        """Reset every env (``reset(seed=s)``: env ``i`` with seed ``s + i``; ``options`` to each)."""
+        """Reset every env (``reset(seed=s)``: env ``i`` with seed ``s + i``; ``options`` to each).
+
+        ``options["reset_mask"]`` (a bool array over the envs, Gymnasium 1.1+'s partial reset)
+        resets only the envs it marks, each with its seed as above; the others keep their episode
+        and their row of the returned observations is their last one; ``info`` has the reset
+        envs' entries only. The other options go to the envs reset."""
         self._check_open()
         seeds = env_seeds(seed, self.num_envs)
+        mask, options = split_reset_mask(options, self.num_envs)
+        if mask is not None:
+            if not self._was_reset:
+                raise gym.error.ResetNeeded("options['reset_mask']: reset every env once first")
+            return self._reset_rows(np.flatnonzero(mask), seeds, options)
         self._was_reset = True
-        self._autoreset[:] = False
+        obs, info = self._reset_rows(np.arange(self.num_envs), seeds, options)
+        return obs, info
+
+    def _reset_rows(
+        self, rows: NDArray[np.intp], seeds: list[int | None], options: dict[str, Any] | None
+    ) -> tuple[NDArray[Any], dict[str, Any]]:
+        """Reset the envs of ``rows`` (env ``i`` with ``seeds[i]``); every env's observation."""
+        n = self.num_envs
+        self._autoreset[rows] = False
+        infos: list[dict[str, Any] | None] = [None] * n
         if self._batched is not None:
-            rows = self._batched.run(None, [], range(self.num_envs), seeds, options)
-            return np.stack([rows[i].obs for i in range(self.num_envs)]), stack_infos(
-                [rows[i].info for i in range(self.num_envs)]
-            )
-        obs, infos = [], []
-        for env, s in zip(self._envs, seeds, strict=True):
-            o, info = env.reset(seed=s, options=options)
-            obs.append(o)
-            infos.append(info)
-        return np.stack(obs), stack_infos(infos)
+            done = self._batched.run(None, [], rows, seeds, options)
+            for i in rows:
+                self._obs[i], infos[i] = done[int(i)].obs, done[int(i)].info
+        else:
+            for i in rows:
+                self._obs[i], infos[i] = self._envs[i].reset(seed=seeds[i], options=options)
+        return np.stack(self._obs), stack_infos(infos)
 
     def step(
         self, actions: Any
@@ -161,6 +179,7 @@ class DeckLandingVectorEnv(VectorEnv):
             obs.append(o)
             infos.append({**final, **info} if final else info)
         self._autoreset = (terminated | truncated) & (not same_step)
+        self._obs = obs
         return np.stack(obs), rewards, terminated, truncated, stack_infos(infos)
 
     def _step_batched(
@@ -187,6 +206,7 @@ class DeckLandingVectorEnv(VectorEnv):
                 obs.append(row.obs)
                 infos.append(row.info)
         self._autoreset = (terminated | truncated) & (not same_step)
+        self._obs = obs
         return np.stack(obs), rewards, terminated, truncated, stack_infos(infos)
 
     def _advance_together(self, actions: NDArray[Any]) -> None:
@@ -241,6 +261,25 @@ def env_seeds(seed: int | Sequence[int | None] | None, n: int) -> list[int | Non
             raise ValueError(f"seed: a sequence of {n} seeds (one per env), got {len(seed)}")
         return [None if s is None else check_int(f"seed[{i}]", s, low=0) for i, s in enumerate(seed)]
     raise TypeError(f"seed must be an int >= 0, a sequence of {n} of them or None, got {seed!r}")
+
+
+def split_reset_mask(
+    options: dict[str, Any] | None, n: int
+) -> tuple[NDArray[np.bool_] | None, dict[str, Any] | None]:
+    """``options["reset_mask"]`` checked (a numpy bool array of shape ``(n,)`` marking at least
+    one env; ValueError / TypeError naming it) and the other options (None when none are left)."""
+    if not options or "reset_mask" not in options:
+        return None, options
+    rest = {k: v for k, v in options.items() if k != "reset_mask"}
+    mask = options["reset_mask"]
+    name = "options['reset_mask']"
+    if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_:
+        raise TypeError(f"{name}: a numpy array of dtype bool, got {type(mask).__name__}")
+    if mask.shape != (n,):
+        raise ValueError(f"{name}: shape ({n},) (one flag per env), got {mask.shape}")
+    if not mask.any():
+        raise ValueError(f"{name}: marks no env (at least one True)")
+    return mask.copy(), rest or None
 
 
 def check_actions(actions: Any, n: int, shape: tuple[int, ...]) -> NDArray[Any]:

@@ -26,7 +26,7 @@ from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
 from ihrcf_env.core.checks import check_int
-from ihrcf_env.wrappers.vector import check_actions, env_seeds, resolve_batch
+from ihrcf_env.wrappers.vector import check_actions, env_seeds, resolve_batch, split_reset_mask
 
 #: Largest number of worker processes.
 MAX_WORKERS = 64
@@ -135,6 +135,8 @@ class WorkerVectorEnv(VectorEnv):
         self.metadata = metadata
         self.autoreset_mode: AutoresetMode = metadata["autoreset_mode"]
         self.spec = gym.spec(env_id)
+        #: every env's last observation (the rows a partial reset leaves)
+        self._obs: NDArray[Any] | None = None
 
     def _receive(self, i: int) -> Any:
         conn = self._conns[i]
@@ -152,18 +154,38 @@ class WorkerVectorEnv(VectorEnv):
     def reset(
         self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[NDArray[Any], dict[str, Any]]:
-        """Reset every env (``reset(seed=s)``: env ``i`` with seed ``s + i``)."""
+        """Reset every env (``reset(seed=s)``: env ``i`` with seed ``s + i``), or with
+        ``options["reset_mask"]`` the envs it marks only (as
+        :meth:`~ihrcf_env.wrappers.vector.DeckLandingVectorEnv.reset`)."""
         self._check_open()
         off = self.offsets
         each = env_seeds(seed, self.num_envs)
-        seeds: list[Any] = [
-            None if all(x is None for x in part) else part
-            for part in (each[off[i] : off[i + 1]] for i in range(self.workers))
-        ]
-        for conn, s in zip(self._conns, seeds, strict=True):
-            conn.send(("reset", (s, options)))
-        parts = [self._receive(i) for i in range(self.workers)]
-        return np.concatenate([p[0] for p in parts]), merge_infos([p[1] for p in parts], self.sizes)
+        mask, rest = split_reset_mask(options, self.num_envs)
+        if mask is not None and self._obs is None:
+            raise gym.error.ResetNeeded("options['reset_mask']: reset every env once first")
+        asked = []
+        for i, conn in enumerate(self._conns):
+            part = each[off[i] : off[i + 1]]
+            seeds = None if all(x is None for x in part) else part
+            if mask is None:
+                conn.send(("reset", (seeds, options)))
+            elif mask[off[i] : off[i + 1]].any():
+                conn.send(("reset", (seeds, {**(rest or {}), "reset_mask": mask[off[i] : off[i + 1]]})))
+            else:
+                continue
+            asked.append(i)
+        parts: list[Any] = [None] * self.workers
+        for i in asked:
+            parts[i] = self._receive(i)
+        if mask is None:
+            obs = np.concatenate([p[0] for p in parts])
+        else:
+            assert self._obs is not None
+            obs = self._obs.copy()
+            for i in asked:
+                obs[off[i] : off[i + 1]] = parts[i][0]
+        self._obs = obs
+        return obs.copy(), merge_infos([{} if p is None else p[1] for p in parts], self.sizes)
 
     def step(
         self, actions: Any
@@ -175,8 +197,9 @@ class WorkerVectorEnv(VectorEnv):
         for i, conn in enumerate(self._conns):
             conn.send(("step", a[off[i] : off[i + 1]]))
         parts = [self._receive(i) for i in range(self.workers)]
+        self._obs = np.concatenate([p[0] for p in parts])
         return (
-            np.concatenate([p[0] for p in parts]),
+            self._obs.copy(),
             np.concatenate([p[1] for p in parts]),
             np.concatenate([p[2] for p in parts]),
             np.concatenate([p[3] for p in parts]),

@@ -109,3 +109,32 @@ def test_a_tiny_run_writes_its_policies_and_resumes(tmp_path: Path, rec: Any) ->
     lines.clear()
     rec.train(more, lines.append)  # nothing left to do: no round flown, no second polish
     assert len(lines) == 1 and lines[0].startswith("resuming after round 2")
+
+
+def test_a_run_flown_by_the_vector_env_logs_the_same_rounds(tmp_path: Path, rec: Any) -> None:
+    """``vector_envs``: the rounds are flown by one vector env (numpy physics) and logged as with
+    single envs; the episodes of round 0 (the expert's) are those of single envs of the same
+    options, so the logged samples and landings agree with a single-env run."""
+    base = {
+        "env_id": "ihrcf_env/DeckLanding-v2",
+        "env_kw": {"level": "calm", "max_episode_steps": 30, "batch_estimators": False},
+        "drop_inputs": ("ihrcf", "atda"),
+        "rounds": 0,
+        "episodes": 3,
+        "val_seeds": (20_000, 20_001),
+        "epochs": 1,
+        "first_epochs": 1,
+        "embed": 8,
+        "hidden": 8,
+        "head": 8,
+        "workers": 1,
+        "physics": "numpy",
+    }
+    rows = []
+    for k, vector in enumerate((0, 2)):
+        out = tmp_path / str(k)
+        rec.train(rec.RunConfig(out=out, vector_envs=vector, **base), lambda s: None)
+        with (out / "dagger.csv").open() as f:
+            rows.append(next(csv.DictReader(f)))
+    keys = ("samples", "episodes", "successes", "val_episodes", "loss")
+    assert [rows[0][k] for k in keys] == [rows[1][k] for k in keys]
