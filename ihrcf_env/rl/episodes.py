@@ -31,6 +31,7 @@ import numpy as np
 from ihrcf_env.control.gru_policy import GruPolicy
 from ihrcf_env.control.policies import LANDING_CONFIGS, V1_LANDING_CONFIG, ScriptedLanding
 from ihrcf_env.rl.envs import make_env
+from ihrcf_env.wrappers.vector_info import unbatch_info
 
 
 @dataclass
@@ -54,15 +55,17 @@ def make_expert(env: Any, commit_below: float) -> ScriptedLanding:
 
 def _pilot_action(
     obs: np.ndarray,
-    target: np.ndarray,
+    target: np.ndarray | None,
     policy: GruPolicy | None,
     hidden: np.ndarray | None,
     noise: float,
     rng: np.random.Generator,
 ) -> tuple[np.ndarray, np.ndarray | None]:
-    """The action flown at one step (float32, in [-1, 1]) and the policy's next state."""
+    """The action flown at one step (float32, in [-1, 1]): the expert's ``target`` without a
+    ``policy``, else the policy's (state ``hidden``) plus noise; and the policy's next state."""
     if policy is None or hidden is None:
-        return np.clip(target, -1.0, 1.0).astype(np.float32), hidden
+        assert target is not None
+        return target.astype(np.float32), hidden
     a, h = policy.step(np.asarray(obs, dtype=np.float64)[None], hidden[None])
     action = a[0].astype(np.float32)
     if noise > 0:
@@ -76,7 +79,7 @@ def _episode(seed: int, obs: list[np.ndarray], labels: list[np.ndarray], size: i
         seed,
         np.stack(obs) if n else np.zeros((0, size), np.float32),
         np.stack(labels) if n else np.zeros((0, 4), np.float32),
-        bool(info.get("is_success", info.get("outcome") == "success")),
+        bool(info.get("is_success", False)),
         str(info.get("outcome", "")),
     )
 
@@ -103,7 +106,7 @@ def fly(seed: int, policy: GruPolicy | None, noise: float, label: bool = True) -
     hidden = None if policy is None else np.zeros(policy.hidden_size)
     observations, labels = [], []
     while True:
-        target = np.zeros(4)
+        target = None
         if label or policy is None:
             target = np.clip(expert.act(obs), -1.0, 1.0)
             if label:
@@ -186,14 +189,12 @@ class VectorFlyer:
             return out
 
         obs, _ = self._vec.reset(seed=start(range(n)))
-        zero = np.zeros(4, np.float32)
         while any(s is not None for s in slot):
-            actions = np.zeros((n, 4), np.float32)
+            actions = np.zeros((n, 4), np.float32)  # envs without a seed left fly zeros
             for i in range(n):
                 if slot[i] is None:
-                    actions[i] = zero
                     continue
-                target = np.zeros(4)
+                target = None
                 if label or policy is None:
                     target = np.clip(self._experts[i].act(obs[i]), -1.0, 1.0)
                     if label:
@@ -207,7 +208,7 @@ class VectorFlyer:
             for i in ended:
                 k = slot[i]
                 assert k is not None
-                done[k] = _episode(queue[k], *record[i], self._size, _row(info, i))
+                done[k] = _episode(queue[k], *record[i], self._size, unbatch_info(info, i))
             if ended:
                 seeds_now = start(ended)
                 again = np.array([i in ended and seeds_now[i] is not None for i in range(n)])
@@ -217,12 +218,3 @@ class VectorFlyer:
 
     def close(self) -> None:
         self._vec.close()
-
-
-def _row(info: dict[str, Any], i: int) -> dict[str, Any]:
-    """Env ``i``'s ``is_success`` and ``outcome`` from a vector env's ``info``."""
-    out: dict[str, Any] = {}
-    for key in ("is_success", "outcome"):
-        if key in info and bool(info[f"_{key}"][i]):
-            out[key] = info[key][i]
-    return out

@@ -29,23 +29,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
-
-def unbatch_info(infos: dict[str, Any], i: int) -> dict[str, Any]:
-    """Env ``i``'s info dict from a Gymnasium vector ``infos`` (each key with its ``_key`` mask;
-    nested dicts recursively)."""
-    out: dict[str, Any] = {}
-    for key, value in infos.items():
-        if key.startswith("_") and key[1:] in infos:
-            continue  # a mask
-        mask = infos.get(f"_{key}")
-        if mask is not None and not bool(mask[i]):
-            continue
-        if isinstance(value, dict):
-            out[key] = unbatch_info(value, i)
-        else:
-            item = value[i]
-            out[key] = item.item() if isinstance(item, np.generic) else item
-    return out
+from ihrcf_env.wrappers.vector_info import unbatch_info
 
 
 def _autoreset_mode(env: VectorEnv) -> Any:

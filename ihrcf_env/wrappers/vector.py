@@ -128,8 +128,7 @@ class DeckLandingVectorEnv(VectorEnv):
                 raise gym.error.ResetNeeded("options['reset_mask']: reset every env once first")
             return self._reset_rows(np.flatnonzero(mask), seeds, options)
         self._was_reset = True
-        obs, info = self._reset_rows(np.arange(self.num_envs), seeds, options)
-        return obs, info
+        return self._reset_rows(np.arange(self.num_envs), seeds, options)
 
     def _reset_rows(
         self, rows: NDArray[np.intp], seeds: list[int | None], options: dict[str, Any] | None

@@ -6,7 +6,8 @@ key becomes an array over the envs (its dtype from the first env that has the ke
 shape and dtype per env, anything else an object array) with a boolean ``_key`` mask of the envs
 that have it; a dict value gives a nested ``info`` of the same form; ``final_obs`` is always an
 object array. :func:`stack_infos` gives the same dict (keys in the same order, the same dtypes
-and values) with one array assignment per key instead of one per env and key.
+and values) with one array assignment per key instead of one per env and key; :func:`unbatch_info`
+gives one env's dict back.
 """
 
 from __future__ import annotations
@@ -65,3 +66,21 @@ def _column(key: str, rows: list[int], values: list[Any], size: int) -> Any:
     array = np.zeros(size, dtype=type(first))
     array[rows] = values
     return array
+
+
+def unbatch_info(infos: dict[str, Any], i: int) -> dict[str, Any]:
+    """Env ``i``'s info dict from a Gymnasium vector ``infos`` (each key with its ``_key`` mask;
+    nested dicts recursively)."""
+    out: dict[str, Any] = {}
+    for key, value in infos.items():
+        if key.startswith("_") and key[1:] in infos:
+            continue  # a mask
+        mask = infos.get(f"_{key}")
+        if mask is not None and not bool(mask[i]):
+            continue
+        if isinstance(value, dict):
+            out[key] = unbatch_info(value, i)
+        else:
+            item = value[i]
+            out[key] = item.item() if isinstance(item, np.generic) else item
+    return out
