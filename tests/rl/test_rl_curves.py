@@ -64,7 +64,6 @@ def test_rolling_mean() -> None:
 
 
 def test_plot_curves_and_summary(tmp_path: Path) -> None:
-    pytest.importorskip("matplotlib")
     train = CsvLog(tmp_path / "train.csv", TRAIN_FIELDS)
     for i in range(30):
         train.write(_row(100 * (i + 1), float(i), int(i > 20)))
