@@ -54,6 +54,29 @@ def matrix_from_euler(roll: float, pitch: float, yaw: float) -> NDArray[np.float
     )
 
 
+def matrices_from_euler(rpy: ArrayLike) -> NDArray[np.float64]:
+    """(n, 3, 3) rotation matrices ``Rz(yaw) @ Ry(pitch) @ Rx(roll)`` of (n, 3) angles (roll,
+    pitch, yaw) in radians: :func:`matrix_from_euler` on arrays (equal to scipy's intrinsic
+    ``"ZYX"`` rotations up to rounding)."""
+    a = np.asarray(rpy, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"rpy must have shape (n, 3), got {a.shape}")
+    cr, sr = np.cos(a[:, 0]), np.sin(a[:, 0])
+    cp, sp = np.cos(a[:, 1]), np.sin(a[:, 1])
+    cy, sy = np.cos(a[:, 2]), np.sin(a[:, 2])
+    out = np.empty((a.shape[0], 3, 3))
+    out[:, 0, 0] = cy * cp
+    out[:, 0, 1] = cy * sp * sr - sy * cr
+    out[:, 0, 2] = cy * sp * cr + sy * sr
+    out[:, 1, 0] = sy * cp
+    out[:, 1, 1] = sy * sp * sr + cy * cr
+    out[:, 1, 2] = sy * sp * cr - cy * sr
+    out[:, 2, 0] = -sp
+    out[:, 2, 1] = cp * sr
+    out[:, 2, 2] = cp * cr
+    return out
+
+
 def euler_from_matrix(R: ArrayLike) -> NDArray[np.float64]:
     """(roll, pitch, yaw) in radians of a rotation matrix, inverse of :func:`matrix_from_euler`.
 

@@ -20,6 +20,7 @@ from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
 from ihrcf_env.core.checks import check_int, check_real, check_reals, describe
+from ihrcf_env.core.frames import matrices_from_euler
 from ihrcf_env.core.stewart import StewartGeometry
 
 PoseArrays = tuple[NDArray[np.float64], NDArray[np.float64]]
@@ -327,6 +328,16 @@ class CallableProfile(MotionProfile):
                 ) from cause
             out[i] = arr
         return out[:, :3], out[:, 3:]
+
+
+def profile_leg_lengths(
+    profile: MotionProfile, geometry: StewartGeometry, t: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(n, 6) leg lengths (m) of ``geometry`` following ``profile`` at the times ``t`` (n,) (s):
+    what the stroke checks compare with the legs' limits (the rotations in closed form,
+    :func:`~ihrcf_env.core.frames.matrices_from_euler`)."""
+    offset, rpy = profile.sample(t)
+    return geometry.leg_lengths(geometry.home_position + offset, matrices_from_euler(rpy))
 
 
 def sample_until_unusable(profile: MotionProfile, t: NDArray[np.float64]) -> PoseArrays:

@@ -40,7 +40,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from ihrcf_env.core.checks import (
     check_fields,
@@ -51,7 +50,7 @@ from ihrcf_env.core.checks import (
     set_field,
 )
 from ihrcf_env.core.constants import GRAVITY
-from ihrcf_env.core.profiles import MotionProfile, PoseArrays
+from ihrcf_env.core.profiles import MotionProfile, PoseArrays, profile_leg_lengths
 from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.core.waves import SeaState, sea_state
 
@@ -338,9 +337,7 @@ def stroke_margin(
     horizon = check_real("horizon_s", horizon_s, "s", low=0.0, high=1e6)
     dt = check_real("dt", dt, "s", low=1e-4, high=10.0)
     t = np.arange(0.0, horizon + dt, dt)
-    offset, rpy = profile.sample(t)
-    R = Rotation.from_euler("ZYX", rpy[:, ::-1]).as_matrix()
-    legs = geometry.leg_lengths(geometry.home_position + offset, R)
+    legs = profile_leg_lengths(profile, geometry, t)
     margin = np.minimum(legs - geometry.min_leg, geometry.max_leg - legs)
     margin = np.where(np.isfinite(margin), margin, -np.inf)
     k, leg = np.unravel_index(int(np.argmin(margin)), margin.shape)

@@ -101,8 +101,15 @@ class StewartGeometry:
             raise ValueError(f"position must have shape (..., 3), got {p.shape}")
         if R.shape[-2:] != (3, 3):
             raise ValueError(f"rotation must have shape (..., 3, 3), got {R.shape}")
-        top_world = np.einsum("...ij,kj->...ki", R, self.top_joints) + p[..., None, :]
-        return np.linalg.norm(top_world - self.base_joints, axis=-1)
+        T, B = self.top_joints, self.base_joints
+        d = [  # world coordinate i of each leg: (R @ top + p - base)_i, written out (no einsum)
+            R[..., i, 0, None] * T[:, 0]
+            + R[..., i, 1, None] * T[:, 1]
+            + R[..., i, 2, None] * T[:, 2]
+            + (p[..., i, None] - B[:, i])
+            for i in range(3)
+        ]
+        return np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
 
     def top_joints_world(self, position: ArrayLike, rotation: ArrayLike) -> NDArray[np.float64]:
         """(6, 3) top joint positions in the world for one deck pose."""

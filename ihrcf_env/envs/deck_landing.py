@@ -76,6 +76,7 @@ from ihrcf_env.core.seeding import SeedStreams
 from ihrcf_env.core.ship import fits
 from ihrcf_env.envs.config import ARENA_MARGIN, MIN_START_ALTITUDE, DeckLandingConfig, make_config
 from ihrcf_env.envs.display import require_gui_display
+from ihrcf_env.sim.deck import DeckTrajectory
 from ihrcf_env.sim.disturbances import Wind
 from ihrcf_env.sim.registry import SENSORS
 from ihrcf_env.sim.sensors import CameraConfig
@@ -185,10 +186,17 @@ class DeckLandingEnv(gym.Env):
         super().reset(seed=seed)
         streams = SeedStreams.from_generator(self.np_random)
         alt, off, yaw, deck_time = self._draw_start(opts, streams.generator("start"))
-        profile = self._draw_deck(streams.generator("deck"), deck_time)
+        profile, checked = self._draw_deck(streams.generator("deck"), deck_time)
         self._profile = None  # no episode while the world is being reset (or if that fails)
         p.restoreState(stateId=self._state_id, physicsClientId=self.world.client)
-        self.world.reset(profile, self.config.task.deck.horizon_s, altitude=alt, offset_xy=off, yaw=yaw)
+        self.world.reset(
+            profile,
+            self.config.task.deck.horizon_s,
+            altitude=alt,
+            offset_xy=off,
+            yaw=yaw,
+            stroke_checked=checked,
+        )
         self.world.reset_random(streams)
         if self.config.task.start.trimmed:
             self.world.trim(keep_view=self._trim_keeps_view())
@@ -293,19 +301,22 @@ class DeckLandingEnv(gym.Env):
         require_gui_display()
         DeckLandingEnv._gui_owner = self
 
-    def _draw_deck(self, rng: np.random.Generator, deck_time: float) -> MotionProfile:
-        """This episode's deck motion from ``rng``, started at ``deck_time`` (s). A random sea
-        (``"ship"``, ``"sea_state"``) is drawn again, from the same stream, while the draw would
-        take a leg beyond its stroke within ``horizon_s`` (rare extremes of a sea the platform
-        otherwise reproduces); ValueError if :data:`MAX_DECK_DRAWS` draws all do."""
+    def _draw_deck(self, rng: np.random.Generator, deck_time: float) -> tuple[MotionProfile, bool]:
+        """This episode's deck motion from ``rng``, started at ``deck_time`` (s), and whether its
+        stroke was checked over ``horizon_s`` here. A random sea (``"ship"``, ``"sea_state"``) is
+        drawn again, from the same stream, while the draw would take a leg beyond its stroke within
+        ``horizon_s`` (rare extremes of a sea the platform otherwise reproduces); ValueError if
+        :data:`MAX_DECK_DRAWS` draws all do."""
         deck = self.config.task.deck
         random_sea = deck.profile in RANDOM_PROFILES
         for _ in range(MAX_DECK_DRAWS if random_sea else 1):
             profile = deck.make_profile(rng)
             if deck_time:
                 profile = ShiftedProfile(profile, deck_time)
-            if not random_sea or fits(profile, self.config.world.stewart, deck.horizon_s):
-                return profile
+            if not random_sea:
+                return profile, False
+            if fits(profile, self.config.world.stewart, deck.horizon_s, dt=DeckTrajectory.CHECK_DT):
+                return profile, True
         raise ValueError(
             f"deck_profile {deck.profile!r}: {MAX_DECK_DRAWS} draws of this sea all exceed the Stewart "
             "legs' stroke within horizon_s: choose a calmer sea state, a larger length_scale, a larger "

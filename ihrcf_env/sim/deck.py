@@ -24,7 +24,7 @@ from scipy.spatial.transform import Rotation
 from ihrcf_env.core.checks import check_fields, check_int, set_field
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.frames import matrix_from_quat, quat_from_matrix
-from ihrcf_env.core.profiles import MotionProfile, sample_until_unusable
+from ihrcf_env.core.profiles import MotionProfile, profile_leg_lengths, sample_until_unusable
 from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.sim.assets import asset_path, tag_texture
 
@@ -110,7 +110,8 @@ class DeckTrajectory:
     ``times[k] = k * dt``, world frame (deck frame origin = tag centre on the top surface).
 
     The profile is checked against the legs' stroke on a 20 Hz grid over ``check_horizon_s`` when
-    the trajectory is made (ValueError naming the time and the leg). Physics-rate poses are
+    the trajectory is made (ValueError naming the time and the leg), unless ``stroke_checked``
+    says the caller has checked that grid already (:func:`~ihrcf_env.core.ship.fits`). Physics-rate poses are
     computed in chunks of ``chunk_s`` seconds as the simulation reaches them; should a chunk
     beyond the checked horizon leave the stroke (or the profile give no usable pose, see
     :func:`~ihrcf_env.core.profiles.sample_until_unusable`), the deck stops at its last reachable pose
@@ -131,6 +132,7 @@ class DeckTrajectory:
         check_horizon_s: float,
         plate_half_thickness: float = 0.0,
         chunk_s: float = 30.0,
+        stroke_checked: bool = False,
     ) -> None:
         if not (math.isfinite(check_horizon_s) and check_horizon_s > 0):
             raise ValueError(f"check_horizon_s must be positive (s), got {check_horizon_s!r}")
@@ -141,10 +143,9 @@ class DeckTrajectory:
         self._chunk = max(1, int(round(chunk_s / dt)))
         #: ticks kept: the chunk being driven through and the one before it
         self.window = 2 * self._chunk
-        t = np.arange(0.0, check_horizon_s + self.CHECK_DT, self.CHECK_DT)
-        offset, rpy = profile.sample(t)
-        R = Rotation.from_euler("ZYX", rpy[:, ::-1]).as_matrix()
-        geometry.check_stroke(t, geometry.leg_lengths(geometry.home_position + offset, R))
+        if not stroke_checked:
+            t = np.arange(0.0, check_horizon_s + self.CHECK_DT, self.CHECK_DT)
+            geometry.check_stroke(t, profile_leg_lengths(profile, geometry, t))
         self.stalled_at: float | None = None
         #: the absolute tick of the first row kept, and the number of ticks made so far
         self.first_tick = 0

@@ -315,8 +315,10 @@ class World:
         altitude: float = 1.0,
         offset_xy: tuple[float, float] = (0.0, 0.0),
         yaw: float = 0.0,
+        stroke_checked: bool = False,
     ) -> None:
-        """Start a new episode: deck on ``profile`` (stroke checked over ``horizon_s`` seconds), drone
+        """Start a new episode: deck on ``profile`` (stroke checked over ``horizon_s`` seconds unless
+        ``stroke_checked`` says the caller did, as :func:`~ihrcf_env.core.ship.fits` does), drone
         hovering ``altitude`` m above the deck frame origin, shifted by ``offset_xy`` (world, m).
         Sensors and disturbances are reset by :meth:`reset_random` (they draw from the env's rng)."""
         self._check_open()
@@ -326,6 +328,7 @@ class World:
             self.dt,
             horizon_s,
             plate_half_thickness=self.config.deck.thickness / 2,
+            stroke_checked=stroke_checked,
         )
         self.tick = 0
         self._advanced = None

@@ -125,3 +125,31 @@ def test_callable_profile_and_make_profile():
     with pytest.raises(ValueError, match="deck_profile"):
         make_profile("tsunami", np.random.default_rng(0))
     assert isinstance(make_profile("static", np.random.default_rng(0)), StaticProfile)
+
+
+def test_batched_euler_matrices_match_the_scalar_ones_and_scipy():
+    from scipy.spatial.transform import Rotation
+
+    from ihrcf_env.core.frames import matrices_from_euler
+
+    rpy = np.random.default_rng(4).uniform(-3.0, 3.0, (200, 3))
+    R = matrices_from_euler(rpy)
+    assert R.shape == (200, 3, 3)
+    for k in (0, 57, 199):
+        assert np.array_equal(R[k], matrix_from_euler(*rpy[k]))
+    np.testing.assert_allclose(R, Rotation.from_euler("ZYX", rpy[:, ::-1]).as_matrix(), rtol=0, atol=1e-14)
+    with pytest.raises(ValueError, match="rpy"):
+        matrices_from_euler(np.zeros(3))
+
+
+def test_leg_lengths_equal_the_norm_of_the_leg_vectors():
+    rng = np.random.default_rng(5)
+    from ihrcf_env.core.frames import matrices_from_euler
+
+    R = matrices_from_euler(rng.uniform(-0.2, 0.2, (50, 3)))
+    p = GEO.home_position + rng.uniform(-0.05, 0.05, (50, 3))
+    want = np.linalg.norm(
+        np.einsum("nij,kj->nki", R, GEO.top_joints) + p[:, None, :] - GEO.base_joints, axis=-1
+    )
+    np.testing.assert_allclose(GEO.leg_lengths(p, R), want, rtol=0, atol=1e-14)
+    assert GEO.leg_lengths(p[0], R[0]).shape == (6,)
