@@ -102,6 +102,9 @@ class StewartGeometry:
         if R.shape[-2:] != (3, 3):
             raise ValueError(f"rotation must have shape (..., 3, 3), got {R.shape}")
         T, B = self.top_joints, self.base_joints
+        if R.ndim == 2 and p.ndim == 1:  # one pose: a matrix product costs less than the sums below
+            leg = T @ R.T + (p - B)
+            return np.sqrt(np.add.reduce(leg * leg, axis=1))
         d = [  # world coordinate i of each leg: (R @ top + p - base)_i, written out (no einsum)
             R[..., i, 0, None] * T[:, 0]
             + R[..., i, 1, None] * T[:, 1]

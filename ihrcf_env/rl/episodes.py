@@ -11,6 +11,10 @@ for the same seeds:
   an expert per env; an env whose episode ends starts the next seed at once (a partial reset,
   ``options["reset_mask"]``), so no env idles while seeds are left.
 
+Both fly several :class:`Flight` s (seeds with their pilot) as one queue
+(:meth:`Pool.fly_all`): DAgger flies a round's validation and the next round's episodes, which
+share a policy, together, so the flyers wait for the slowest episode once instead of twice.
+
 Each episode of a :class:`VectorFlyer` is the one :func:`fly` gives in a single env made with the
 vector env's options (its ``batch_estimators`` included), bit for bit. Neither needs PyTorch.
 """
@@ -44,6 +48,34 @@ class Episode:
     labels: np.ndarray
     success: bool
     outcome: str
+
+
+@dataclass(frozen=True)
+class Flight:
+    """Episodes to fly: ``seeds``, each piloted by ``policy`` (None: the expert) plus Gaussian
+    ``noise`` (action units), labelled by the expert when ``label``."""
+
+    seeds: tuple[int, ...]
+    policy: GruPolicy | None
+    noise: float = 0.0
+    label: bool = True
+
+    @classmethod
+    def of(cls, seeds: Sequence[int], policy: GruPolicy | None, noise: float, label: bool = True) -> Flight:
+        return cls(tuple(int(s) for s in seeds), policy, float(noise), bool(label))
+
+    def jobs(self) -> list[tuple[int, GruPolicy | None, float, bool]]:
+        """One (seed, policy, noise, label) per episode."""
+        return [(s, self.policy, self.noise, self.label) for s in self.seeds]
+
+
+def _split(flights: Sequence[Flight], episodes: list[Episode]) -> list[list[Episode]]:
+    """``episodes`` (every flight's, in order) cut back into one list per flight."""
+    out, k = [], 0
+    for f in flights:
+        out.append(episodes[k : k + len(f.seeds)])
+        k += len(f.seeds)
+    return out
 
 
 def make_expert(env: Any, commit_below: float) -> ScriptedLanding:
@@ -131,8 +163,12 @@ class Pool:
         self, seeds: Sequence[int], policy: GruPolicy | None, noise: float, label: bool = True
     ) -> list[Episode]:
         """Episodes from ``seeds`` (in order), flown in parallel."""
-        futures = [self._ex.submit(fly, int(s), policy, noise, label) for s in seeds]
-        return [f.result() for f in futures]
+        return self.fly_all([Flight.of(seeds, policy, noise, label)])[0]
+
+    def fly_all(self, flights: Sequence[Flight]) -> list[list[Episode]]:
+        """Every flight's episodes (one list per flight, in order), flown as one queue."""
+        futures = [self._ex.submit(fly, *job) for f in flights for job in f.jobs()]
+        return _split(flights, [f.result() for f in futures])
 
     def close(self) -> None:
         self._ex.shutdown(cancel_futures=True)
@@ -164,7 +200,13 @@ class VectorFlyer:
         self, seeds: Sequence[int], policy: GruPolicy | None, noise: float, label: bool = True
     ) -> list[Episode]:
         """Episodes from ``seeds`` (in order), as many at a time as the vector env has envs."""
-        n, queue = self.num_envs, [int(s) for s in seeds]
+        return self.fly_all([Flight.of(seeds, policy, noise, label)])[0]
+
+    def fly_all(self, flights: Sequence[Flight]) -> list[list[Episode]]:
+        """Every flight's episodes (one list per flight, in order), flown as one queue."""
+        n, queue = self.num_envs, [job for f in flights for job in f.jobs()]
+        if not queue:
+            return [[] for _ in flights]
         done: dict[int, Episode] = {}
         slot: list[int | None] = [None] * n  # the index in ``queue`` each env flies
         rngs: list[np.random.Generator | None] = [None] * n
@@ -173,13 +215,14 @@ class VectorFlyer:
         nxt = 0
 
         def start(envs: Sequence[int]) -> list[int | None]:
-            """Give ``envs`` the next seeds; their seeds for the reset (None: no seed left)."""
+            """Give ``envs`` the next jobs; their seeds for the reset (None: no job left)."""
             nonlocal nxt
             out: list[int | None] = [None] * n
             for i in envs:
                 if nxt < len(queue):
-                    slot[i], out[i] = nxt, queue[nxt]
-                    rngs[i] = np.random.default_rng(queue[nxt])
+                    seed, policy = queue[nxt][:2]
+                    slot[i], out[i] = nxt, seed
+                    rngs[i] = np.random.default_rng(seed)
                     hidden[i] = None if policy is None else np.zeros(policy.hidden_size)
                     record[i] = ([], [])
                     self._experts[i].reset()
@@ -190,10 +233,11 @@ class VectorFlyer:
 
         obs, _ = self._vec.reset(seed=start(range(n)))
         while any(s is not None for s in slot):
-            actions = np.zeros((n, 4), np.float32)  # envs without a seed left fly zeros
-            for i in range(n):
-                if slot[i] is None:
+            actions = np.zeros((n, 4), np.float32)  # envs without a job left fly zeros
+            for i, k in enumerate(slot):
+                if k is None:
                     continue
+                _, policy, noise, label = queue[k]
                 target = None
                 if label or policy is None:
                     target = np.clip(self._experts[i].act(obs[i]), -1.0, 1.0)
@@ -208,13 +252,13 @@ class VectorFlyer:
             for i in ended:
                 k = slot[i]
                 assert k is not None
-                done[k] = _episode(queue[k], *record[i], self._size, unbatch_info(info, i))
+                done[k] = _episode(queue[k][0], *record[i], self._size, unbatch_info(info, i))
             if ended:
                 seeds_now = start(ended)
                 again = np.array([i in ended and seeds_now[i] is not None for i in range(n)])
                 if again.any():
                     obs, _ = self._vec.reset(seed=seeds_now, options={"reset_mask": again})
-        return [done[k] for k in range(len(queue))]
+        return _split(flights, [done[k] for k in range(len(queue))])
 
     def close(self) -> None:
         self._vec.close()

@@ -8,7 +8,8 @@ every later round flies the current learner (its action plus Gaussian ``noise``)
 landing runs alongside on the same observations and labels every step; after each round the GRU is
 regressed (mean squared error, back-propagation through whole episodes) on every episode so far,
 its input normaliser set to the data's statistics. After each round the learner also flies the
-validation seeds without noise; the best round on them is kept (``best.npz``).
+validation seeds without noise; the best round on them is kept (``best.npz``). The validation of
+round r and the episodes of round r + 1 have the same pilot, so they are flown as one queue.
 
 Episodes are flown (:mod:`ihrcf_env.rl.episodes`) by single envs in ``workers`` processes, each
 with its own env and expert, or with ``vector_envs`` > 0 by one native vector env of that many envs
@@ -32,7 +33,7 @@ import torch as th
 from ihrcf_env.control.gru_policy import GruPolicy
 from ihrcf_env.rl.curves import CsvLog
 from ihrcf_env.rl.envs import input_indices, make_env
-from ihrcf_env.rl.episodes import Episode, Pool, VectorFlyer
+from ihrcf_env.rl.episodes import Episode, Flight, Pool, VectorFlyer
 from ihrcf_env.rl.ppo_args import DAGGER_SEED_BASE
 
 #: Columns of the recurrent DAgger log (``timesteps``: env steps flown so far; ``stage``: ``expert``
@@ -226,12 +227,30 @@ def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
     )
     policy = net.export(inputs, obs_size, meta)
 
+    def seeds_of(r: int) -> range:
+        return range(cfg.seed_base + 1000 * r, cfg.seed_base + 1000 * r + cfg.episodes)
+
+    def validate(policy: GruPolicy, next_round: int | None) -> tuple[list[Episode], list[Episode] | None]:
+        """``policy`` on the validation seeds, and (unless ``next_round`` is None) the episodes of
+        ``next_round``, which ``policy`` flies with noise: one queue."""
+        flights = [Flight.of(cfg.val_seeds, policy, 0.0, label=False)]
+        if next_round is not None:
+            flights.append(Flight.of(seeds_of(next_round), policy, cfg.noise))
+        val, *following = pool.fly_all(flights)
+        return val, following[0] if following else None
+
     def record(
-        r: int, stage: str, flown: list[Episode], loss: float, policy: GruPolicy, done: bool
+        r: int,
+        stage: str,
+        flown: list[Episode],
+        loss: float,
+        policy: GruPolicy,
+        done: bool,
+        val: list[Episode],
     ) -> dict[str, Any]:
-        """Validate ``policy``, keep it as ``best.npz`` if it is, log the row, save the checkpoint."""
+        """Keep ``policy`` as ``best.npz`` if its validation ``val`` is the best, log the row, save
+        the checkpoint."""
         nonlocal best_val
-        val = pool.fly(cfg.val_seeds, policy, 0.0, label=False) if cfg.val_seeds else []
         val_ok = sum(e.success for e in val)
         if not cfg.val_seeds or val_ok >= best_val:
             best_val = val_ok
@@ -255,29 +274,35 @@ def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
         return row
 
     try:
+        flown: list[Episode] | None = None  # this round's episodes when flown with the last validation
         for r in range(start_round, cfg.rounds + 1):
-            seeds = range(cfg.seed_base + 1000 * r, cfg.seed_base + 1000 * r + cfg.episodes)
-            flown = pool.fly(seeds, None if r == 0 else policy, cfg.noise)
+            if flown is None:
+                flown = pool.fly(seeds_of(r), None if r == 0 else policy, cfg.noise)
             data += flown
             loss = fit(
                 net, data, inputs, cfg.first_epochs if r == 0 else cfg.epochs, cfg.lr, seed=cfg.seed + r
             )
             policy = net.export(inputs, obs_size, {**meta, "round": r})
             policy.save(cfg.out / f"round_{r}.npz")
-            row = record(r, "expert" if r == 0 else "learner", flown, loss, policy, False)
+            out_of_time = deadline is not None and time.time() > deadline
+            last = r == cfg.rounds or out_of_time
+            val, following = validate(policy, None if last else r + 1)
+            row = record(r, "expert" if r == 0 else "learner", flown, loss, policy, False, val)
             log(
                 f"round {r}: {row['stage']} landed {row['successes']}/{len(flown)}, "
                 f"{row['samples']} samples, loss {loss:.2e}, validation {row['val_successes']}/"
                 f"{row['val_episodes']}, wall {row['wall_s']:.0f} s"
             )
-            if deadline is not None and time.time() > deadline:
+            if out_of_time:
                 log(f"wall budget of {cfg.max_wall_min} min reached after round {r}")
                 break
+            flown = following
         if cfg.polish_epochs and not polished and data:
             loss = fit(net, data, inputs, cfg.polish_epochs, cfg.polish_lr, seed=cfg.seed + 100_000)
             policy = net.export(inputs, obs_size, {**meta, "round": history[-1]["round"], "stage": "polish"})
             policy.save(cfg.out / "polished.npz")
-            row = record(int(history[-1]["round"]), "polish", [], loss, policy, True)
+            val = validate(policy, None)[0]
+            row = record(int(history[-1]["round"]), "polish", [], loss, policy, True, val)
             log(
                 f"polish: {cfg.polish_epochs} epochs at lr {cfg.polish_lr:g}, loss {loss:.2e}, validation "
                 f"{row['val_successes']}/{row['val_episodes']}, wall {row['wall_s']:.0f} s"

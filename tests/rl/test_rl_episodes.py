@@ -52,3 +52,23 @@ def test_the_vector_flyer_gives_the_single_envs_episodes(
         np.testing.assert_array_equal(a.labels, b.labels)
     again = flyer.fly(seeds[:1], policy, 0.3, label=False)  # the flyer is reusable; unlabelled
     assert again[0].outcome == want[0].outcome and len(again[0].obs) == 0
+
+
+def test_flights_share_one_queue_and_keep_their_own_pilots(
+    single: Any, closing: Callable[[Any], Any]
+) -> None:
+    """An unlabelled noiseless flight and a labelled noisy one with another pilot, flown as one
+    queue on 2 envs: each episode is the single env's for its own flight's pilot."""
+    flyer = closing(ep.VectorFlyer(V2, KW, 2, 1, 0.1))
+    size = int(single._WORKER["env"].observation_space.shape[0])
+    policy = _policy(size, seed=3)
+    flights = [ep.Flight.of([8, 9], policy, 0.0, label=False), ep.Flight.of([10], None, 0.0)]
+    val, train = flyer.fly_all(flights)
+    assert [e.seed for e in val] == [8, 9] and [e.seed for e in train] == [10]
+    for got, f in ((val, flights[0]), (train, flights[1])):
+        for a in got:
+            b = single.fly(a.seed, f.policy, f.noise, f.label)
+            assert a.outcome == b.outcome and len(a.obs) == len(b.obs)
+            np.testing.assert_array_equal(a.obs, b.obs)
+            np.testing.assert_array_equal(a.labels, b.labels)
+    assert len(val[0].obs) == 0 and len(train[0].obs) > 0
