@@ -52,6 +52,12 @@ def main(argv: list[str] | None = None) -> int:
         help="fly in one vector env of this many envs over --workers processes (0: single envs)",
     )
     ap.add_argument("--physics", default="pybullet", choices=("pybullet", "numpy"), help="flyers' physics")
+    ap.add_argument(
+        "--fit-threads",
+        type=int,
+        default=None,
+        help="torch threads of the fit (default: --workers; the same weights for any number)",
+    )
     ap.add_argument("--max-wall-min", type=float, default=None, help="stop after the round that passes it")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
@@ -63,7 +69,10 @@ def main(argv: list[str] | None = None) -> int:
         ("workers", 1),
         ("vector_envs", 0),
         ("polish_epochs", 0),
+        ("fit_threads", 1),
     ):
+        if getattr(args, name) is None:
+            continue
         if getattr(args, name) < least:
             ap.error(f"--{name.replace('_', '-')} must be >= {least}")
     try:
@@ -100,6 +109,7 @@ def main(argv: list[str] | None = None) -> int:
         physics=args.physics,
         max_wall_min=args.max_wall_min,
         seed=args.seed,
+        fit_threads=args.workers if args.fit_threads is None else args.fit_threads,
     )
     train(cfg, lambda s: print(s, flush=True))
     print(f"best policy: {args.out / 'best.npz'}")

@@ -20,9 +20,10 @@ with its own env and expert, or with ``vector_envs`` > 0 by one native vector en
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -31,6 +32,7 @@ import numpy as np
 import torch as th
 
 from ihrcf_env.control.gru_policy import GruPolicy
+from ihrcf_env.core.checks import check_int
 from ihrcf_env.rl.curves import CsvLog
 from ihrcf_env.rl.envs import input_indices, make_env
 from ihrcf_env.rl.episodes import Episode, Flight, Pool, VectorFlyer
@@ -101,6 +103,17 @@ class GruNet(th.nn.Module):
         }
         w = {k: sd[v] for k, v in names.items()}
         return GruPolicy(w, inputs, obs_size, meta)
+
+
+@contextlib.contextmanager
+def torch_threads(n: int) -> Iterator[None]:
+    """torch's intra-op threads set to ``n`` (>= 1) inside the block, restored after it."""
+    before = th.get_num_threads()
+    th.set_num_threads(n)
+    try:
+        yield
+    finally:
+        th.set_num_threads(before)
 
 
 def fit(
@@ -179,6 +192,8 @@ class RunConfig:
     polish_lr: float = 3e-4
     max_wall_min: float | None = None
     seed: int = 0
+    #: torch threads of the fit (the flyers wait meanwhile; the fitted weights do not depend on it)
+    fit_threads: int = 1
 
 
 def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
@@ -188,6 +203,7 @@ def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
     on the same ``out``). With ``polish_epochs`` the last round is followed by a longer fit on all
     the episodes at ``polish_lr`` (``polished.npz``, validated and ranked like a round). Returns the
     best policy."""
+    check_int("fit_threads", cfg.fit_threads, low=1, high=1024)
     th.manual_seed(cfg.seed)
     cfg.out.mkdir(parents=True, exist_ok=True)
     probe = make_env(cfg.env_id, "projected", **cfg.env_kw)
@@ -279,9 +295,9 @@ def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
             if flown is None:
                 flown = pool.fly(seeds_of(r), None if r == 0 else policy, cfg.noise)
             data += flown
-            loss = fit(
-                net, data, inputs, cfg.first_epochs if r == 0 else cfg.epochs, cfg.lr, seed=cfg.seed + r
-            )
+            with torch_threads(cfg.fit_threads):
+                epochs = cfg.first_epochs if r == 0 else cfg.epochs
+                loss = fit(net, data, inputs, epochs, cfg.lr, seed=cfg.seed + r)
             policy = net.export(inputs, obs_size, {**meta, "round": r})
             policy.save(cfg.out / f"round_{r}.npz")
             out_of_time = deadline is not None and time.time() > deadline
@@ -298,7 +314,8 @@ def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
                 break
             flown = following
         if cfg.polish_epochs and not polished and data:
-            loss = fit(net, data, inputs, cfg.polish_epochs, cfg.polish_lr, seed=cfg.seed + 100_000)
+            with torch_threads(cfg.fit_threads):
+                loss = fit(net, data, inputs, cfg.polish_epochs, cfg.polish_lr, seed=cfg.seed + 100_000)
             policy = net.export(inputs, obs_size, {**meta, "round": history[-1]["round"], "stage": "polish"})
             policy.save(cfg.out / "polished.npz")
             val = validate(policy, None)[0]

@@ -138,3 +138,34 @@ def test_a_run_flown_by_the_vector_env_logs_the_same_rounds(tmp_path: Path, rec:
             rows.append(next(csv.DictReader(f)))
     keys = ("samples", "episodes", "successes", "val_episodes", "loss")
     assert [rows[0][k] for k in keys] == [rows[1][k] for k in keys]
+
+
+def test_the_fit_gives_the_same_weights_on_any_number_of_threads(tmp_path: Path, rec: Any) -> None:
+    """``fit_threads``: the fit of a round on 1 or 2 torch threads gives the same weights, and the
+    caller's thread count is restored after it."""
+    import torch as th
+
+    base = {
+        "env_id": "ihrcf_env/DeckLanding-v2",
+        "env_kw": {"level": "calm", "max_episode_steps": 30},
+        "rounds": 0,
+        "episodes": 2,
+        "first_epochs": 2,
+        "embed": 16,
+        "hidden": 16,
+        "head": 8,
+        "workers": 1,
+    }
+    before = th.get_num_threads()
+    weights = []
+    for k, threads in enumerate((1, 2)):
+        out = tmp_path / str(k)
+        rec.train(rec.RunConfig(out=out, fit_threads=threads, **base), lambda s: None)
+        assert th.get_num_threads() == before
+        with np.load(out / "round_0.npz") as z:
+            weights.append({name: z[name] for name in z.files if name != "meta"})
+    assert weights[0].keys() == weights[1].keys()
+    for name in weights[0]:
+        np.testing.assert_array_equal(weights[0][name], weights[1][name])
+    with pytest.raises(ValueError, match="fit_threads"):
+        rec.train(rec.RunConfig(out=tmp_path / "bad", fit_threads=0, **base), lambda s: None)
