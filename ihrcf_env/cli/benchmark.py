@@ -23,6 +23,7 @@ from pathlib import Path
 import ihrcf_env  # noqa: F401  (registers the envs)
 from ihrcf_env.cli.common import check_output, int_in, make_parser, write_whole
 from ihrcf_env.core.metrics import table2_markdown
+from ihrcf_env.core.threads import limit_blas_threads
 from ihrcf_env.experiments.accuracy import accuracy
 from ihrcf_env.experiments.camera_realism import realism_cost_ms
 from ihrcf_env.experiments.speed import (
@@ -98,11 +99,12 @@ def _vector_report(args: argparse.Namespace, cores: list[int] | None) -> list[st
     ns = list(args.vector) or list(VECTOR_NS)
     common = {"env_id": args.id, "warmup": args.warmup, "actions": args.actions, **VECTOR_OPTIONS}
     pinned = "pinned to one core" if cores else "not pinned"
+    limit_blas_threads(1)  # as the spawned processes run (one_blas_thread): the same for both sides
     head = (
         f"{args.id}, camera_model=projected, {args.actions} actions: single env {args.steps} steps, "
         f"vector env ({args.physics} physics) {args.vector_steps} steps per N, {args.warmup} untimed "
-        f"first ({pinned}); {args.rounds} round(s), each timing the single env and then every "
-        "configuration, ratios taken within a round"
+        f"first ({pinned}); one BLAS thread per process; {args.rounds} round(s), each timing the "
+        "single env and then every configuration, ratios taken within a round"
     )
     print(head, flush=True)
     # the same N envs (and seeds) with PyBullet's physics: the envs stepped in turn

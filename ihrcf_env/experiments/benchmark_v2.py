@@ -33,6 +33,7 @@ from pathlib import Path
 
 import ihrcf_env
 from ihrcf_env.core.metrics import wilson_interval
+from ihrcf_env.core.threads import one_blas_thread
 from ihrcf_env.envs.levels import LEVELS, TEST_SEEDS
 from ihrcf_env.experiments.episode import run_episodes
 from ihrcf_env.experiments.policies import make_env_for
@@ -192,7 +193,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     mach = machine()
     if args.jobs > 1:
         run = functools.partial(run_cached, cache=args.cache)
-        with multiprocessing.get_context("spawn").Pool(args.jobs) as pool:
+        with one_blas_thread():
+            pool = multiprocessing.get_context("spawn").Pool(args.jobs)
+        with pool:
             ran = dict(zip(jobs, pool.map(run, jobs, chunksize=1), strict=True))
     else:
         ran = {job: run_cached(job, args.cache) for job in jobs}

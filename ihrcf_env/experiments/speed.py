@@ -20,6 +20,7 @@ import gymnasium as gym
 import numpy as np
 
 import ihrcf_env  # noqa: F401  (registers the envs)
+from ihrcf_env.core.threads import one_blas_thread
 
 WRAPPED = "ihrcf_env/DeckHover-v0"
 #: The wrapped env's camera modes: label -> gym.make kwargs (all estimators, 1 m hover).
@@ -124,7 +125,8 @@ def vector_scaling(steps: int = 600, workers: int = 2, control_hz: int = 20) -> 
     finally:
         single.close()
     with _all_cores():
-        vec = gym.vector.AsyncVectorEnv([make] * workers)
+        with one_blas_thread():
+            vec = gym.vector.AsyncVectorEnv([make] * workers)
         try:
             vec.reset(seed=0)
             actions = np.zeros((workers, 4), dtype=np.float32)

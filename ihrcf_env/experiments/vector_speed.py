@@ -28,6 +28,7 @@ import gymnasium as gym
 import numpy as np
 
 import ihrcf_env
+from ihrcf_env.core.threads import one_blas_thread
 
 #: Actions of the timed loops: ``"random"`` (seeded samples of the action space) or ``"zero"``.
 ACTIONS = ("random", "zero")
@@ -219,8 +220,9 @@ def process_speed(
         core = None if not cores else cores[k % len(cores)]
         args = (env_id, num_envs, steps, warmup, actions, seed + k * num_envs, dict(options))
         procs.append(ctx.Process(target=_worker, args=(core, barrier, args, out), daemon=True))
-    for p in procs:
-        p.start()
+    with one_blas_thread():
+        for p in procs:
+            p.start()
     spans: list[tuple[float, float]] = []
     try:
         while len(spans) < processes:

@@ -7,9 +7,11 @@ action noise drawn from a generator seeded by the episode's seed. Two flyers giv
 for the same seeds:
 
 * :class:`Pool`: ``workers`` processes, each with one single env and one expert (:func:`fly`);
-* :class:`VectorFlyer`: one native vector env of ``num_envs`` envs (over ``workers`` processes),
-  an expert per env; an env whose episode ends starts the next seed at once (a partial reset,
-  ``options["reset_mask"]``), so no env idles while seeds are left.
+* :class:`VectorFlyer`: a native vector env of ``num_envs`` envs, or one of ``num_envs // workers``
+  envs in each of ``workers`` processes, with an expert and a pilot per env in the same process;
+  an env whose episode ends starts its process's next seed at once (a partial reset,
+  ``options["reset_mask"]``), and one with no seed left pauses (``step_masked``) instead of
+  stepping with the others.
 
 Both fly several :class:`Flight` s (seeds with their pilot) as one queue
 (:meth:`Pool.fly_all`): DAgger flies a round's validation and the next round's episodes, which
@@ -34,7 +36,10 @@ import numpy as np
 
 from ihrcf_env.control.gru_policy import GruPolicy
 from ihrcf_env.control.policies import LANDING_CONFIGS, V1_LANDING_CONFIG, ScriptedLanding
+from ihrcf_env.core.checks import check_int
+from ihrcf_env.core.threads import one_blas_thread
 from ihrcf_env.rl.envs import make_env
+from ihrcf_env.wrappers.vector import MAX_ENVS, resolve_batch
 from ihrcf_env.wrappers.vector_info import unbatch_info
 
 
@@ -48,6 +53,10 @@ class Episode:
     labels: np.ndarray
     success: bool
     outcome: str
+
+
+#: One episode to fly: (seed, policy or None for the expert, noise, label).
+Job = tuple[int, GruPolicy | None, float, bool]
 
 
 @dataclass(frozen=True)
@@ -64,7 +73,7 @@ class Flight:
     def of(cls, seeds: Sequence[int], policy: GruPolicy | None, noise: float, label: bool = True) -> Flight:
         return cls(tuple(int(s) for s in seeds), policy, float(noise), bool(label))
 
-    def jobs(self) -> list[tuple[int, GruPolicy | None, float, bool]]:
+    def jobs(self) -> list[Job]:
         """One (seed, policy, noise, label) per episode."""
         return [(s, self.policy, self.noise, self.label) for s in self.seeds]
 
@@ -150,14 +159,31 @@ def fly(seed: int, policy: GruPolicy | None, noise: float, label: bool = True) -
             return _episode(seed, observations, labels, env.observation_space.shape[0], info)
 
 
+def _ready() -> None:
+    """A task that does nothing: :func:`start_processes` waits for one per process."""
+
+
+def start_processes(workers: int, initializer: Any, initargs: tuple[Any, ...]) -> cf.ProcessPoolExecutor:
+    """``workers`` spawned processes (``initializer(*initargs)`` in each), all started now and with
+    one BLAS thread each (:func:`~ihrcf_env.core.threads.one_blas_thread`)."""
+    with one_blas_thread():
+        ex = cf.ProcessPoolExecutor(
+            workers, mp_context=mp.get_context("spawn"), initializer=initializer, initargs=initargs
+        )
+        try:
+            for f in [ex.submit(_ready) for _ in range(workers)]:  # one process per task, started now
+                f.result()
+        except BaseException:
+            ex.shutdown(cancel_futures=True)
+            raise
+    return ex
+
+
 class Pool:
     """``workers`` processes flying episodes with :func:`fly` (``spawn``: no state shared)."""
 
     def __init__(self, env_id: str, env_kw: dict[str, Any], workers: int, commit_below: float) -> None:
-        ctx = mp.get_context("spawn")
-        self._ex = cf.ProcessPoolExecutor(
-            workers, mp_context=ctx, initializer=init_worker, initargs=(env_id, env_kw, commit_below)
-        )
+        self._ex = start_processes(workers, init_worker, (env_id, env_kw, commit_below))
 
     def fly(
         self, seeds: Sequence[int], policy: GruPolicy | None, noise: float, label: bool = True
@@ -175,38 +201,30 @@ class Pool:
 
 
 # --- one vector env -----------------------------------------------------------------------------
-class VectorFlyer:
-    """Episodes flown in one vector env: ``gym.make_vec(env_id, num_envs, camera_model="projected",
-    **env_kw)`` (over ``workers`` processes when > 1), one expert per env (module docstring)."""
+class _VectorQueue:
+    """A native vector env of ``num_envs`` envs in this process (estimators batched as
+    ``batch_estimators`` says) with an expert per env, flying queues of jobs."""
 
     def __init__(
-        self, env_id: str, env_kw: dict[str, Any], num_envs: int, workers: int, commit_below: float
+        self, env_id: str, env_kw: dict[str, Any], num_envs: int, batch_estimators: bool, commit_below: float
     ) -> None:
-        options = {"camera_model": "projected", **env_kw}
-        if workers > 1:
-            options["workers"] = workers
         probe = make_env(env_id, "projected", **env_kw)
         try:
             self._experts = [make_expert(probe, commit_below) for _ in range(num_envs)]
             self._size = int(probe.observation_space.shape[0])  # type: ignore[index]
         finally:
             probe.close()
+        options = {"camera_model": "projected", **env_kw, "batch_estimators": batch_estimators}
         with warnings.catch_warnings():
             warnings.filterwarnings("ignore", message=".*is out of date", category=DeprecationWarning)
             self._vec: Any = gym.make_vec(env_id, num_envs=num_envs, **options)  # seeds as a list
         self.num_envs = num_envs
 
-    def fly(
-        self, seeds: Sequence[int], policy: GruPolicy | None, noise: float, label: bool = True
-    ) -> list[Episode]:
-        """Episodes from ``seeds`` (in order), as many at a time as the vector env has envs."""
-        return self.fly_all([Flight.of(seeds, policy, noise, label)])[0]
-
-    def fly_all(self, flights: Sequence[Flight]) -> list[list[Episode]]:
-        """Every flight's episodes (one list per flight, in order), flown as one queue."""
-        n, queue = self.num_envs, [job for f in flights for job in f.jobs()]
+    def fly_jobs(self, queue: Sequence[Job]) -> list[Episode]:
+        """The episodes of ``queue``'s jobs, in order."""
+        n = self.num_envs
         if not queue:
-            return [[] for _ in flights]
+            return []
         done: dict[int, Episode] = {}
         slot: list[int | None] = [None] * n  # the index in ``queue`` each env flies
         rngs: list[np.random.Generator | None] = [None] * n
@@ -247,7 +265,8 @@ class VectorFlyer:
                 rng = rngs[i]
                 assert rng is not None
                 actions[i], hidden[i] = _pilot_action(obs[i], target, policy, hidden[i], noise, rng)
-            obs, _, terminated, truncated, info = self._vec.step(actions)
+            live = np.array([k is not None for k in slot])  # envs with nothing left to fly pause
+            obs, _, terminated, truncated, info = self._vec.step_masked(actions, live)
             ended = [i for i in range(n) if slot[i] is not None and (terminated[i] or truncated[i])]
             for i in ended:
                 k = slot[i]
@@ -258,7 +277,65 @@ class VectorFlyer:
                 again = np.array([i in ended and seeds_now[i] is not None for i in range(n)])
                 if again.any():
                     obs, _ = self._vec.reset(seed=seeds_now, options={"reset_mask": again})
-        return _split(flights, [done[k] for k in range(len(queue))])
+        return [done[k] for k in range(len(queue))]
 
     def close(self) -> None:
         self._vec.close()
+
+
+def init_vector_worker(
+    env_id: str, env_kw: dict[str, Any], num_envs: int, batch_estimators: bool, commit_below: float
+) -> None:
+    """This process's vector env and experts for :func:`fly_share`."""
+    _WORKER["queue"] = _VectorQueue(env_id, env_kw, num_envs, batch_estimators, commit_below)
+
+
+def fly_share(queue: Sequence[Job]) -> list[Episode]:
+    """The episodes of ``queue`` flown by this process's vector env (:func:`init_vector_worker`)."""
+    flyer: _VectorQueue = _WORKER["queue"]
+    return flyer.fly_jobs(queue)
+
+
+class VectorFlyer:
+    """Episodes flown by native vector envs, an expert per env: one vector env of ``num_envs``
+    envs in this process, or with ``workers`` > 1 one of ``num_envs // workers`` envs in each of
+    ``workers`` processes, which fly every ``workers``-th job of a queue with their own experts and
+    pilots (module docstring). ``batch_estimators`` is decided for ``num_envs`` envs."""
+
+    def __init__(
+        self, env_id: str, env_kw: dict[str, Any], num_envs: int, workers: int, commit_below: float
+    ) -> None:
+        n = check_int("num_envs", num_envs, low=1, high=MAX_ENVS)
+        w = check_int("workers", workers, low=1, high=n)
+        opts = {"camera_model": "projected", **env_kw}
+        batch = resolve_batch(n, opts.pop("batch_estimators", None), opts)
+        self.num_envs, self.workers = n, w
+        self._local: _VectorQueue | None = None
+        self._ex: cf.ProcessPoolExecutor | None = None
+        if w == 1:
+            self._local = _VectorQueue(env_id, env_kw, n, batch, commit_below)
+        else:
+            self._ex = start_processes(w, init_vector_worker, (env_id, env_kw, n // w, batch, commit_below))
+
+    def fly(
+        self, seeds: Sequence[int], policy: GruPolicy | None, noise: float, label: bool = True
+    ) -> list[Episode]:
+        """Episodes from ``seeds`` (in order), as many at a time as the vector envs have envs."""
+        return self.fly_all([Flight.of(seeds, policy, noise, label)])[0]
+
+    def fly_all(self, flights: Sequence[Flight]) -> list[list[Episode]]:
+        """Every flight's episodes (one list per flight, in order), flown as one queue."""
+        queue = [job for f in flights for job in f.jobs()]
+        if self._local is not None:
+            return _split(flights, self._local.fly_jobs(queue))
+        assert self._ex is not None
+        w = self.workers
+        futures = [self._ex.submit(fly_share, queue[k::w]) for k in range(w)]
+        shares = [f.result() for f in futures]
+        return _split(flights, [shares[j % w][j // w] for j in range(len(queue))])
+
+    def close(self) -> None:
+        if self._local is not None:
+            self._local.close()
+        if self._ex is not None:
+            self._ex.shutdown(cancel_futures=True)

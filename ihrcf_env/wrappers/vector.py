@@ -151,21 +151,41 @@ class DeckLandingVectorEnv(VectorEnv):
     ) -> tuple[NDArray[Any], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
         """Step every env with its row of ``actions`` (shape ``(num_envs, *single action shape)``);
         an env that ended at the previous step is reset instead (next-step autoreset)."""
+        return self._step(actions, None)
+
+    def step_masked(
+        self, actions: Any, mask: Any
+    ) -> tuple[NDArray[Any], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
+        """:meth:`step` of the envs ``mask`` marks only (a numpy bool array over the envs, as
+        ``options["reset_mask"]``; ``actions`` still one row per env): the others are neither
+        stepped nor autoreset (a pending autoreset waits for their next step), their row of the
+        observations is their last one, their reward 0, ``terminated`` and ``truncated`` False and
+        ``info`` has no entries for them. A paused env goes on as if it had not been paused, so an
+        env with nothing left to fly costs nothing."""
+        m = check_env_mask("mask", mask, self.num_envs)
+        return self._step(actions, m)
+
+    def _step(
+        self, actions: Any, mask: NDArray[np.bool_] | None
+    ) -> tuple[NDArray[Any], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
         self._check_open()
         a = check_actions(actions, self.num_envs, self.single_action_space.shape)  # type: ignore[arg-type]
         n = self.num_envs
+        live = np.ones(n, dtype=bool) if mask is None else mask
         rewards = np.zeros(n, dtype=np.float64)
         terminated = np.zeros(n, dtype=bool)
         truncated = np.zeros(n, dtype=bool)
         if not self._was_reset:
             raise gym.error.ResetNeeded("step: reset the vector env first")
         if self._numpy_physics:
-            self._advance_together(a)
+            self._advance_together(a, live)
         same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
         if self._batched is not None:
-            return self._step_batched(a, same_step)
-        obs, infos = [], []
-        for i, env in enumerate(self._envs):
+            return self._step_batched(a, same_step, live)
+        obs = list(self._obs)
+        infos: list[dict[str, Any] | None] = [None] * n
+        for i in np.flatnonzero(live):
+            env = self._envs[i]
             final: dict[str, Any] = {}
             if self._autoreset[i]:
                 o, info = env.reset()
@@ -175,43 +195,46 @@ class DeckLandingVectorEnv(VectorEnv):
                 if same_step and (terminated[i] or truncated[i]):
                     final = {"final_obs": o, "final_info": info}
                     o, info = env.reset()
-            obs.append(o)
-            infos.append({**final, **info} if final else info)
-        self._autoreset = (terminated | truncated) & (not same_step)
+            obs[i] = o
+            infos[i] = {**final, **info} if final else info
+        self._autoreset[live] = (terminated | truncated)[live] & (not same_step)
         self._obs = obs
         return np.stack(obs), rewards, terminated, truncated, stack_infos(infos)
 
     def _step_batched(
-        self, a: NDArray[Any], same_step: bool
+        self, a: NDArray[Any], same_step: bool, live: NDArray[np.bool_]
     ) -> tuple[NDArray[Any], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
         """:meth:`step` through the batched observation stage (one estimator update per phase)."""
         assert self._batched is not None
         n = self.num_envs
-        rows = self._batched.run(a, np.flatnonzero(~self._autoreset), np.flatnonzero(self._autoreset))
-        terminated = np.array([rows[i].terminated for i in range(n)], dtype=bool)
-        truncated = np.array([rows[i].truncated for i in range(n)], dtype=bool)
-        rewards = np.array([rows[i].reward for i in range(n)], dtype=np.float64)
+        rows = self._batched.run(
+            a, np.flatnonzero(live & ~self._autoreset), np.flatnonzero(live & self._autoreset)
+        )
+        terminated, truncated = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        rewards = np.zeros(n, dtype=np.float64)
+        for i, row in rows.items():
+            terminated[i], truncated[i], rewards[i] = row.terminated, row.truncated, row.reward
         ended = np.flatnonzero(terminated | truncated)
         final: dict[int, Any] = {}
         if same_step and ended.size:
             final = self._batched.run(None, [], ended)
-        obs, infos = [], []
-        for i in range(n):
-            row = rows[i]
+        obs = list(self._obs)
+        infos: list[dict[str, Any] | None] = [None] * n
+        for i, row in rows.items():
             if i in final:
-                obs.append(final[i].obs)
-                infos.append({"final_obs": row.obs, "final_info": row.info, **final[i].info})
+                obs[i] = final[i].obs
+                infos[i] = {"final_obs": row.obs, "final_info": row.info, **final[i].info}
             else:
-                obs.append(row.obs)
-                infos.append(row.info)
-        self._autoreset = (terminated | truncated) & (not same_step)
+                obs[i], infos[i] = row.obs, row.info
+        self._autoreset[live] = (terminated | truncated)[live] & (not same_step)
         self._obs = obs
         return np.stack(obs), rewards, terminated, truncated, stack_infos(infos)
 
-    def _advance_together(self, actions: NDArray[Any]) -> None:
-        """Numpy physics: apply the actions of the envs that step now and advance all their worlds
-        in one batched physics step; each env's own ``step`` then takes its world's result."""
-        rows = np.flatnonzero(~self._autoreset)
+    def _advance_together(self, actions: NDArray[Any], live: NDArray[np.bool_]) -> None:
+        """Numpy physics: apply the actions of the envs that step now (``live`` and not autoreset)
+        and advance all their worlds in one batched physics step; each env's own ``step`` then
+        takes its world's result."""
+        rows = np.flatnonzero(live & ~self._autoreset)
         if rows.size == 0:
             return
         tasks = [self._tasks[i] for i in rows]
@@ -265,20 +288,24 @@ def env_seeds(seed: int | Sequence[int | None] | None, n: int) -> list[int | Non
 def split_reset_mask(
     options: dict[str, Any] | None, n: int
 ) -> tuple[NDArray[np.bool_] | None, dict[str, Any] | None]:
-    """``options["reset_mask"]`` checked (a numpy bool array of shape ``(n,)`` marking at least
-    one env; ValueError / TypeError naming it) and the other options (None when none are left)."""
+    """``options["reset_mask"]`` checked (:func:`check_env_mask`) and the other options (None when
+    none are left)."""
     if not options or "reset_mask" not in options:
         return None, options
     rest = {k: v for k, v in options.items() if k != "reset_mask"}
-    mask = options["reset_mask"]
-    name = "options['reset_mask']"
+    return check_env_mask("options['reset_mask']", options["reset_mask"], n), rest or None
+
+
+def check_env_mask(name: str, mask: Any, n: int) -> NDArray[np.bool_]:
+    """A copy of ``mask``, checked to be a numpy bool array of shape ``(n,)`` marking at least one
+    env (ValueError / TypeError naming ``name`` otherwise)."""
     if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_:
         raise TypeError(f"{name}: a numpy array of dtype bool, got {type(mask).__name__}")
     if mask.shape != (n,):
         raise ValueError(f"{name}: shape ({n},) (one flag per env), got {mask.shape}")
     if not mask.any():
         raise ValueError(f"{name}: marks no env (at least one True)")
-    return mask.copy(), rest or None
+    return mask.copy()
 
 
 def check_actions(actions: Any, n: int, shape: tuple[int, ...]) -> NDArray[Any]:

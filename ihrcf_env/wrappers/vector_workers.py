@@ -26,7 +26,14 @@ from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
 from ihrcf_env.core.checks import check_int
-from ihrcf_env.wrappers.vector import check_actions, env_seeds, resolve_batch, split_reset_mask
+from ihrcf_env.core.threads import one_blas_thread
+from ihrcf_env.wrappers.vector import (
+    check_actions,
+    check_env_mask,
+    env_seeds,
+    resolve_batch,
+    split_reset_mask,
+)
 
 #: Largest number of worker processes.
 MAX_WORKERS = 64
@@ -49,6 +56,8 @@ def _serve(conn: Connection, env_id: str, num_envs: int, options: dict[str, Any]
             try:
                 if command == "step":
                     conn.send(("ok", env.step(arg)))
+                elif command == "step_masked":
+                    conn.send(("ok", env.step_masked(*arg)))
                 elif command == "reset":
                     conn.send(("ok", env.reset(seed=arg[0], options=arg[1])))
                 else:
@@ -115,7 +124,8 @@ class WorkerVectorEnv(VectorEnv):
             for size in self.sizes:
                 parent, child = ctx.Pipe()
                 proc = ctx.Process(target=_serve, args=(child, env_id, size, dict(options)), daemon=True)
-                proc.start()
+                with one_blas_thread():
+                    proc.start()
                 child.close()
                 self._conns.append(parent)
                 self._procs.append(proc)
@@ -191,20 +201,44 @@ class WorkerVectorEnv(VectorEnv):
         self, actions: Any
     ) -> tuple[NDArray[Any], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
         """Step every env with its row of ``actions`` (shape ``(num_envs, *single action shape)``)."""
+        return self._step(actions, None)
+
+    def step_masked(
+        self, actions: Any, mask: Any
+    ) -> tuple[NDArray[Any], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
+        """Step the envs ``mask`` marks only (as
+        :meth:`~ihrcf_env.wrappers.vector.DeckLandingVectorEnv.step_masked`); a worker none of whose
+        envs is marked is not asked."""
+        return self._step(actions, check_env_mask("mask", mask, self.num_envs))
+
+    def _step(
+        self, actions: Any, mask: NDArray[np.bool_] | None
+    ) -> tuple[NDArray[Any], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
         self._check_open()
         a = check_actions(actions, self.num_envs, self.single_action_space.shape)  # type: ignore[arg-type]
+        if self._obs is None:
+            raise gym.error.ResetNeeded("step: reset the vector env first")
         off = self.offsets
+        asked = []
         for i, conn in enumerate(self._conns):
-            conn.send(("step", a[off[i] : off[i + 1]]))
-        parts = [self._receive(i) for i in range(self.workers)]
-        self._obs = np.concatenate([p[0] for p in parts])
-        return (
-            self._obs.copy(),
-            np.concatenate([p[1] for p in parts]),
-            np.concatenate([p[2] for p in parts]),
-            np.concatenate([p[3] for p in parts]),
-            merge_infos([p[4] for p in parts], self.sizes),
-        )
+            rows = slice(off[i], off[i + 1])
+            if mask is None:
+                conn.send(("step", a[rows]))
+            elif mask[rows].any():
+                conn.send(("step_masked", (a[rows], mask[rows])))
+            else:
+                continue
+            asked.append(i)
+        n = self.num_envs
+        obs = self._obs.copy()
+        rewards = np.zeros(n, dtype=np.float64)
+        terminated, truncated = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        infos: list[dict[str, Any]] = [{} for _ in range(self.workers)]
+        for i in asked:
+            rows = slice(off[i], off[i + 1])
+            obs[rows], rewards[rows], terminated[rows], truncated[rows], infos[i] = self._receive(i)
+        self._obs = obs
+        return obs.copy(), rewards, terminated, truncated, merge_infos(infos, self.sizes)
 
     def close_extras(self, **kwargs: Any) -> None:
         """Stop the workers (each closes its envs' physics clients)."""

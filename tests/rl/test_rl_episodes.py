@@ -72,3 +72,28 @@ def test_flights_share_one_queue_and_keep_their_own_pilots(
             np.testing.assert_array_equal(a.obs, b.obs)
             np.testing.assert_array_equal(a.labels, b.labels)
     assert len(val[0].obs) == 0 and len(train[0].obs) > 0
+
+
+def test_vector_flyers_in_processes_give_the_single_envs_episodes(
+    single: Any, closing: Callable[[Any], Any]
+) -> None:
+    """2 processes of 1-env vector envs: the queue is dealt out between them and comes back in
+    order, each episode the single env's; an env with no seed left pauses while the other flies."""
+    flyer = closing(ep.VectorFlyer(V2, KW, 2, 2, 0.1))
+    size = int(single._WORKER["env"].observation_space.shape[0])
+    policy = _policy(size, seed=4)
+    seeds = [11, 12, 13]
+    got = flyer.fly(seeds, policy, 0.2)
+    assert [e.seed for e in got] == seeds
+    for a in got:
+        b = single.fly(a.seed, policy, 0.2)
+        assert a.outcome == b.outcome and len(a.obs) == len(b.obs) > 0
+        np.testing.assert_array_equal(a.obs, b.obs)
+        np.testing.assert_array_equal(a.labels, b.labels)
+
+
+def test_the_vector_flyer_names_bad_sizes() -> None:
+    with pytest.raises(ValueError, match="num_envs"):
+        ep.VectorFlyer(V2, KW, 0, 1, 0.1)
+    with pytest.raises(ValueError, match="workers"):
+        ep.VectorFlyer(V2, KW, 2, 3, 0.1)
