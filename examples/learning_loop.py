@@ -18,6 +18,7 @@ import gymnasium as gym
 import numpy as np
 
 import ihrcf_env  # noqa: F401  (registers the envs)
+from ihrcf_env.core.threads import one_blas_thread
 from ihrcf_env.wrappers.estimates import flat_slices
 
 IHRCF = flat_slices()["ihrcf"]  # position (3), euler (3), valid (1) inside the flat observation
@@ -55,7 +56,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
 
-    envs = gym.vector.AsyncVectorEnv([make_env(args.episode_steps) for _ in range(args.num_envs)])
+    with one_blas_thread():  # one BLAS thread per env process (see docs/learning.md)
+        envs = gym.vector.AsyncVectorEnv([make_env(args.episode_steps) for _ in range(args.num_envs)])
     try:
         obs, _ = envs.reset(seed=args.seed)
         returns = np.zeros(args.num_envs)

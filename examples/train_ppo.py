@@ -18,6 +18,7 @@ from __future__ import annotations
 import functools
 import time
 
+from ihrcf_env.core.threads import one_blas_thread
 from ihrcf_env.rl.curriculum import curriculum_env
 from ihrcf_env.rl.curves import EVAL_FIELDS, TRAIN_FIELDS, CsvLog, plot_curves, summary
 from ihrcf_env.rl.envs import make_env, policy_inputs
@@ -57,7 +58,8 @@ def main(argv: list[str] | None = None) -> int:
             env_kw["workers"] = args.workers
         base = make_sb3_vec_env(env_id, args.n_envs, None, camera_model=args.camera_model, **env_kw)
     else:
-        base = (SubprocVecEnv if args.n_envs > 1 else DummyVecEnv)([train_thunk] * args.n_envs)
+        with one_blas_thread():  # the env processes: one BLAS thread each
+            base = (SubprocVecEnv if args.n_envs > 1 else DummyVecEnv)([train_thunk] * args.n_envs)
     venv = VecMonitor(base, info_keywords=("is_success",))
     out, ckpt = args.out, sb3.ResumableCheckpointCallback(args.out / "checkpoints", args.checkpoint_every)
     resume = args.resume and ckpt.model_path.exists()

@@ -295,9 +295,11 @@ def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
             if flown is None:
                 flown = pool.fly(seeds_of(r), None if r == 0 else policy, cfg.noise)
             data += flown
+            fit_start = time.time()
             with torch_threads(cfg.fit_threads):
                 epochs = cfg.first_epochs if r == 0 else cfg.epochs
                 loss = fit(net, data, inputs, epochs, cfg.lr, seed=cfg.seed + r)
+            fit_s = time.time() - fit_start
             policy = net.export(inputs, obs_size, {**meta, "round": r})
             policy.save(cfg.out / f"round_{r}.npz")
             out_of_time = deadline is not None and time.time() > deadline
@@ -307,7 +309,7 @@ def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
             log(
                 f"round {r}: {row['stage']} landed {row['successes']}/{len(flown)}, "
                 f"{row['samples']} samples, loss {loss:.2e}, validation {row['val_successes']}/"
-                f"{row['val_episodes']}, wall {row['wall_s']:.0f} s"
+                f"{row['val_episodes']}, wall {row['wall_s']:.0f} s (the fit {fit_s:.0f} s)"
             )
             if out_of_time:
                 log(f"wall budget of {cfg.max_wall_min} min reached after round {r}")
