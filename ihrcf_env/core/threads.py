@@ -33,11 +33,9 @@ def one_blas_thread() -> Iterator[None]:
             os.environ.pop(v, None)
 
 
-def limit_blas_threads(n: int = 1) -> int | None:
+def limit_blas_threads(n: int = 1) -> None:
     """Limit the BLAS / OpenMP libraries loaded in this process to ``n`` threads (for the rest of
-    the process); returns the largest number of threads they had before (None: none found)."""
-    from threadpoolctl import threadpool_info, threadpool_limits
+    the process)."""
+    from threadpoolctl import threadpool_limits
 
-    before = [int(p.get("num_threads", 0)) for p in threadpool_info()]
     threadpool_limits(limits=n)
-    return max(before) if before else None
