@@ -157,3 +157,71 @@ def same(a: Any, b: Any) -> bool:
 def same_runs(a: list[Any], b: list[Any]) -> bool:
     """Two :func:`rollout` sequences are equal, step by step (a shorter one is not)."""
     return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b, strict=True))
+
+
+def _random_policy() -> Any:
+    """A small GRU policy (5 inputs of an observation of 8) of random weights."""
+    from ihrcf_env.control.gru_policy import WEIGHTS, GruPolicy
+
+    rng = np.random.default_rng(0)
+    sizes = {"D": 5, "E": 6, "H": 4, "3H": 12, "F": 3, "A": 4}
+    w = {k: rng.normal(scale=0.5, size=tuple(sizes[x] for x in dims)) for k, dims in WEIGHTS.items()}
+    w["std"] = np.abs(w["std"]) + 0.5
+    return GruPolicy(w, [1, 2, 3, 4, 5], 8)
+
+
+def policy_header(**fields: object) -> str:
+    """A policy file's JSON header (of :func:`write_policy`'s weights) with ``fields`` changed."""
+    import json
+
+    return json.dumps({"format": 1, "inputs": [1, 2, 3, 4, 5], "obs_size": 8, "meta": {}, **fields})
+
+
+def write_policy(path: Path, header: str | None, drop: str | None = None) -> Path:
+    """A GRU policy file at ``path`` with this ``header`` (None: none) and without the weight ``drop``."""
+    payload = {k: v for k, v in _random_policy().weights.items() if k != drop}
+    if header is not None:
+        payload["header"] = np.array(header)
+    with open(path, "wb") as f:
+        np.savez(f, **payload)
+    return path
+
+
+def corrupt_policy_files(folder: Path) -> dict[str, tuple[Path, str]]:
+    """Corrupt policy files by kind -> (path, a word the error must contain)."""
+    good = write_policy(folder / "good.npz", policy_header())
+    data = good.read_bytes()
+    files: dict[str, tuple[Path, str]] = {}
+
+    def put(kind: str, content: bytes, word: str) -> None:
+        path = folder / f"{kind}.npz"
+        path.write_bytes(content)
+        files[kind] = (path, word)
+
+    put("truncated", data[: len(data) // 2], "npz")
+    put("empty", b"", "npz")
+    put("text", b"# a text file\n1 2 3\n", "npz")
+    deep = '{"format": 1, "inputs": [1], "obs_size": 8, "meta": ' + "[" * 100_000 + "]" * 100_000 + "}"
+    cases = {
+        "no_header": (None, None, "header"),
+        "no_weight": (policy_header(), "w_o", "w_o"),
+        "no_inputs": ('{"format": 1, "obs_size": 8}', None, "inputs"),
+        "no_format": ('{"inputs": [1], "obs_size": 8}', None, "format"),
+        "obs_size_inf": ('{"format": 1, "inputs": [1], "obs_size": 1e999}', None, "obs_size"),
+        "obs_size_text": (policy_header(obs_size="8"), None, "obs_size"),
+        "inputs_text": (policy_header(inputs="12345"), None, "inputs"),
+        "inputs_floats": (policy_header(inputs=[1.5, 2.0]), None, "inputs"),
+        "meta_list": (policy_header(meta=[1, 2]), None, "meta"),
+        "header_list": ("[1, 2, 3]", None, "header"),
+        "header_not_json": ("{format: 1", None, "JSON"),
+        "deep": (deep, None, "nested"),
+        "inputs_out_of_range": (policy_header(inputs=[1, 2, 3, 4, 99]), None, "inputs"),
+    }
+    for kind, (header, drop, word) in cases.items():
+        files[kind] = (write_policy(folder / f"{kind}.npz", header, drop), word)
+    text_weights = folder / "text_weights.npz"
+    payload = dict(_random_policy().weights)
+    payload["w_e"] = np.array(["a", "b"])
+    np.savez(text_weights, header=np.array(policy_header()), **payload)
+    files["text_weights"] = (text_weights, "w_e")
+    return files

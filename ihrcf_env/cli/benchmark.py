@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import ihrcf_env  # noqa: F401  (registers the envs)
-from ihrcf_env.cli.common import check_output, int_in, make_parser, write_whole
+from ihrcf_env.cli.common import check_output, command_main, int_in, make_parser, write_whole
 from ihrcf_env.core.metrics import table2_markdown
 from ihrcf_env.core.threads import limit_blas_threads
 from ihrcf_env.experiments.accuracy import accuracy
@@ -53,6 +53,8 @@ VECTOR_NS = (1, 8, 32, 128)
 MAX_ROUNDS = 100
 #: Most processes of ``--processes``.
 MAX_PROCESSES = 64
+#: Bounds (px) of a camera size of --sizes other than 0: the env's camera sizes.
+CAMERA_SIZES = (16, 4096)
 #: Options of the envs the vector comparison times (as ``gym.make`` gives them otherwise).
 VECTOR_OPTIONS: dict[str, object] = {"camera_model": "projected"}
 
@@ -189,7 +191,11 @@ def build_parser() -> argparse.ArgumentParser:
     ap = make_parser("benchmark", DESCRIPTION)
     ap.add_argument("--steps", type=int_in(1), default=300, help="timed env steps per configuration")
     ap.add_argument(
-        "--sizes", type=int_in(0), nargs="+", default=[0, 128, 256, 512], help="camera sizes in px (0 = none)"
+        "--sizes",
+        type=int_in(0, CAMERA_SIZES[1]),
+        nargs="+",
+        default=[0, 128, 256, 512],
+        help=f"camera sizes in px ({CAMERA_SIZES[0]}..{CAMERA_SIZES[1]}; 0 = none)",
     )
     ap.add_argument("--frames", type=int_in(1), default=100, help="frames for the estimation timing")
     ap.add_argument("--all-cores", action="store_true", help="do not pin the process to one core")
@@ -248,6 +254,7 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+@command_main("benchmark")
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``ihrcf-benchmark``; returns the process exit code."""
     ap = build_parser()
@@ -255,9 +262,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     markdown = None if args.markdown is None else check_output(ap, "--markdown", args.markdown)
     if any(not (math.isfinite(a) and 0.3 <= a <= 10.0) for a in args.altitudes):
         ap.error(f"argument --altitudes: heights must be in [0.3, 10] m, got {args.altitudes}")
+    small = [n for n in args.sizes if 0 < n < CAMERA_SIZES[0]]
+    if small:
+        ap.error(f"argument --sizes: a camera size is 0 (none) or at least {CAMERA_SIZES[0]} px, got {small}")
     report: list[str] = []
     if args.vector is None and args.processes != [1]:
         ap.error("argument --processes: only with --vector")
+    if args.vector is None and args.no_speed and args.no_accuracy:
+        ap.error("arguments --no-speed --no-accuracy: nothing left to run")
     cores = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
     if not args.all_cores and cores:
         os.sched_setaffinity(0, {cores[0]})

@@ -17,12 +17,29 @@ import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, TextIO
 
-from ihrcf_env.cli.common import check_output, int_in, make_parser, seed_type, write_whole
+from ihrcf_env.cli.common import (
+    check_output,
+    command_main,
+    int_in,
+    make_parser,
+    real_in,
+    seed_type,
+    write_whole,
+)
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.experiments.progress import Progress
 
 if TYPE_CHECKING:
     from ihrcf_env.sim.calibration_procedure import CalibrationRun
+
+
+#: Bounds of --width and --height (px): the env's camera sizes.
+IMAGE_SIZE = (16, 4096)
+#: Most ascent stages (--stages) and chessboard views (--views).
+MAX_STAGES = 1000
+MAX_VIEWS = 500
+#: Largest range (m) of --top and --bottom: the ToF's largest max range.
+MAX_RANGE = 100.0
 
 
 class PhaseProgress:
@@ -67,8 +84,18 @@ examples:
 def build_parser() -> argparse.ArgumentParser:
     """The command's argument parser."""
     ap = make_parser("calibrate", DESCRIPTION)
-    ap.add_argument("--width", type=int_in(1), default=512, help="image width (px)")
-    ap.add_argument("--height", type=int_in(1), default=512, help="image height (px)")
+    ap.add_argument(
+        "--width",
+        type=int_in(*IMAGE_SIZE),
+        default=512,
+        help=f"image width (px, {IMAGE_SIZE[0]}..{IMAGE_SIZE[1]})",
+    )
+    ap.add_argument(
+        "--height",
+        type=int_in(*IMAGE_SIZE),
+        default=512,
+        help=f"image height (px, {IMAGE_SIZE[0]}..{IMAGE_SIZE[1]})",
+    )
     ap.add_argument("--fov-deg", type=float, default=60.0, help="vertical field of view (deg)")
     ap.add_argument("--k1", type=float, default=0.0, help="camera radial distortion k1")
     ap.add_argument("--k2", type=float, default=0.0, help="camera radial distortion k2")
@@ -77,24 +104,42 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="calibration file to write (default: calibration_<W>x<H>_fov<F>.json in the working directory)",
     )
-    ap.add_argument("--stages", type=int_in(1), default=120, help="ascent stages (the paper's: 120)")
     ap.add_argument(
-        "--top", type=float, default=None, help="range of the last stage (m) (default: the ToF max range)"
+        "--stages",
+        type=int_in(4, MAX_STAGES),
+        default=120,
+        help=f"ascent stages (4..{MAX_STAGES}; the paper's: 120)",
     )
-    ap.add_argument("--bottom", type=float, default=0.15, help="range of the first stage (m)")
+    ap.add_argument(
+        "--top",
+        type=real_in(0.0, MAX_RANGE, low_open=True),
+        default=None,
+        help="range of the last stage (m) (default: the ToF max range)",
+    )
+    ap.add_argument(
+        "--bottom",
+        type=real_in(0.0, MAX_RANGE, low_open=True),
+        default=0.15,
+        help="range of the first stage (m)",
+    )
     ap.add_argument("--seed", type=seed_type, default=0, help="seed of the chessboard poses, an integer >= 0")
-    ap.add_argument("--views", type=int_in(3), default=30, help="chessboard views (>= 3; >= 15 advised)")
+    ap.add_argument(
+        "--views",
+        type=int_in(3, MAX_VIEWS),
+        default=30,
+        help=f"chessboard views (3..{MAX_VIEWS}; >= 15 advised)",
+    )
     ap.add_argument("--quiet", action="store_true", help="no progress output")
     return ap
 
 
+@command_main("calibrate")
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``ihrcf-calibrate``; returns the process exit code."""
     ap = build_parser()
     args = ap.parse_args(argv)
-    out = check_output(
-        ap, "--output", args.output or f"calibration_{args.width}x{args.height}_fov{args.fov_deg:g}.json"
-    )
+    default = f"calibration_{args.width}x{args.height}_fov{args.fov_deg:g}.json"
+    out = check_output(ap, "--output", default if args.output is None else args.output)
     # Imported here so that ``--help`` does not start PyBullet.
     from ihrcf_env.core.calibration import CalibrationError
     from ihrcf_env.sim.calibration_procedure import (

@@ -12,10 +12,17 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
+import math
 import os
+import stat
+import sys
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
+
+#: Exit status of a command stopped by Ctrl-C (128 + SIGINT, as a shell reports it).
+EXIT_INTERRUPTED = 130
 
 #: Largest seed NumPy's and Gymnasium's seeding accept (2**32 - 1 for a reset seed).
 MAX_SEED = 2**32 - 1
@@ -63,6 +70,23 @@ def int_in(low: int, high: int | None = None) -> Callable[[str], int]:
     return parse
 
 
+def real_in(low: float, high: float, *, low_open: bool = False) -> Callable[[str], float]:
+    """An argparse ``type``: a finite number in [low, high] (``low_open``: in (low, high])."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not (math.isfinite(value) and (value > low if low_open else value >= low) and value <= high):
+            span = f"({low:g}, {high:g}]" if low_open else f"[{low:g}, {high:g}]"
+            raise argparse.ArgumentTypeError(f"must be a number in {span}, got {text}")
+        return value
+
+    parse.__name__ = "number"
+    return parse
+
+
 #: An argparse ``type`` for seeds: an integer in [0, MAX_SEED].
 seed_type = int_in(0, MAX_SEED)
 
@@ -71,6 +95,8 @@ def check_output(ap: argparse.ArgumentParser, option: str, path: str | Path) -> 
     """``path`` as a file the command may write, or ``ap.error`` naming ``option``: not a folder,
     and a file can be created (tried, then removed) in its folder or, where that folder does not
     exist yet, in its nearest existing ancestor (the missing folders are made when writing)."""
+    if not str(path).strip():
+        ap.error(f"argument {option}: an empty file name")
     out = Path(path)
     if out.is_dir():
         ap.error(f"argument {option}: {str(out)!r} is a folder; give a file name")
@@ -87,16 +113,49 @@ def check_output(ap: argparse.ArgumentParser, option: str, path: str | Path) -> 
     return out
 
 
+def command_main(name: str) -> Callable[[Callable[..., int]], Callable[..., int]]:
+    """Decorate the ``main(argv)`` of the command ``ihrcf-<name>``: Ctrl-C (KeyboardInterrupt)
+    ends it with a one-line message on stderr and the exit status :data:`EXIT_INTERRUPTED`, no
+    traceback."""
+
+    def wrap(main: Callable[..., int]) -> Callable[..., int]:
+        @functools.wraps(main)
+        def run(argv: Sequence[str] | None = None) -> int:
+            try:
+                return main(argv)
+            except KeyboardInterrupt:
+                print(f"\nihrcf-{name}: interrupted", file=sys.stderr, flush=True)
+                return EXIT_INTERRUPTED
+
+        return run
+
+    return wrap
+
+
+def file_mode(path: str | Path) -> int:
+    """The permission bits a file written at ``path`` gets: an existing file's own, else what
+    ``open(path, "w")`` gives a new file (0o666 less the process's umask)."""
+    try:
+        return stat.S_IMODE(os.stat(path).st_mode)
+    except OSError:
+        mask = os.umask(0)
+        os.umask(mask)
+        return 0o666 & ~mask
+
+
 def write_whole(path: str | Path, text: str) -> Path:
     """Write ``text`` (UTF-8) to ``path`` whole or not at all: through a temporary file beside it,
     renamed onto ``path`` (missing folders are made); the temporary file is removed if anything
-    fails. Returns the path."""
+    fails. The file gets the mode a plain ``open`` would give it (:func:`file_mode`: an existing
+    file keeps its own). Returns the path."""
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
+    mode = file_mode(out)
     fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as f:
             f.write(text)
+            os.fchmod(f.fileno(), mode)
         os.replace(tmp, out)
     except BaseException:
         with contextlib.suppress(OSError):

@@ -21,12 +21,14 @@ import gymnasium as gym
 import numpy as np
 
 from ihrcf_env import LANDING_V1_ID, LANDING_V2_ID
-from ihrcf_env.cli.common import MAX_SEED, int_in, make_parser, seed_type
+from ihrcf_env.cli.common import MAX_SEED, command_main, int_in, make_parser, seed_type
+from ihrcf_env.control.gru_policy import GruPolicy, PolicyFileError
 from ihrcf_env.core.metrics import failure_groups, wilson_interval
 from ihrcf_env.envs.levels import LEVELS, TEST_SEEDS
 from ihrcf_env.experiments.episode import EpisodeResult, run_episodes
 from ihrcf_env.experiments.policies import (
     SB3_ALGOS,
+    SCRIPTED_ESTIMATOR,
     PolicyError,
     make_policy,
     with_deck_motion,
@@ -109,9 +111,35 @@ def _parse_options(ap: argparse.ArgumentParser, items: Sequence[str]) -> dict[st
             ap.error(f"argument --option: {item!r} is not KEY=VALUE")
         try:
             out[key] = json.loads(text)
+        except RecursionError:
+            ap.error(f"argument --option: the value of {key} is nested too deeply")
         except ValueError:
             out[key] = text
+    if "render_mode" in out:
+        ap.error("argument --option: render_mode is not an option of ihrcf-evaluate (it renders nothing)")
     return out
+
+
+#: Env options the scripted and blind baselines need as they are (option -> the value they fly).
+BASELINE_OPTIONS: dict[str, object] = {"action_mode": "velocity"}
+
+
+def _check_baseline_options(ap: argparse.ArgumentParser, policy: str, options: dict[str, Any]) -> None:
+    """``ap.error`` naming the option if ``options`` change what the scripted/blind baselines need:
+    velocity actions and, for the scripted policy, the fused estimate it reads."""
+    for key, want in BASELINE_OPTIONS.items():
+        if key in options and options[key] != want:
+            ap.error(
+                f"argument --option: {key}={options[key]!r}: the {policy.partition(':')[0]} policy "
+                f"flies {key}={want!r}"
+            )
+    if policy == "scripted" and "estimators" in options:
+        names = options["estimators"]
+        if isinstance(names, str) or not isinstance(names, list) or SCRIPTED_ESTIMATOR not in names:
+            ap.error(
+                f"argument --option: estimators={names!r}: the scripted policy reads the "
+                f"{SCRIPTED_ESTIMATOR!r} estimate; keep {SCRIPTED_ESTIMATOR!r} in estimators"
+            )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -181,6 +209,8 @@ def _check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
     if args.seed is None:
         args.seed = TEST_SEEDS.start if args.level is not None else 0
     args.options = _parse_options(ap, args.option)
+    if args.policy == "scripted" or args.policy.startswith("blind:"):
+        _check_baseline_options(ap, args.policy, args.options)
     last = args.seed + args.episodes - 1
     if last > MAX_SEED:
         ap.error(f"argument --seed: the seeds {args.seed}..{last} go beyond {MAX_SEED}")
@@ -208,8 +238,14 @@ def _check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
             ap.error(f"argument --policy: {spec!r}: VZ must be a positive descent speed (m/s)")
     if saved and not os.path.isfile(spec):
         ap.error(f"argument --policy: no such file {spec!r}")
+    if spec.endswith(".npz"):  # read before any env is built: a corrupt file is named at once
+        try:
+            GruPolicy.load(spec)
+        except PolicyFileError as e:
+            ap.error(f"argument --policy: {e}")
 
 
+@command_main("evaluate")
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``ihrcf-evaluate``; returns the process exit code."""
     ap = build_parser()
@@ -229,7 +265,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         kwargs["deck_motion"] = True
     try:
         env = gym.make(args.env_id, **kwargs)
-    except (TypeError, ValueError) as e:  # e.g. --deck-motion on an env without that option
+    except (TypeError, ValueError, RuntimeError) as e:  # e.g. --deck-motion on an env without it
         ap.error(f"cannot make {args.env_id} with {kwargs}: {e}")
     try:
         try:

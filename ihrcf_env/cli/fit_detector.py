@@ -16,7 +16,7 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from ihrcf_env.cli.common import check_output, int_in, make_parser, seed_type, write_whole
+from ihrcf_env.cli.common import check_output, command_main, int_in, make_parser, seed_type, write_whole
 
 #: Where the model goes without ``--out``: the working directory.
 DEFAULT_OUTPUT = "detector_model.json"
@@ -63,6 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+@command_main("fit-detector")
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``ihrcf-fit-detector``; returns the process exit code."""
     ap = build_parser()

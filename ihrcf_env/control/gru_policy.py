@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import json
 import os
+import zipfile
+import zlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -44,6 +46,11 @@ WEIGHTS = {
     "w_o": ("A", "F"),
     "b_o": ("A",),
 }
+
+
+class PolicyFileError(ValueError):
+    """A file that is not a GRU policy :meth:`GruPolicy.save` wrote (the message names the file and
+    the problem)."""
 
 
 def _sigmoid(x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -138,13 +145,91 @@ class GruPolicy:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> GruPolicy:
-        """Read a policy :meth:`save` wrote; ValueError naming ``path`` if it is not one."""
+        """Read a policy :meth:`save` wrote; :class:`PolicyFileError` (a ValueError) naming ``path``
+        and the problem if it is not one (not a ``.npz`` archive, truncated, a header or weight
+        missing or of the wrong type)."""
+        name = repr(os.fspath(path))
         try:
+            if not zipfile.is_zipfile(path):
+                raise PolicyFileError(f"{name}: not a GRU policy file (not a .npz archive)")
             with np.load(path, allow_pickle=False) as data:
-                header = json.loads(str(data["header"]))
-                weights = {k: np.array(data[k]) for k in WEIGHTS}
-        except (OSError, KeyError, ValueError, TypeError) as e:
-            raise ValueError(f"{os.fspath(path)!r}: not a GRU policy file ({e})") from None
-        if not isinstance(header, dict) or header.get("format") != FORMAT:
-            raise ValueError(f"{os.fspath(path)!r}: GRU policy format {FORMAT} expected")
-        return cls(weights, header["inputs"], header["obs_size"], dict(header.get("meta", {})))
+                missing = sorted({"header", *WEIGHTS} - set(data.files))
+                if missing:
+                    raise PolicyFileError(f"{name}: not a GRU policy file (no {', '.join(missing)})")
+                header = _read_header(name, data["header"])
+                weights = {k: _read_weight(name, k, data[k]) for k in WEIGHTS}
+        except PolicyFileError:
+            raise
+        except (OSError, EOFError, zipfile.BadZipFile, zlib.error, KeyError, ValueError, TypeError) as e:
+            raise PolicyFileError(f"{name}: not a GRU policy file (unreadable: {_one_line(e)})") from None
+        try:
+            return cls(weights, header["inputs"], header["obs_size"], header["meta"])
+        except (ValueError, TypeError) as e:
+            raise PolicyFileError(f"{name}: not a usable GRU policy ({_one_line(e)})") from None
+
+
+#: Largest header (characters) and input count a policy file may have.
+MAX_HEADER_CHARS = 1_000_000
+MAX_INPUTS = 1_000_000
+
+
+def _one_line(e: BaseException) -> str:
+    text = " ".join(str(e).split()) or type(e).__name__
+    return text if len(text) <= 200 else text[:197] + "..."
+
+
+def _short(value: Any) -> str:
+    """``repr(value)``, cut to 60 characters."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _read_header(name: str, raw: Any) -> dict[str, Any]:
+    """The JSON header of a policy file, its fields checked (format, inputs, obs_size, meta)."""
+    arr = np.asarray(raw)
+    if arr.shape != () or arr.dtype.kind != "U":
+        raise PolicyFileError(
+            f"{name}: header must be one JSON string, got an array of {arr.dtype} {arr.shape}"
+        )
+    text = str(arr)
+    if len(text) > MAX_HEADER_CHARS:
+        raise PolicyFileError(f"{name}: header longer than {MAX_HEADER_CHARS} characters")
+    try:
+        header = json.loads(text)
+    except RecursionError:
+        raise PolicyFileError(f"{name}: header nested too deeply") from None
+    except ValueError as e:
+        raise PolicyFileError(f"{name}: header is not JSON ({_one_line(e)})") from None
+    if not isinstance(header, dict):
+        raise PolicyFileError(f"{name}: header must be a JSON object, got {type(header).__name__}")
+    if header.get("format") != FORMAT:
+        raise PolicyFileError(
+            f"{name}: GRU policy format {FORMAT} expected, got {_short(header.get('format'))}"
+        )
+    for key in ("inputs", "obs_size"):
+        if key not in header:
+            raise PolicyFileError(f"{name}: header has no {key!r}")
+    obs_size = header["obs_size"]
+    if isinstance(obs_size, bool) or not isinstance(obs_size, int) or not 0 < obs_size <= MAX_INPUTS:
+        raise PolicyFileError(
+            f"{name}: header 'obs_size' must be an integer in [1, {MAX_INPUTS}], got {_short(obs_size)}"
+        )
+    inputs = header["inputs"]
+    if (
+        not isinstance(inputs, list)
+        or not 0 < len(inputs) <= MAX_INPUTS
+        or not all(isinstance(i, int) and not isinstance(i, bool) for i in inputs)
+    ):
+        raise PolicyFileError(f"{name}: header 'inputs' must be a non-empty list of integers")
+    meta = header.get("meta", {})
+    if not isinstance(meta, dict):
+        raise PolicyFileError(f"{name}: header 'meta' must be a JSON object, got {type(meta).__name__}")
+    return {"inputs": inputs, "obs_size": obs_size, "meta": dict(meta)}
+
+
+def _read_weight(name: str, key: str, raw: Any) -> NDArray[np.float64]:
+    """The weight ``key`` of a policy file as float64 (real numbers only)."""
+    arr = np.array(raw)
+    if arr.dtype.kind not in "biuf":
+        raise PolicyFileError(f"{name}: weight {key!r} must be real numbers, got {arr.dtype}")
+    return arr.astype(np.float64)

@@ -21,6 +21,8 @@ from ihrcf_env.control.gru_policy import GruPolicy
 from ihrcf_env.control.policies import BlindDescent, Policy, ScriptedLanding
 
 SB3_ALGOS = ("PPO", "SAC", "TD3", "A2C", "DDPG")
+#: The estimate the scripted policy flies on.
+SCRIPTED_ESTIMATOR = "fused"
 
 
 class PolicyError(ValueError):
@@ -138,21 +140,36 @@ def with_deck_motion(
         return None
 
 
+def action_mode(env: gym.Env) -> str:
+    """The ``action_mode`` ("velocity" or "motors") of a landing env (wrapped or not); "velocity"
+    for an env without one."""
+    base: Any = env.unwrapped
+    config = getattr(base, "config", None)
+    world = getattr(config, "world", None)
+    return str(getattr(world, "action_mode", getattr(config, "action_mode", "velocity")))
+
+
 def make_policy(spec: str, env: gym.Env, algo: str = "PPO") -> Policy:
     """The policy of a POLICY argument (see DESCRIPTION) for ``env``; PolicyError naming
     ``--policy`` if it cannot be."""
     base: Any = env.unwrapped
     max_velocity = tuple(float(v) for v in getattr(base, "max_velocity", np.ones(4)))
-    if getattr(getattr(base, "config", None), "action_mode", "velocity") != "velocity":
-        raise PolicyError(f"--policy {spec!r}: the baselines need action_mode='velocity'")
+    baseline = spec == "scripted" or spec.startswith("blind:")
+    if baseline and action_mode(env) != "velocity":
+        raise PolicyError(
+            f"--policy {spec!r}: the baselines fly velocity commands; the env has "
+            f"action_mode={action_mode(env)!r}"
+        )
     if spec == "scripted":
         try:
-            return ScriptedLanding.from_env(env, estimator="fused")
+            return ScriptedLanding.from_env(env, estimator=SCRIPTED_ESTIMATOR)
         except AttributeError:
             raise PolicyError(
                 "--policy scripted needs the v1 observation (obs_slices/obs_scales): use --env-id "
                 + LANDING_V1_ID
             ) from None
+        except ValueError as e:  # the layout lacks the fields it reads
+            raise PolicyError(f"--policy scripted: {e}") from None
     if spec.startswith("blind:"):
         text = spec.removeprefix("blind:")
         try:

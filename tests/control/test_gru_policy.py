@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import corrupt_policy_files, policy_header, write_policy
 
 from ihrcf_env.control.gru_policy import WEIGHTS, GruPolicy
 
@@ -104,3 +105,15 @@ def test_bad_weights_inputs_files_and_observations_are_named(tmp_path: Path) -> 
     np.savez(other, a=np.zeros(3))
     with pytest.raises(ValueError, match="other.npz"):
         GruPolicy.load(other)
+
+
+def test_corrupt_policy_files_raise_the_package_error_naming_file_and_problem(tmp_path: Path) -> None:
+    from ihrcf_env.control.gru_policy import PolicyFileError
+
+    assert GruPolicy.load(write_policy(tmp_path / "ok.npz", policy_header())).obs_size == 8
+    for kind, (path, word) in corrupt_policy_files(tmp_path).items():
+        with pytest.raises(PolicyFileError) as exc:
+            GruPolicy.load(path)
+        text = str(exc.value)
+        assert path.name in text and word in text, (kind, text)
+        assert "allow_pickle" not in text and "\n" not in text, (kind, text)
