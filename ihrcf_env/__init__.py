@@ -37,15 +37,32 @@ DEPRECATED_IDS: dict[str, str] = {
 ENV_IDS: tuple[str, ...] = (HOVER_ID, HOVER_RAW_ID, LANDING_V1_ID, LANDING_V2_ID, *DEPRECATED_IDS)
 
 
-def _deprecated(old: str, new: str, entry: str) -> Any:
-    def make(**kwargs: Any) -> Any:
-        warnings.warn(f"{old} is deprecated: use {new} (same env)", DeprecationWarning, stacklevel=3)
-        module, _, name = entry.partition(":")
-        import importlib
+def _deprecated(old: str, **kwargs: Any) -> Any:
+    """The env the deprecated id ``old`` stands for, made with ``kwargs``, after a
+    DeprecationWarning naming the id to use."""
+    import importlib
 
-        return getattr(importlib.import_module(module), name)(**kwargs)
+    new = DEPRECATED_IDS[old]
+    warnings.warn(f"{old} is deprecated: use {new} (same env)", DeprecationWarning, stacklevel=4)
+    module, _, name = _ENTRY[new].partition(":")
+    return getattr(importlib.import_module(module), name)(**kwargs)
 
-    return make
+
+def _deck_landing_v0(**kwargs: Any) -> Any:
+    """Entry point of the deprecated ``ihrcf_env/DeckLanding-v0``."""
+    return _deprecated("ihrcf_env/DeckLanding-v0", **kwargs)
+
+
+def _deck_landing_raw_v0(**kwargs: Any) -> Any:
+    """Entry point of the deprecated ``ihrcf_env/DeckLandingRaw-v0``."""
+    return _deprecated("ihrcf_env/DeckLandingRaw-v0", **kwargs)
+
+
+#: Deprecated id -> its entry point (module-level functions named by string: the specs serialise).
+_DEPRECATED_ENTRY = {
+    "ihrcf_env/DeckLanding-v0": "ihrcf_env:_deck_landing_v0",
+    "ihrcf_env/DeckLandingRaw-v0": "ihrcf_env:_deck_landing_raw_v0",
+}
 
 
 _ENTRY = {
@@ -71,15 +88,26 @@ def _vector(env_id: str) -> Any:
     return make
 
 
+def _vector_landing_v1(num_envs: int = 1, **options: Any) -> Any:
+    """``gym.make_vec``'s entry point of ``ihrcf_env/DeckLanding-v1`` (see :func:`_vector`)."""
+    return _vector(LANDING_V1_ID)(num_envs, **options)
+
+
+def _vector_landing_v2(num_envs: int = 1, **options: Any) -> Any:
+    """``gym.make_vec``'s entry point of ``ihrcf_env/DeckLanding-v2`` (see :func:`_vector`)."""
+    return _vector(LANDING_V2_ID)(num_envs, **options)
+
+
 #: The ids with a native vector env (``gym.make_vec(id, num_envs=N)``).
 VECTOR_IDS: tuple[str, ...] = (LANDING_V1_ID, LANDING_V2_ID)
+#: Their vector entry points, module-level functions named by string (the specs serialise).
+_VECTOR_ENTRY = {LANDING_V1_ID: "ihrcf_env:_vector_landing_v1", LANDING_V2_ID: "ihrcf_env:_vector_landing_v2"}
 for _id, _entry in _ENTRY.items():
     if _id not in registry:
-        vec = _vector(_id) if _id in VECTOR_IDS else None
-        register(id=_id, entry_point=_entry, vector_entry_point=vec, max_episode_steps=600)
+        register(id=_id, entry_point=_entry, vector_entry_point=_VECTOR_ENTRY.get(_id), max_episode_steps=600)
 for _old, _new in DEPRECATED_IDS.items():
     if _old not in registry:
-        register(id=_old, entry_point=_deprecated(_old, _new, _ENTRY[_new]), max_episode_steps=600)
+        register(id=_old, entry_point=_DEPRECATED_ENTRY[_old], max_episode_steps=600)
 
 
 def make_config(**options: Any) -> Any:

@@ -5,6 +5,7 @@ without close, or by a failed construction."""
 from __future__ import annotations
 
 import gc
+import pickle
 import warnings
 from pathlib import Path
 from typing import Any
@@ -71,10 +72,39 @@ def test_contract(env_id: str, no_leaks: None) -> None:
         env.close()  # twice is fine
 
 
+@pytest.mark.parametrize("env_id", ihrcf_env.ENV_IDS)
+def test_every_spec_serialises(env_id: str) -> None:
+    """``spec.to_json()`` and pickle round trips, entry points named by string (vector ones too)."""
+    spec = gym.spec(env_id)
+    for entry in (spec.entry_point, spec.vector_entry_point):
+        assert entry is None or isinstance(entry, str), entry
+    assert gym.envs.registration.EnvSpec.from_json(spec.to_json()) == spec
+    assert pickle.loads(pickle.dumps(spec)) == spec
+    made = _make(spec.id)  # the spec of a made env, its kwargs included
+    try:
+        assert made.spec is not None
+        assert pickle.loads(pickle.dumps(made.spec)) == made.spec
+        assert gym.envs.registration.EnvSpec.from_json(made.spec.to_json()).id == spec.id
+    finally:
+        made.close()
+
+
+@pytest.mark.parametrize("env_id", ihrcf_env.VECTOR_IDS)
+def test_the_vector_entry_point_makes_the_vector_env(env_id: str) -> None:
+    env = gym.make_vec(env_id, num_envs=2, **FAST)
+    try:
+        assert env.num_envs == 2 and type(env).__module__.startswith("ihrcf_env.")
+        assert env.spec is not None and pickle.loads(pickle.dumps(env.spec)) == env.spec
+    finally:
+        env.close()
+
+
 @pytest.mark.parametrize("env_id", ihrcf_env.DEPRECATED_IDS)
 def test_deprecated_ids_warn_and_make_the_new_env(env_id: str) -> None:
-    with pytest.warns(DeprecationWarning, match=ihrcf_env.DEPRECATED_IDS[env_id]):
+    with pytest.warns(DeprecationWarning, match=ihrcf_env.DEPRECATED_IDS[env_id]) as seen:
         env = gym.make(env_id, **FAST)
+    ours = {Path(w.filename).name for w in seen if "is deprecated: use" in str(w.message)}
+    assert ours == {Path(__file__).name}  # the warning points at the caller
     try:
         new = gym.make(ihrcf_env.DEPRECATED_IDS[env_id], **FAST)
         try:
