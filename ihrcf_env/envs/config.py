@@ -91,6 +91,7 @@ from ihrcf_env.sim.registry import (
 from ihrcf_env.sim.sensors import TOF_PRESETS, CameraConfig, ToFConfig
 from ihrcf_env.sim.sensors.camera import CAMERA_QUALITIES, PIPELINE_LATENCY
 from ihrcf_env.sim.sensors.imu import IMU_NOISE_PRESETS, IMUConfig, IMUNoise
+from ihrcf_env.sim.sensors.tof import MAX_RANGE_BOUNDS as TOF_RANGES
 from ihrcf_env.sim.sensors.tof import VL53L1X
 from ihrcf_env.sim.world import ACTION_MODES, CAMERA_MODELS, CAMERA_OUTPUTS, WorldConfig
 
@@ -655,8 +656,8 @@ def make_config(
     tof_model = model_option(
         "tof_noise", tof_noise, preset["tof_noise"], tuple(TOF_PRESETS), VL53L1X, VL53L1X()
     )
-    max_range = check_positive("tof_max_range", tof_max_range, "m", high=100.0)
-    tof = _built("tof_noise", ToFConfig, max_range=max_range, noise=tof_model, rate_hz=pick("tof_hz", tof_hz))
+    max_range = check_real("tof_max_range", tof_max_range, "m", low=TOF_RANGES[0], high=TOF_RANGES[1])
+    tof = _built("tof_hz", ToFConfig, max_range=max_range, noise=tof_model, rate_hz=pick("tof_hz", tof_hz))
     imu = _built(
         "imu_hz",
         IMUConfig,

@@ -48,6 +48,26 @@ def test_absurd_magnitudes_are_refused_by_name(options: dict[str, Any], name: st
 
 
 @pytest.mark.parametrize(
+    ("options", "name"),
+    [
+        ({"tof_hz": -5}, "tof_hz"),
+        ({"tof_hz": 1e9}, "tof_hz"),
+        ({"tof_hz": "x"}, "tof_hz"),
+        ({"tof_max_range": 0.05}, "tof_max_range"),
+        ({"tof_max_range": 1e300}, "tof_max_range"),
+        ({"tof_max_range": "x"}, "tof_max_range"),
+    ],
+)
+def test_tof_option_errors_start_with_the_option(options: dict[str, Any], name: str) -> None:
+    """The error names the option given, not another one (``tof_noise``)."""
+    from ihrcf_env.envs.config import make_config
+
+    with pytest.raises((TypeError, ValueError)) as exc:
+        make_config(task="landing-v1", raw=True, **options)
+    assert str(exc.value).startswith(name), str(exc.value)
+
+
+@pytest.mark.parametrize(
     "action",
     [np.array([1j, 0, 0, 0]), ["a", "b", "c", "d"], np.array(["0", "0", "0", "0"]), [object()] * 4, None],
 )
