@@ -39,8 +39,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ihrcf_env.core.checks import check_real, describe
+from ihrcf_env.core.estimators.registry import ESTIMATORS
+from ihrcf_env.core.keys import INFO_KEYS, OBSERVATION_KEYS, env_key_reason
 from ihrcf_env.sim import faults as _faults
 from ihrcf_env.sim.noise import NoiseModel, NoNoise
+from ihrcf_env.sim.sensors.base import tag_reading
 
 if TYPE_CHECKING:
     from ihrcf_env.sim.sensors.base import Sensor
@@ -93,10 +96,24 @@ NOISY_MEASUREMENTS: dict[str, int] = {
     "linear_acceleration": 3,
     "tag_corners": 8,
 }
-#: Observation keys the env uses itself.
-RESERVED_KEYS: frozenset[str] = frozenset(
-    {*BUILTIN_MEASUREMENTS, "imu", "camera_age", "nav_velocity", "ground_truth", "motion"}
-)
+#: Names a registered sensor's output may not take: the built-in measurements and the env's own
+#: observation and info keys (:mod:`ihrcf_env.core.keys`); a registered estimator's name is refused
+#: too (it is an observation key of the estimate wrapper).
+RESERVED_KEYS: frozenset[str] = frozenset({*BUILTIN_MEASUREMENTS, *OBSERVATION_KEYS, *INFO_KEYS})
+
+
+def output_name_reason(key: str) -> str | None:
+    """Why a sensor output may not be called ``key`` (the key of the env or of an estimator it
+    would overwrite), or None if it may."""
+    if key in BUILTIN_MEASUREMENTS:
+        return f"a built-in measurement is called {key!r}"
+    reason = env_key_reason(key)
+    if reason is not None:
+        return reason
+    if key in ESTIMATORS:
+        return f"the estimator {key!r} writes obs[{key!r}]"
+    return None
+
 
 SENSORS: dict[str, SensorEntry] = {}
 NOISE_MODELS: dict[str, Callable[[int], NoiseModel]] = {"none": lambda size: NoNoise()}
@@ -120,14 +137,84 @@ def register_sensor(
     for key, out in outputs.items():
         if not isinstance(out, SensorOutput):
             raise TypeError(f"sensor output {key!r} must be a SensorOutput, got {describe(out)}")
-        if not isinstance(key, str) or not key.isidentifier() or key in RESERVED_KEYS:
-            raise ValueError(f"sensor output name {key!r} is not an identifier or is taken by the env")
+        if not isinstance(key, str) or not key.isidentifier():
+            raise ValueError(f"register_sensor({name!r}): output name {key!r} is not an identifier")
+        _check_output_name(name, key)
         for other, entry in SENSORS.items():
             if other != name and key in entry.outputs:
                 raise ValueError(f"sensor output {key!r} is already measured by the sensor {other!r}")
     if name in SENSORS and not replace:
         raise ValueError(f"a sensor {name!r} is already registered (replace=True to replace it)")
-    SENSORS[name] = SensorEntry(factory, dict(outputs))
+    SENSORS[name] = SensorEntry(_checked_sensor_factory(name, factory, dict(outputs)), dict(outputs))
+
+
+def _check_output_name(sensor: str, key: str) -> None:
+    reason = output_name_reason(key)
+    if reason is not None:
+        raise ValueError(f"sensor {sensor!r}: output name {key!r} is reserved, taken by the env ({reason})")
+
+
+def _checked_sensor_factory(
+    name: str, factory: Callable[[World], Sensor], outputs: Mapping[str, SensorOutput]
+) -> Callable[[World], Sensor]:
+    """``factory`` whose sensor is checked when built and whose readings are checked
+    (:class:`CheckedSensor`)."""
+
+    def build(world: World) -> Sensor:
+        sensor = factory(world)
+        for method in ("reset", "read"):
+            if not callable(getattr(sensor, method, None)):
+                raise TypeError(
+                    f"sensor {name!r}: its factory must return a Sensor (reset(rng), read(state, dt, "
+                    f"rng)), got {describe(sensor)} without {method}()"
+                )
+        return CheckedSensor(name, sensor, outputs)
+
+    return build
+
+
+class CheckedSensor:
+    """A registered sensor whose readings are checked: exactly its declared outputs, each of real
+    numbers of its declared size (ValueError / TypeError naming the sensor otherwise). Other
+    attributes (``update_interval``) are the sensor's."""
+
+    def __init__(self, name: str, sensor: Any, outputs: Mapping[str, SensorOutput]) -> None:
+        self.name, self.sensor, self.outputs = name, sensor, outputs
+
+    def __getattr__(self, attr: str) -> Any:
+        return getattr(self.__dict__["sensor"], attr)
+
+    def reset(self, rng: np.random.Generator) -> None:
+        self.sensor.reset(rng)
+
+    def read(self, state: Any, dt: float, rng: np.random.Generator) -> dict[str, NDArray]:
+        reading = self.sensor.read(state, dt, rng)
+        if not isinstance(reading, Mapping) or set(reading) != set(self.outputs):
+            got = sorted(reading) if isinstance(reading, Mapping) else describe(reading)
+            raise ValueError(
+                f"sensor {self.name!r}: read() must return {{output: array}} of its outputs "
+                f"{sorted(self.outputs)}, got {got}"
+            )
+        out: dict[str, NDArray] = {}
+        for key, spec in self.outputs.items():
+            value = _real_array(f"sensor {self.name!r}: output {key!r}", reading[key])
+            if value.size != int(np.prod(spec.shape)):
+                raise ValueError(
+                    f"sensor {self.name!r}: output {key!r} must have shape {spec.shape}, got {value.shape}"
+                )
+            out[key] = value
+        return out
+
+
+def _real_array(what: str, value: Any) -> NDArray:
+    """``value`` as an array of real numbers (bools, ints, floats), or TypeError naming ``what``."""
+    try:
+        a = np.asarray(value)
+    except (TypeError, ValueError):
+        raise TypeError(f"{what} must be an array of real numbers, got {describe(value)}") from None
+    if a.dtype.kind not in "biuf":
+        raise TypeError(f"{what} must be an array of real numbers, got an array of {a.dtype}")
+    return a
 
 
 def register_noise_model(name: str, factory: Callable[[int], NoiseModel], *, replace: bool = False) -> None:
@@ -139,11 +226,58 @@ def register_noise_model(name: str, factory: Callable[[int], NoiseModel], *, rep
         raise TypeError(f"noise model factory must be callable (size -> NoiseModel), got {describe(factory)}")
     if name in NOISE_MODELS and not replace:
         raise ValueError(f"a noise model {name!r} is already registered (replace=True to replace it)")
-    NOISE_MODELS[name] = factory
+    NOISE_MODELS[name] = _checked_noise_factory(name, factory)
+
+
+def _checked_noise_factory(name: str, factory: Callable[[int], NoiseModel]) -> Callable[[int], NoiseModel]:
+    """``factory`` whose model is checked when built and whose outputs are checked
+    (:class:`CheckedNoiseModel`)."""
+
+    def build(size: int) -> NoiseModel:
+        model = factory(size)
+        for method in ("reset", "apply"):
+            if not callable(getattr(model, method, None)):
+                raise TypeError(
+                    f"noise model {name!r}: its factory must return a NoiseModel (reset(rng), "
+                    f"apply(value, valid, dt, rng)), got {describe(model)} without {method}()"
+                )
+        return CheckedNoiseModel(name, model, size)
+
+    return build
+
+
+class CheckedNoiseModel:
+    """A registered noise model whose ``apply`` is checked: ``(value, valid)`` of the measurement's
+    size, real numbers (ValueError / TypeError naming the model otherwise); values it makes
+    non-finite are flagged invalid (see :func:`finite_reading` for what they then read)."""
+
+    def __init__(self, name: str, model: NoiseModel, size: int) -> None:
+        self.name, self.model, self.size = name, model, int(size)
+
+    def __getattr__(self, attr: str) -> Any:
+        return getattr(self.__dict__["model"], attr)
+
+    def reset(self, rng: np.random.Generator) -> None:
+        self.model.reset(rng)
+
+    def apply(
+        self, value: NDArray[np.float64], valid: NDArray[np.bool_], dt: float, rng: np.random.Generator
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        out = self.model.apply(value, valid, dt, rng)
+        what = f"noise model {self.name!r}"
+        if not isinstance(out, tuple | list) or len(out) != 2:
+            raise TypeError(f"{what}: apply() must return (value, valid), got {describe(out)}")
+        noisy = _real_array(f"{what}: value", out[0]).astype(np.float64).ravel()
+        ok = _real_array(f"{what}: valid", out[1]).astype(bool).ravel()
+        for label, a in (("value", noisy), ("valid", ok)):
+            if a.size != self.size:
+                raise ValueError(f"{what}: apply() must return a {label} of {self.size} values, got {a.size}")
+        return noisy, ok & np.isfinite(noisy)
 
 
 def check_sensor_names(value: Any) -> tuple[str, ...]:
-    """The ``sensors`` option: registered names, each once."""
+    """The ``sensors`` option: registered names, each once, whose outputs clash with no key of the
+    env or of a registered estimator."""
     if isinstance(value, str) or not isinstance(value, tuple | list):
         raise TypeError(f"sensors must be a sequence of registered sensor names, got {describe(value)}")
     names = tuple(value)
@@ -152,6 +286,9 @@ def check_sensor_names(value: Any) -> tuple[str, ...]:
             raise ValueError(f"sensors: unknown sensor {n!r}; registered: {sorted(SENSORS)}")
     if len(set(names)) != len(names):
         raise ValueError(f"sensors: a name is given twice in {list(names)}")
+    for n in names:  # an estimator registered after the sensor may have taken an output's name
+        for key in SENSORS[n].outputs:
+            _check_output_name(n, key)
     return names
 
 
@@ -347,10 +484,70 @@ def apply_faults(
     dt: float,
     generator: Callable[[str], np.random.Generator],
 ) -> dict[str, NDArray]:
-    """``reading`` through every fault in order; ``generator(name)`` is the fault's stream."""
+    """``reading`` through every fault in order; ``generator(name)`` is the fault's stream. Each
+    fault must return the reading's keys with their shapes (ValueError / TypeError naming it)."""
     out = dict(reading)
     for name, fault in faults.items():
-        out = fault.apply(out, time, dt, generator(name))
+        new = fault.apply(out, time, dt, generator(name))
+        if not isinstance(new, Mapping) or set(new) != set(out):
+            got = sorted(new) if isinstance(new, Mapping) else describe(new)
+            raise ValueError(
+                f"faults[{name!r}]: apply() must return the reading's keys {sorted(out)}, got {got}"
+            )
+        for key, value in new.items():
+            before = np.asarray(out[key])
+            if before.dtype.kind not in "biuf":  # text (a reason) or other values: passed as they are
+                continue
+            a = _real_array(f"faults[{name!r}]: {key!r}", value)
+            if a.shape != before.shape:
+                raise ValueError(
+                    f"faults[{name!r}]: {key!r} must keep its shape {before.shape}, got {a.shape}"
+                )
+        out = dict(new)
+    return out
+
+
+#: ``tag_reason`` of tag corners a noise model or fault made non-finite.
+REASON_NOT_FINITE = "tag corners not finite (measurement noise or fault)"
+#: Measurements with a validity flag: non-finite values there are flagged invalid, not refused.
+_FLAGGED = ("ranges", "tag_corners")
+
+
+def finite_reading(
+    reading: Mapping[str, NDArray],
+    max_range: float,
+    noise: Mapping[str, object] | None = None,
+    faults: Mapping[str, object] | None = None,
+) -> dict[str, NDArray]:
+    """``reading`` after its noise models and faults, with no NaN/inf left: non-finite ranges read
+    ``max_range`` (m) with ``ranges_valid = 0``, as a reading with no target does; non-finite tag
+    corners make the frame a non-detection (``tag_reason`` :data:`REASON_NOT_FINITE`). Any other
+    built-in measurement (the IMU's) that is not finite raises ValueError naming it and the noise
+    models and faults configured (``noise``: measurement -> model, ``faults``: name -> fault);
+    registered sensors' outputs pass (the observation reads their NaN as the output's low). Without
+    noise models and faults the reading passes as it is (the built-in sensors' readings are
+    finite)."""
+    if not noise and not faults:
+        return dict(reading)
+    out = dict(reading)
+    if "ranges" in out:
+        r = np.asarray(out["ranges"])
+        bad = ~np.isfinite(r)
+        if bad.any():
+            out["ranges"] = np.where(bad, max_range, r).astype(r.dtype)
+            if "ranges_valid" in out:
+                v = np.asarray(out["ranges_valid"])
+                out["ranges_valid"] = np.where(bad, 0, v).astype(v.dtype)
+    if "tag_corners" in out and not np.isfinite(np.asarray(out["tag_corners"], np.float64)).all():
+        out.update({k: v for k, v in tag_reading(None, REASON_NOT_FINITE).items() if k in out})
+    for key in BUILTIN_MEASUREMENTS:
+        if key in out and key not in _FLAGGED and np.asarray(out[key]).dtype.kind == "f":
+            if not np.isfinite(out[key]).all():
+                models = {k: getattr(m, "name", type(m).__name__) for k, m in (noise or {}).items()}
+                raise ValueError(
+                    f"measurement {key!r} is not finite after the noise models {models} and the "
+                    f"faults {sorted(faults or {})}: a noise model or fault returned NaN or inf"
+                )
     return out
 
 

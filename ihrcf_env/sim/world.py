@@ -32,7 +32,7 @@ from ihrcf_env.sim.disturbances import Disturbance, disturbance_force
 from ihrcf_env.sim.drone import QuadParams, Quadrotor, VelocityController, VelocityGains
 from ihrcf_env.sim.ground_effect import GroundEffect, deck_surface, rotor_positions
 from ihrcf_env.sim.navigation import Navigation, NavigationConfig, make_navigation
-from ihrcf_env.sim.registry import apply_faults
+from ihrcf_env.sim.registry import apply_faults, finite_reading
 from ihrcf_env.sim.sensors import IMU, BodyState, CameraConfig, DownCamera, Sensor, ToFArray, ToFConfig
 from ihrcf_env.sim.sensors.base import TAG_CAMERA
 from ihrcf_env.sim.sensors.imu import IMUConfig
@@ -718,7 +718,7 @@ class World:
             reading = self._corrupt(reading, dt, rng)
         if self.faults:
             reading = apply_faults(self.faults, reading, state.time, dt, self._fault_rng(rng))
-        return reading
+        return finite_reading(reading, self.config.tof.max_range, self.corruptors, self.faults)
 
     def _read_delayed(
         self, name: str, state: BodyState, exposing: bool, dt: float, rng: np.random.Generator | None

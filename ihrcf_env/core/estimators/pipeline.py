@@ -8,6 +8,7 @@ from collections.abc import Iterable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ihrcf_env.core.checks import describe
 from ihrcf_env.core.estimators.atda import ATDAEstimator
 from ihrcf_env.core.estimators.base import DeckPoseSource, ImuSample, PoseEstimate, SensorFrame
 from ihrcf_env.core.estimators.detector import TagDetector
@@ -124,8 +125,18 @@ class DeckPoseEstimator:
         )
 
     def update(self, frame: SensorFrame) -> dict[str, PoseEstimate]:
-        """Feed ``frame`` to every estimator, in order: name -> estimate."""
-        return {name: source.update(frame) for name, source in self.sources.items()}
+        """Feed ``frame`` to every estimator, in order: name -> estimate (TypeError naming an
+        estimator whose ``update`` returns anything but a PoseEstimate)."""
+        out: dict[str, PoseEstimate] = {}
+        for name, source in self.sources.items():
+            est = source.update(frame)
+            if not isinstance(est, PoseEstimate):
+                raise TypeError(
+                    f"estimator {name!r}: update() must return a PoseEstimate "
+                    f"(PoseEstimate.invalid(reason) when there is none), got {describe(est)}"
+                )
+            out[name] = est
+        return out
 
     def estimate(
         self, image: ArrayLike, ranges: ArrayLike, ranges_valid: ArrayLike

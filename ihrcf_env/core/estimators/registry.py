@@ -19,10 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ihrcf_env.core.checks import describe
 from ihrcf_env.core.estimators.atda import ATDAEstimator
 from ihrcf_env.core.estimators.base import DeckPoseSource
 from ihrcf_env.core.estimators.fused import FusedEstimator, FusedParams
 from ihrcf_env.core.estimators.ihrcf import IHRCFEstimator, TouchPixels
+from ihrcf_env.core.keys import estimator_name_reason, reserved_estimator_names
 from ihrcf_env.core.rig import SensorRig
 
 
@@ -73,8 +75,9 @@ def register_estimator(name: str, factory: EstimatorFactory, *, replace: bool = 
         raise ValueError(
             f"estimator name must be an identifier (it becomes an observation key), got {name!r}"
         )
-    if name in RESERVED_NAMES:
-        raise ValueError(f"estimator name {name!r} is reserved for another observation key")
+    reason = estimator_name_reason(name)
+    if reason is not None:
+        raise ValueError(f"register_estimator: the name {name!r} is reserved ({reason})")
     if not callable(factory):
         raise TypeError(f"factory must be callable (EstimatorConfig -> DeckPoseSource), got {factory!r}")
     if name in ESTIMATORS and not replace:
@@ -92,11 +95,9 @@ def unregister_estimator(name: str) -> None:
 #: The estimators of ``ihrcf_env/DeckHover-v0`` (its observation layout), in order.
 DEFAULT_ESTIMATORS: tuple[str, ...] = ("ihrcf", "atda", "fused")
 
-#: Observation keys an estimator may not take.
-RESERVED_NAMES: frozenset[str] = frozenset(
-    {"ground_truth", "image", "ranges", "ranges_valid", "imu", "tag_corners", "tag_detected", "tag_status"}
-    | {"camera_age", "nav_velocity", "motion"}
-)
+#: Names an estimator may not take: the env's own observation and info keys, and the names whose
+#: info keys (``f"{name}_reason"``, ...) would be one of them (:mod:`ihrcf_env.core.keys`).
+RESERVED_NAMES: frozenset[str] = reserved_estimator_names()
 
 
 def check_estimator_names(names: Iterable[str]) -> tuple[str, ...]:
@@ -108,8 +109,9 @@ def check_estimator_names(names: Iterable[str]) -> tuple[str, ...]:
     for n in out:
         if not isinstance(n, str):
             raise TypeError(f"estimators must contain names (str), got {type(n).__name__}")
-        if n in RESERVED_NAMES:
-            raise ValueError(f"estimators: {n!r} is reserved for another observation key")
+        reason = estimator_name_reason(n)
+        if reason is not None:
+            raise ValueError(f"estimators: the name {n!r} is reserved ({reason})")
         if n not in ESTIMATORS:
             raise ValueError(f"estimators: unknown name {n!r}; registered: {sorted(ESTIMATORS)}")
     if len(set(out)) != len(out):
@@ -117,6 +119,21 @@ def check_estimator_names(names: Iterable[str]) -> tuple[str, ...]:
     if not out:
         raise ValueError("estimators must name at least one estimator")
     return out
+
+
+def check_source(name: str, source: object) -> None:
+    """TypeError / ValueError naming the estimator ``name`` unless its factory's result ``source``
+    is a :class:`~ihrcf_env.core.estimators.base.DeckPoseSource` called ``name``."""
+    for method in ("reset", "update"):
+        if not callable(getattr(source, method, None)):
+            raise TypeError(
+                f"estimator {name!r}: its factory must return a DeckPoseSource (name, reset(), "
+                f"update(frame)), got {describe(source)} without {method}()"
+            )
+    own = getattr(source, "name", None)
+    if own != name:
+        called = repr(own) if isinstance(own, str) else describe(own)
+        raise ValueError(f"estimator {name!r}: it calls itself {called}; its name must be {name!r}")
 
 
 def build_estimators(
@@ -128,7 +145,6 @@ def build_estimators(
     out: dict[str, DeckPoseSource] = {}
     for n in check_estimator_names(names):
         source = ESTIMATORS[n](config)
-        if source.name != n:
-            raise ValueError(f"estimator registered as {n!r} calls itself {source.name!r}")
+        check_source(n, source)
         out[n] = source
     return out
