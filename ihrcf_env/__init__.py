@@ -73,38 +73,19 @@ _ENTRY = {
 }
 
 
-def _vector(env_id: str) -> Any:
-    """``gym.make_vec``'s entry point of ``env_id`` (:mod:`ihrcf_env.wrappers.vector`)."""
-
-    def make(num_envs: int = 1, workers: int = 1, **options: Any) -> Any:
-        from ihrcf_env.core.checks import check_int
-        from ihrcf_env.wrappers.vector import DeckLandingVectorEnv
-        from ihrcf_env.wrappers.vector_workers import MAX_WORKERS, WorkerVectorEnv
-
-        if check_int("workers", workers, low=1, high=MAX_WORKERS) > 1:
-            return WorkerVectorEnv(env_id, num_envs, workers, **options)
-        return DeckLandingVectorEnv(env_id, num_envs, **options)
-
-    return make
-
-
-def _vector_landing_v1(num_envs: int = 1, **options: Any) -> Any:
-    """``gym.make_vec``'s entry point of ``ihrcf_env/DeckLanding-v1`` (see :func:`_vector`)."""
-    return _vector(LANDING_V1_ID)(num_envs, **options)
-
-
-def _vector_landing_v2(num_envs: int = 1, **options: Any) -> Any:
-    """``gym.make_vec``'s entry point of ``ihrcf_env/DeckLanding-v2`` (see :func:`_vector`)."""
-    return _vector(LANDING_V2_ID)(num_envs, **options)
+#: ``gym.make_vec``'s entry point of each id with a native vector env (:mod:`ihrcf_env.vector`).
+_VECTOR_ENTRY = {
+    LANDING_V1_ID: "ihrcf_env.vector:make_landing_v1",
+    LANDING_V2_ID: "ihrcf_env.vector:make_landing_v2",
+}
 
 
 #: The ids with a native vector env (``gym.make_vec(id, num_envs=N)``).
-VECTOR_IDS: tuple[str, ...] = (LANDING_V1_ID, LANDING_V2_ID)
-#: Their vector entry points, module-level functions named by string (the specs serialise).
-_VECTOR_ENTRY = {LANDING_V1_ID: "ihrcf_env:_vector_landing_v1", LANDING_V2_ID: "ihrcf_env:_vector_landing_v2"}
+VECTOR_IDS: tuple[str, ...] = tuple(_VECTOR_ENTRY)
 for _id, _entry in _ENTRY.items():
     if _id not in registry:
-        register(id=_id, entry_point=_entry, vector_entry_point=_VECTOR_ENTRY.get(_id), max_episode_steps=600)
+        vec = _VECTOR_ENTRY.get(_id)
+        register(id=_id, entry_point=_entry, vector_entry_point=vec, max_episode_steps=600)
 for _old, _new in DEPRECATED_IDS.items():
     if _old not in registry:
         register(id=_old, entry_point=_DEPRECATED_ENTRY[_old], max_episode_steps=600)

@@ -54,6 +54,8 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
     ),
     "envs": ("ihrcf_env.wrappers", "ihrcf_env.experiments", "ihrcf_env.cli", *_LEARNING),
     "wrappers": ("ihrcf_env.experiments", "ihrcf_env.cli", *_LEARNING),
+    # the vector envs sit at the wrappers' level: envs by id, stepped together
+    "vector": ("ihrcf_env.experiments", "ihrcf_env.cli", *_LEARNING),
     "experiments": ("ihrcf_env.cli", *_LEARNING),
     # learning glue (SB3 / RLlib) sits on the Gymnasium API: envs by id, never the simulator
     "rl": ("pybullet", "ihrcf_env.sim", "ihrcf_env.experiments", "ihrcf_env.cli"),

@@ -44,7 +44,7 @@ from ihrcf_env.experiments.vector_speed import (
     vector_speed,
 )
 from ihrcf_env.sim.world import PHYSICS_BACKENDS
-from ihrcf_env.wrappers.vector import MAX_ENVS
+from ihrcf_env.vector.checks import MAX_ENVS
 
 MILD_DISTORTION = (-0.05, 0.0)
 #: ``--vector``'s N when it has no values.

@@ -3,7 +3,7 @@
 NumPy's BLAS (OpenBLAS in the PyPI wheels) starts one thread per core in every process. Several
 processes on the same cores, each stepping small arrays, then spend more time handing work between
 their threads than doing it. The worker processes of this package (:class:`WorkerVectorEnv
-<ihrcf_env.wrappers.vector_workers.WorkerVectorEnv>`, the DAgger flyers, the benchmarks) are
+<ihrcf_env.vector.workers.WorkerVectorEnv>`, the DAgger flyers, the benchmarks) are
 started inside :func:`one_blas_thread`, so each runs one BLAS / OpenMP thread: the variables below,
 read by those libraries when a process loads them, unless the user has set them.
 :func:`limit_blas_threads` does the same for the libraries already loaded in this process.

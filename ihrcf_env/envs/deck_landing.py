@@ -210,13 +210,27 @@ class DeckLandingEnv(gym.Env):
         return obs, info
 
     def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:
+        a = self.begin_step(action)
+        return self.end_step(a, self.world.step())
+
+    def begin_step(self, action: Any) -> NDArray[np.float64]:
+        """The first phase of :meth:`step`: check the env's state and ``action`` and hand the action
+        to the autopilot or the motors (:meth:`apply_action`); returns it as floats. Then the world
+        advances one control period (``world.step()``, or a vector env's batched physics) and
+        :meth:`end_step` finishes the step."""
         self._check_open()
         if self._profile is None:
             raise RuntimeError("call reset() before step()")
         if self._episode_over:
             raise RuntimeError("episode is over (terminated): call reset() before stepping again")
-        a = self.apply_action(action)
-        touchdown = self.world.step()
+        return self.apply_action(action)
+
+    def end_step(
+        self, action: NDArray[np.float64], touchdown: Touchdown | None
+    ) -> tuple[dict, float, bool, bool, dict]:
+        """The last phase of :meth:`step`, once the world advanced one control period: the sensors
+        read, the outcome, reward and info. ``action`` is what :meth:`begin_step` returned,
+        ``touchdown`` the world's first contact in the period (None: none)."""
         if touchdown is not None and self._last_touchdown is None:
             self._last_touchdown = touchdown
         snap = self.world.snapshot()
@@ -224,7 +238,7 @@ class DeckLandingEnv(gym.Env):
         terminated = outcome != "flying"
         self._episode_over = terminated
         obs = self._get_obs()
-        reward, terms = self._get_rew(a, outcome, snap)
+        reward, terms = self._get_rew(action, outcome, snap)
         info = self._get_info(snap)
         info.update(terms)
         info["outcome"] = outcome
@@ -243,8 +257,7 @@ class DeckLandingEnv(gym.Env):
 
     def apply_action(self, action: Any) -> NDArray[np.float64]:
         """Check ``action`` and hand it to the autopilot (velocity setpoint) or the motors; returns
-        it as floats. :meth:`step` starts with this; a vector env applies the actions of all its
-        envs before advancing their physics together (applying the same action twice is a no-op)."""
+        it as floats (:meth:`begin_step` hands the step's action over with this)."""
         a = _check_action(action)
         if self.config.world.action_mode == "velocity":
             self.world.set_velocity_setpoint(a * self.max_velocity)

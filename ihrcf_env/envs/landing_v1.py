@@ -124,8 +124,10 @@ class DeckLandingV1Env(DeckLandingEnv):
         info["is_success"] = False
         return obs, info
 
-    def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:
-        obs, reward, terminated, truncated, info = super().step(action)
+    def end_step(
+        self, action: NDArray[np.float64], touchdown: Touchdown | None
+    ) -> tuple[dict, float, bool, bool, dict]:
+        obs, reward, terminated, truncated, info = super().end_step(action, touchdown)
         info["is_success"] = info["outcome"] == "success"
         return obs, reward, terminated, truncated, info
 

@@ -41,6 +41,7 @@ from ihrcf_env.core.batch import pipeline
 from ihrcf_env.core.batch.fused import BatchFused
 from ihrcf_env.core.batch.pipeline import BatchDeckPoseEstimator
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
+from ihrcf_env.envs.landing_v1 import DeckLandingV1Env
 from ihrcf_env.experiments.vector_speed import single_speed
 from ihrcf_env.sim.batched import loop
 from ihrcf_env.sim.batched.autopilot import BatchedVelocityController
@@ -48,11 +49,11 @@ from ihrcf_env.sim.batched.dynamics import BatchedQuadrotor
 from ihrcf_env.sim.batched.external import ExternalInputs
 from ihrcf_env.sim.batched.ranging import BatchedToF
 from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
-from ihrcf_env.wrappers import vector
+from ihrcf_env.vector import env as vector
+from ihrcf_env.vector.env import DeckLandingVectorEnv
+from ihrcf_env.vector.obs import BatchedObservations
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
 from ihrcf_env.wrappers.landing_obs import LandingObservation
-from ihrcf_env.wrappers.vector import DeckLandingVectorEnv
-from ihrcf_env.wrappers.vector_obs import BatchedObservations
 
 ARRAYS, PER_ENV, MIXED = "arrays", "per env", "mixed"
 KINDS = (ARRAYS, PER_ENV, MIXED)
@@ -86,8 +87,12 @@ STAGES: tuple[Stage, ...] = (
     Stage("sensors: camera cast, per world", PER_ENV, ((loop, "_prefetch_camera"),)),
     Stage("sensors: ToF cast, batched", ARRAYS, ((BatchedToF, "cone_returns"), (BatchedToF, "true_ranges"))),
     Stage("sensors: ToF cast, per world", PER_ENV, ((loop, "_prefetch_ranges"), (loop, "prefetch"))),
-    Stage("task: actions applied", PER_ENV, ((DeckLandingEnv, "apply_action"),)),
-    Stage("task: each env's step (sensor reads, reward, info)", PER_ENV, ((LandingObservation, "step_raw"),)),
+    Stage("task: actions applied", PER_ENV, ((DeckLandingEnv, "begin_step"),)),
+    Stage(
+        "task: each env's step (sensor reads, reward, info)",
+        PER_ENV,
+        ((DeckLandingEnv, "end_step"), (DeckLandingV1Env, "end_step"), (LandingObservation, "take_step")),
+    ),
     Stage("task: each env's reset", PER_ENV, ((LandingObservation, "reset_raw"),)),
     Stage("estimators: each env's frame", PER_ENV, ((EstimatorStage, "prepare"),)),
     Stage(
@@ -107,7 +112,7 @@ STAGES: tuple[Stage, ...] = (
     Stage(
         "estimators and observation: each env's own (not batched)",
         PER_ENV,
-        ((LandingObservation, "step"), (LandingObservation, "reset")),
+        ((LandingObservation, "observe_step"), (LandingObservation, "reset")),
     ),
     Stage("info: stacked", PER_ENV, ((vector, "stack_infos"),)),
     Stage(

@@ -39,8 +39,8 @@ from ihrcf_env.control.policies import LANDING_CONFIGS, V1_LANDING_CONFIG, Scrip
 from ihrcf_env.core.checks import check_int
 from ihrcf_env.core.threads import one_blas_thread
 from ihrcf_env.rl.envs import make_env
-from ihrcf_env.wrappers.vector import MAX_ENVS, resolve_batch
-from ihrcf_env.wrappers.vector_info import unbatch_info
+from ihrcf_env.vector.checks import MAX_ENVS, resolve_batch
+from ihrcf_env.vector.info import unbatch_info
 
 
 @dataclass

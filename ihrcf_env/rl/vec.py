@@ -8,7 +8,7 @@ terminated); ``info`` is a list of one dict per env. Gymnasium's same-step autor
 returned, the final one in ``info["final_obs"]``, the final step's info in ``info["final_info"]``),
 so :class:`Sb3VectorEnv` takes vector envs in that mode and only unbatches.
 
-The next-step autoreset of :class:`~ihrcf_env.wrappers.vector.DeckLandingVectorEnv` cannot be
+The next-step autoreset of :class:`~ihrcf_env.vector.env.DeckLandingVectorEnv` cannot be
 translated exactly through the vector env API: the next episode's first observation only comes
 from the next ``step()``, which also advances every other env (and resets of single envs are not
 part of that API). :func:`make_sb3_vec_env` therefore makes the native vector env with
@@ -29,7 +29,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
-from ihrcf_env.wrappers.vector_info import unbatch_info
+from ihrcf_env.vector.info import unbatch_info
 
 
 def _autoreset_mode(env: VectorEnv) -> Any:

@@ -277,8 +277,8 @@ class World:
         self._acc_world = np.zeros(3)
         self._setpoint = (0.0, 0.0, 0.0, 0.0)
         self._mode_velocity = cfg.action_mode == "velocity"
-        #: numpy physics in a vector env: (command key, touchdown) of a step already advanced
-        self._advanced: tuple[tuple[object, ...], Touchdown | None] | None = None
+        if self.config.physics == "numpy":
+            pass
         self._snapshot: Snapshot | None = None  # memo of snapshot(), valid for _snapshot_key
         self._snapshot_key = b""
         self._rotation = np.eye(3)  # memo of _drone_rotation(), valid for _rotation_key
@@ -331,7 +331,6 @@ class World:
             stroke_checked=stroke_checked,
         )
         self.tick = 0
-        self._advanced = None
         self._held = {}
         self.sample_times = dict.fromkeys(self.sensors, math.nan)
         for clock in self.clocks.values():
@@ -492,15 +491,6 @@ class World:
         """Advance one control period (``substeps`` physics steps); return the first contact, if any."""
         self._check_open()
         if self.config.physics == "numpy":
-            done = self._advanced
-            if done is not None:  # advanced with other worlds (a vector env): hand over the result
-                self._advanced = None
-                if done[0] != self._command_key():
-                    raise RuntimeError(
-                        "the command changed between the batched physics step and step(): a wrapper "
-                        "between the vector env and the task changed the action"
-                    )
-                return done[1]
             from ihrcf_env.sim.batched.loop import advance
 
             return advance([self])[0]
@@ -553,15 +543,8 @@ class World:
         self._acc_world = (np.asarray(v_now) - np.asarray(prev_vel)) / dt
         return first
 
-    def _command_key(self) -> tuple[object, ...]:
-        """What the autopilot or the motors are commanded now (a key: equal commands, equal keys)."""
-        return (self._mode_velocity, self._setpoint, tuple(self._motor_cmd))
-
-    def mark_advanced(self, touchdown: Touchdown | None) -> None:
-        """Numpy physics: this control step was already advanced together with other worlds (by
-        :func:`ihrcf_env.sim.batched.loop.advance`): the next :meth:`step` returns ``touchdown``
-        without advancing again."""
-        self._advanced = (self._command_key(), touchdown)
+        if self.config.physics == "numpy":
+            from ihrcf_env.sim.batched.loop import advance
 
     def _check_contact(self, approach_velocity: tuple[float, ...]) -> Touchdown | None:
         """Touchdown record if the drone touches anything after this physics step.

@@ -49,7 +49,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Iterable, Mapping
-from typing import Any
+from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -216,8 +216,20 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return self._flatten(raw, info), info
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
-        raw, reward, terminated, truncated, info = self.step_raw(action)
-        return self._flatten(raw, info), float(reward), terminated, truncated, info
+        return self.observe_step(*self.env.step(action))
+
+    def observe_step(
+        self,
+        raw: dict[str, Any],
+        reward: SupportsFloat,
+        terminated: bool,
+        truncated: bool,
+        info: dict[str, Any],
+    ) -> tuple[Any, float, bool, bool, dict]:
+        """:meth:`step` given the wrapped env's step results (a vector env steps the task itself):
+        :meth:`take_step`, then the observation."""
+        raw, reward, terminated, truncated, info = self.take_step(raw, reward, terminated, truncated, info)
+        return self._flatten(raw, info), reward, terminated, truncated, info
 
     def reset_raw(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -231,10 +243,16 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             self.batch.reset()
         return self.env.reset(seed=seed, options=options)
 
-    def step_raw(self, action: Any) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
-        """Step the wrapped env; its raw results (the first half of :meth:`step`: :meth:`complete`
-        makes the observation)."""
-        raw, reward, terminated, truncated, info = self.env.step(action)
+    def take_step(
+        self,
+        raw: dict[str, Any],
+        reward: SupportsFloat,
+        terminated: bool,
+        truncated: bool,
+        info: dict[str, Any],
+    ) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        """Take the wrapped env's step results (this wrapper's clock advances one step); returns
+        them (the first half of :meth:`step`: :meth:`complete` makes the observation)."""
         self.stage.tick()
         return raw, float(reward), terminated, truncated, info
 
@@ -245,7 +263,7 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         estimates: dict[str, PoseEstimate] | None,
         motion: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
     ) -> NDArray[np.float32]:
-        """The observation of ``raw`` (from :meth:`reset_raw` / :meth:`step_raw`) given the
+        """The observation of ``raw`` (from :meth:`reset_raw` / :meth:`take_step`) given the
         ``estimates`` of the frame ``stage.prepare(raw)`` returned (None when it returned None) and
         the fused filter's deck ``motion`` after them (see :meth:`observe`); adds the estimates'
         reasons and ages to ``info``."""

@@ -8,7 +8,7 @@ import pytest
 
 from ihrcf_env.experiments import vector_stages as vs
 from ihrcf_env.sim.batched.autopilot import BatchedVelocityController
-from ihrcf_env.wrappers import vector
+from ihrcf_env.vector import env as vector
 
 
 def test_timers_are_removed_after_the_run() -> None:

@@ -69,7 +69,7 @@ def test_train_rllib_on_the_native_vector_env(tmp_path: Path, capsys: pytest.Cap
     pytest.importorskip("torch")
     from ihrcf_env.rl.curves import read_csv
     from ihrcf_env.rl.rllib import env_creator
-    from ihrcf_env.wrappers.vector import DeckLandingVectorEnv
+    from ihrcf_env.vector import DeckLandingVectorEnv
 
     # what RLlib's runners call with gym_env_vectorize_mode=VECTOR_ENTRY_POINT: the config + num_envs
     venv = env_creator({"camera_model": CAMERA, "max_episode_steps": 50, "num_envs": 2})

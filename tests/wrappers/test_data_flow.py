@@ -60,9 +60,8 @@ def test_wrappers_reach_the_base_env_only_for_its_config() -> None:
                 assert not is_env, f"{path.name}:{node.lineno} reads .{node.attr} of an env"
         uses = [n.lineno for n in ast.walk(tree) if isinstance(n, ast.Attribute) and n.attr == "unwrapped"]
         if uses:
-            # the observation wrappers read the task's config; the vector env steps its tasks'
-            # physics together (control, not data: observations flow through each env's step)
-            allowed = {"estimates.py": "base_config", "vector.py": "task_envs"}
+            # the observation wrappers read the task's config
+            allowed = {"estimates.py": "base_config"}
             assert path.name in allowed, f"{path.name} uses env.unwrapped at lines {uses}"
             func = next(
                 n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef) and n.name == allowed[path.name]

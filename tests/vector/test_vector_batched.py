@@ -9,12 +9,11 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
-from test_estimator_registry import BelowAtHeight
 
 import ihrcf_env
-from ihrcf_env.core.estimators import ESTIMATORS
+from ihrcf_env.core.estimators import ESTIMATORS, EstimatorConfig, PoseEstimate, SensorFrame
+from ihrcf_env.vector import BATCH_FROM, DeckLandingVectorEnv
 from ihrcf_env.wrappers.landing_obs import landing_obs_fields
-from ihrcf_env.wrappers.vector import BATCH_FROM, DeckLandingVectorEnv
 
 V2 = ihrcf_env.LANDING_V2_ID
 #: camera latency, lost frames (moderate), both optional observation blocks
@@ -109,6 +108,21 @@ def test_other_estimators_step_their_own_chains(toy_registered: None) -> None:
         DeckLandingVectorEnv(
             V2, 2, camera_model="projected", estimators=("ihrcf", "toy"), batch_estimators=True
         )
+
+
+class BelowAtHeight:
+    """A toy estimator without a batched form: the deck straight below at 1 m, level."""
+
+    name = "toy"
+
+    def __init__(self, config: EstimatorConfig) -> None:
+        self.config = config
+
+    def reset(self) -> None:
+        pass
+
+    def update(self, frame: SensorFrame) -> PoseEstimate:
+        return PoseEstimate.from_body_pose(np.eye(3), [0.0, 0.0, -1.0], 0.0)
 
 
 @pytest.fixture

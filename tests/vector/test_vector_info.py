@@ -10,7 +10,7 @@ import pytest
 from gymnasium.vector import VectorEnv
 
 import ihrcf_env
-from ihrcf_env.wrappers.vector_info import stack_infos
+from ihrcf_env.vector.info import stack_infos
 
 
 class _Ref(VectorEnv):

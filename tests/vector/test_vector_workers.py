@@ -2,23 +2,32 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_limits
 
 import ihrcf_env
-from ihrcf_env.wrappers.vector_workers import WorkerVectorEnv, merge_infos
+from ihrcf_env.vector.workers import WorkerVectorEnv, merge_infos
 
 V2 = ihrcf_env.LANDING_V2_ID
 OPTIONS: dict[str, Any] = {"camera_model": "projected", "level": "calm", "max_episode_steps": 8}
 
 
+@pytest.fixture
+def one_blas_thread() -> Iterator[None]:
+    """This process's BLAS on one thread, as the workers' (the last bits of some BLAS products
+    depend on the number of threads)."""
+    with threadpool_limits(limits=1):
+        yield
+
+
 @pytest.mark.parametrize("batch", [None, True])
 def test_workers_reproduce_the_one_process_vector_env(
-    closing: Callable[[Any], Any], batch: bool | None
+    closing: Callable[[Any], Any], batch: bool | None, one_blas_thread: None
 ) -> None:
     """3 envs over 2 workers (2 + 1) against one DeckLandingVectorEnv of 3: observations, rewards,
     flags and info equal bit for bit, through a next-step autoreset (the batched estimators' rows
@@ -86,9 +95,7 @@ def test_bad_workers_are_refused_by_name(workers: Any, error: type[Exception]) -
         gym.make_vec(V2, num_envs=4, workers=workers, **OPTIONS)
 
 
-def test_a_worker_error_reaches_the_parent(closing: Callable[[Any], Any]) -> None:
-    with pytest.raises(RuntimeError, match="worker 0 failed(.|\n)*camera_model"):
-        gym.make_vec(V2, num_envs=2, workers=2, camera_model="pinhole")
+def test_bad_actions_and_a_closed_env_are_named(closing: Callable[[Any], Any]) -> None:
     w = closing(gym.make_vec(V2, num_envs=2, workers=2, **OPTIONS))
     w.reset(seed=0)
     with pytest.raises(ValueError, match="actions"):

@@ -11,7 +11,7 @@ import pytest
 
 import ihrcf_env
 from ihrcf_env.control.policies import ScriptedLanding
-from ihrcf_env.wrappers.vector import DeckLandingVectorEnv
+from ihrcf_env.vector import DeckLandingVectorEnv
 
 V2 = ihrcf_env.LANDING_V2_ID
 OPTIONS: dict[str, Any] = {"camera_model": "projected", "level": "calm"}
@@ -151,3 +151,33 @@ def test_same_step_autoreset_returns_the_next_first_observation(
 def test_an_unknown_autoreset_mode_is_refused_by_name(make_vec: Callable[..., Any]) -> None:
     with pytest.raises(ValueError, match="autoreset_mode"):
         make_vec(1, autoreset_mode="whenever")
+
+
+def test_the_time_limit_comes_from_the_spec_and_no_wrapper_is_stripped(closing: Callable[[Any], Any]) -> None:
+    """The sub-envs are what the id's entry point makes (no TimeLimit, OrderEnforcing or checker
+    under them); the limit is the spec's unless max_episode_steps overrides it (-1: none)."""
+    from ihrcf_env.wrappers.landing_obs import LandingObservation
+
+    spec_limit = gym.spec(V2).max_episode_steps
+    v = closing(DeckLandingVectorEnv(V2, 1, **OPTIONS))
+    assert v.max_episode_steps == spec_limit and isinstance(v.envs[0], LandingObservation)
+    assert closing(gym.make_vec(V2, num_envs=1, **OPTIONS)).max_episode_steps == spec_limit
+    assert closing(gym.make_vec(V2, num_envs=1, max_episode_steps=-1, **OPTIONS)).max_episode_steps is None
+    v = closing(gym.make_vec(V2, num_envs=1, max_episode_steps=2, **OPTIONS))
+    v.reset(seed=0)
+    zero = np.zeros((1, 4), np.float32)
+    assert not v.step(zero)[3][0] and v.step(zero)[3][0]
+    for bad, error in ((0, ValueError), (-2, ValueError), (2.5, TypeError), ("600", TypeError)):
+        with pytest.raises(error, match="max_episode_steps"):
+            DeckLandingVectorEnv(V2, 1, max_episode_steps=bad, **OPTIONS)
+
+
+def test_the_vector_entry_points_are_named_by_string() -> None:
+    import pickle
+
+    for env_id in ihrcf_env.VECTOR_IDS:
+        spec = gym.spec(env_id)
+        assert isinstance(spec.vector_entry_point, str) and spec.vector_entry_point.startswith(
+            "ihrcf_env.vector:"
+        )
+        assert pickle.loads(pickle.dumps(spec)).vector_entry_point == spec.vector_entry_point

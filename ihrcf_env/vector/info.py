@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+__all__ = ["stack_infos", "unbatch_info"]
+
 
 def stack_infos(infos: Sequence[dict[str, Any] | None], n: int | None = None) -> dict[str, Any]:
     """The vector ``info`` of ``n`` envs (default ``len(infos)``) whose own ``info`` is
