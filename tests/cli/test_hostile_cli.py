@@ -211,3 +211,47 @@ def test_an_existing_file_keeps_its_mode(tmp_path: Path, umask: Callable[[int], 
     target.chmod(0o644)
     write_whole(target, "new\n")
     assert target.read_text() == "new\n" and stat.S_IMODE(target.stat().st_mode) == 0o644
+
+
+def test_a_command_writes_its_file_with_the_mode_of_a_plain_open(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, umask: Callable[[int], None]
+) -> None:
+    import ihrcf_env.experiments.detector_fit as detector_fit
+    from ihrcf_env.cli.fit_detector import main as fit_detector
+    from ihrcf_env.core.detector_model import DetectorModel
+
+    model = DetectorModel.load()
+    monkeypatch.setattr(detector_fit, "fit_detector_model", lambda *args, **kwargs: model)
+    umask(0o022)
+    out = tmp_path / "model.json"
+    assert fit_detector(["--frames", "12", "--quiet", "--out", str(out)]) == 0
+    assert stat.S_IMODE(out.stat().st_mode) == 0o644
+
+
+def test_ctrl_c_in_a_running_command(tmp_path: Path) -> None:
+    """SIGINT while the calibration runs: a one-line message, exit status 130, no traceback."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "ihrcf_env.calibrate", "--output", str(tmp_path / "cal.json")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stderr is not None
+        first = proc.stderr.read(1)  # the progress output: the run has started
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGINT)
+        _, rest = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    err = first + rest
+    assert proc.returncode == EXIT_INTERRUPTED, err[-2000:]
+    assert "Traceback" not in err and err.rstrip().endswith("ihrcf-calibrate: interrupted")
+    assert not (tmp_path / "cal.json").exists()
