@@ -89,7 +89,8 @@ def build_env(env_id: str, options: dict[str, Any]) -> SubEnv:
 
 class DeckLandingVectorEnv(VectorEnv):
     """``num_envs`` envs of ``env_id`` with the ``options`` of ``gym.make`` (module docstring);
-    ``max_episode_steps`` as ``gym.make`` takes it (None: the spec's; -1: no limit)."""
+    ``max_episode_steps`` as ``gym.make`` takes it (None: the spec's; -1: no limit);
+    ``disable_env_checker`` is taken and has no effect (the vector env checks its inputs itself)."""
 
     metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
 

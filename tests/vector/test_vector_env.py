@@ -181,3 +181,33 @@ def test_the_vector_entry_points_are_named_by_string() -> None:
             "ihrcf_env.vector:"
         )
         assert pickle.loads(pickle.dumps(spec)).vector_entry_point == spec.vector_entry_point
+
+
+def test_the_vector_package_reads_no_private_or_stripped_wrapper() -> None:
+    """The vector envs build their sub-envs' pieces themselves: no ``env.unwrapped``, no private
+    attribute of another object, no Gymnasium wrapper taken apart."""
+    import ast
+    from pathlib import Path
+
+    import ihrcf_env.vector
+
+    banned = {"unwrapped", "TimeLimit", "OrderEnforcing", "PassiveEnvChecker", "_max_episode_steps"}
+    for path in Path(ihrcf_env.vector.__file__).parent.glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            name = (
+                node.attr
+                if isinstance(node, ast.Attribute)
+                else node.id
+                if isinstance(node, ast.Name)
+                else ""
+            )
+            assert name not in banned, f"{path.name}:{node.lineno} uses {name}"
+            if (
+                isinstance(node, ast.Attribute)
+                and node.attr.startswith("_")
+                and not node.attr.startswith("__")
+            ):
+                owner = node.value
+                assert isinstance(owner, ast.Name) and owner.id == "self", (
+                    f"{path.name}:{node.lineno} reads {node.attr} of another object"
+                )
