@@ -96,6 +96,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         ap, "--output", args.output or f"calibration_{args.width}x{args.height}_fov{args.fov_deg:g}.json"
     )
     # Imported here so that ``--help`` does not start PyBullet.
+    from ihrcf_env.config.sensors import CameraConfig
     from ihrcf_env.core.calibration import CalibrationError
     from ihrcf_env.sim.calibration_procedure import (
         AscentSettings,
@@ -103,7 +104,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         ChessboardSettings,
         run_calibration,
     )
-    from ihrcf_env.sim.sensors import CameraConfig
 
     try:
         camera = CameraConfig(

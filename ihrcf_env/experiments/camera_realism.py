@@ -15,13 +15,15 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from ihrcf_env.sim.sensors.camera import CameraConfig, DownCamera
+from ihrcf_env.config.sensors import CameraConfig
+from ihrcf_env.sim.sensors.camera import DownCamera
 
 
 def _hover_world(width: int, height: int, frames: int, camera: CameraConfig | None = None) -> Any:
     """A world at the paper's experiment: drone 1 m above the deck on the "paper" profile, 20 Hz."""
+    from ihrcf_env.config.world import WorldConfig
     from ihrcf_env.core.profiles import paper_profile
-    from ihrcf_env.sim.world import World, WorldConfig
+    from ihrcf_env.sim.world import World
 
     world = World(
         WorldConfig(camera=camera if camera is not None else CameraConfig(width=width, height=height))

@@ -27,8 +27,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 import ihrcf_env
+from ihrcf_env.config.levels import LEVELS, TEST_SEEDS
 from ihrcf_env.control.policies import ScriptedLanding
-from ihrcf_env.envs.levels import LEVELS, TEST_SEEDS
 
 #: Most episodes of one run (one vector env holds them all).
 MAX_EPISODES = 1024

@@ -17,10 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ihrcf_env.config.vehicle import VelocityGains
+from ihrcf_env.config.wind import WindParams
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.profiles import StaticProfile
-from ihrcf_env.sim.disturbances import Wind, WindParams
-from ihrcf_env.sim.drone import VelocityGains
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.disturbances import Wind
+from ihrcf_env.sim.world import World
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ Every estimator gets the same :class:`~ihrcf_env.core.estimators.SensorFrame` pe
 corners (detected once), the ranges, the IMU sample and the frame's time, so a temporal filter
 (``fused``) sees the real frame interval. ``fused_params`` sets the fused
 filter's :class:`~ihrcf_env.core.estimators.FusedParams`; by default they follow the env's ToF model
-(:func:`~ihrcf_env.envs.config.fused_params_for_tof`: the VL53L1X's per-sensor offsets give the
+(:func:`~ihrcf_env.config.observation.fused_params_for_tof`: the VL53L1X's per-sensor offsets give the
 filter a common-mode range-offset state).
 
 ``flatten=True`` gives one float32 Box for RL libraries, laid out as :func:`flat_slices` says (also
@@ -49,6 +49,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from ihrcf_env.config.landing import DeckLandingConfig
+from ihrcf_env.config.make import make_config
+from ihrcf_env.config.observation import ObservationConfig, resolve_observation
 from ihrcf_env.core.arrays import clip
 from ihrcf_env.core.calibration import Calibration
 from ihrcf_env.core.estimators import (
@@ -59,11 +62,6 @@ from ihrcf_env.core.estimators import (
     PoseEstimate,
     SensorFrame,
     check_estimator_names,
-)
-from ihrcf_env.envs.config import (
-    DeckLandingConfig,
-    make_config,
-    observation_options,
 )
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
 from ihrcf_env.wrappers.layout import Field, Layout, build_layout
@@ -164,12 +162,17 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         max_residual: IHRCF rigid-fit RMS (m) above which the estimate is declared invalid.
         estimators: registered estimator names, in observation order (default ihrcf, atda, fused).
         fused_params: :class:`~ihrcf_env.core.estimators.FusedParams` of the fused estimator, or
-            None for the defaults matching the env's ToF model.
+            None for the defaults matching the env's ToF model and task.
+        observation: the resolved :class:`~ihrcf_env.config.observation.ObservationConfig` (as
+            :func:`~ihrcf_env.config.make.make_config` makes it); given, the options above are not
+            read again (``calibration`` only for the spec). Otherwise the options are resolved once
+            against the env's config, as ``gym.make`` resolves them.
 
     Bad options raise TypeError / ValueError naming the option before anything is built.
 
     Attributes:
         stage: the :class:`~ihrcf_env.wrappers.estimator_stage.EstimatorStage`.
+        observation_config: the resolved options.
         estimator: the :class:`DeckPoseEstimator` (detection once per frame + the estimators).
         estimators: ordered mapping name -> :class:`DeckPoseSource`.
         pose_keys: the estimator names then ``"ground_truth"``: the pose blocks, in order.
@@ -186,15 +189,22 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         max_residual: float = 0.01,
         estimators: Iterable[str] = DEFAULT_ESTIMATORS,
         fused_params: FusedParams | None = None,
+        *,
+        observation: ObservationConfig | None = None,
     ) -> None:
-        opts = observation_options(
-            calibration=calibration,
-            keep_image=keep_image,
-            flatten=flatten,
-            max_residual=max_residual,
-            estimators=estimators,
-            fused_params=fused_params,
-        )
+        config = base_config(env)
+        opts = observation
+        if opts is None:  # resolved here, for the env's world and task
+            opts = resolve_observation(
+                config.world,
+                config.task_name,
+                calibration=calibration,
+                keep_image=keep_image,
+                flatten=flatten,
+                max_residual=max_residual,
+                estimators=estimators,
+                fused_params=fused_params,
+            )
         gym.utils.RecordConstructorArgs.__init__(
             self,
             calibration=calibration,
@@ -202,11 +212,13 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
             flatten=opts.flatten,
             max_residual=opts.max_residual,
             estimators=opts.estimators,
-            fused_params=fused_params,
+            fused_params=fused_params if observation is None else opts.fused_params,
         )
         gym.ObservationWrapper.__init__(self, env)
-        world = base_config(env).world
-        self.stage = EstimatorStage.for_world(world, calibration, opts)
+        world = config.world
+        #: the resolved observation config (:class:`~ihrcf_env.config.observation.ObservationConfig`)
+        self.observation_config: ObservationConfig = opts
+        self.stage = EstimatorStage.for_world(world, opts)
         self.calibration = self.stage.calibration
         names = opts.estimators
         self.estimator: DeckPoseEstimator = self.stage.estimator
@@ -304,7 +316,7 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
 
 def make_deck_hover(**options: Any) -> gym.Env:
     """Entry point of ``ihrcf_env/DeckHover-v0``: the env of the validated options
-    (:func:`~ihrcf_env.envs.config.make_config`, ``task="hover"``) wrapped with
+    (:func:`~ihrcf_env.config.make.make_config`, ``task="hover"``) wrapped with
     :class:`DeckPoseObservation`, or the raw :class:`~ihrcf_env.envs.deck_landing.DeckLandingEnv`
     with ``raw=True``. Everything is checked (and the calibration read and matched to the camera)
     before the env is built; if the wrapper still fails, the env is closed before the error
@@ -316,16 +328,11 @@ def make_deck_hover(**options: Any) -> gym.Env:
     env = DeckLandingEnv(config)
     if config.observation.raw:
         return env
-    obs = config.observation
     try:
         return DeckPoseObservation(
             env,
             calibration=options.get("calibration"),  # as given: the spec records it
-            keep_image=obs.keep_image,
-            flatten=obs.flatten,
-            max_residual=obs.max_residual,
-            estimators=obs.estimators,
-            fused_params=obs.fused_params,  # resolved from the ToF model when not given
+            observation=config.observation,
         )
     except BaseException:
         env.close()

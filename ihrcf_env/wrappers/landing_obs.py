@@ -56,12 +56,13 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from ihrcf_env.config.make import make_config
+from ihrcf_env.config.observation import ObservationConfig, resolve_observation
 from ihrcf_env.core.batch.pipeline import BatchDeckPoseEstimator
 from ihrcf_env.core.calibration import Calibration
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedEstimator, FusedParams, PoseEstimate
 from ihrcf_env.core.frames import matrix_from_euler, matrix_from_quat
-from ihrcf_env.envs.config import make_config, observation_options
 from ihrcf_env.wrappers.estimates import GROUND_TRUTH, base_config
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
 from ihrcf_env.wrappers.layout import Field, build_layout
@@ -150,10 +151,14 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         batch_estimators: run the estimators through their batched form with one row
             (:class:`~ihrcf_env.core.batch.pipeline.BatchDeckPoseEstimator`): the same numbers as a
             vector env's batched sub-env, bit for bit; default False.
+        observation: the resolved :class:`~ihrcf_env.config.observation.ObservationConfig` (as
+            :func:`~ihrcf_env.config.make.make_config` makes it); given, the options above are not
+            read again (``calibration`` only for the spec). Otherwise the options are resolved once
+            against the env's config (its world and task), as ``gym.make`` resolves them.
 
     Attributes: ``obs_slices`` (name -> slice), ``obs_scales`` (name -> scale: physical = value *
     scale), ``estimator_names``, ``estimators`` (name -> source), ``stage``, ``privileged``,
-    ``deck_motion``.
+    ``deck_motion``, ``observation_config`` (the resolved options).
     """
 
     def __init__(
@@ -166,29 +171,38 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         privileged: bool = False,
         deck_motion: bool = False,
         batch_estimators: bool = False,
+        *,
+        observation: ObservationConfig | None = None,
     ) -> None:
-        opts = observation_options(
-            calibration=calibration,
-            max_residual=max_residual,
-            estimators=estimators,
-            fused_params=fused_params,
-            privileged=privileged,
-            deck_motion=deck_motion,
-            batch_estimators=batch_estimators,
-        )
+        config = base_config(env)
+        opts = observation
+        if opts is None:  # resolved here, for the env's world and task
+            opts = resolve_observation(
+                config.world,
+                config.task_name,
+                calibration=calibration,
+                max_residual=max_residual,
+                estimators=estimators,
+                fused_params=fused_params,
+                privileged=privileged,
+                deck_motion=deck_motion,
+                batch_estimators=batch_estimators,
+            )
         gym.utils.RecordConstructorArgs.__init__(
             self,
             calibration=calibration,
             max_residual=opts.max_residual,
             estimators=opts.estimators,
-            fused_params=fused_params,
+            fused_params=fused_params if observation is None else opts.fused_params,
             privileged=opts.privileged,
             deck_motion=opts.deck_motion,
             batch_estimators=opts.batch_estimators,
         )
         gym.Wrapper.__init__(self, env)
-        world = base_config(env).world
-        self.stage = EstimatorStage.for_world(world, calibration, opts)
+        world = config.world
+        #: the resolved observation config (:class:`~ihrcf_env.config.observation.ObservationConfig`)
+        self.observation_config: ObservationConfig = opts
+        self.stage = EstimatorStage.for_world(world, opts)
         names = opts.estimators
         self.estimators = self.stage.sources
         self.estimator_names: tuple[str, ...] = names
@@ -332,7 +346,7 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
 
 def make_landing(task: str, **options: Any) -> gym.Env:
-    """A landing task's env from validated options (:func:`~ihrcf_env.envs.config.make_config`
+    """A landing task's env from validated options (:func:`~ihrcf_env.config.make.make_config`
     with ``task``) wrapped with :class:`LandingObservation` (``raw=True``: the raw env). No image is
     observed, so the rendered camera renders only the tag's window (``camera_output="corners"``
     unless given). Everything is checked before any physics client exists; a failed wrapper closes
@@ -343,17 +357,11 @@ def make_landing(task: str, **options: Any) -> gym.Env:
     env = (DeckLandingV2Env if task == "landing-v2" else DeckLandingV1Env)(config)
     if config.observation.raw:
         return env
-    obs = config.observation
     try:
         return LandingObservation(
             env,
             calibration=options.get("calibration"),  # as given: the spec records it
-            max_residual=obs.max_residual,
-            estimators=obs.estimators,
-            fused_params=obs.fused_params,  # resolved from the ToF model when not given
-            privileged=obs.privileged,
-            deck_motion=obs.deck_motion,
-            batch_estimators=obs.batch_estimators,
+            observation=config.observation,
         )
     except BaseException:
         env.close()

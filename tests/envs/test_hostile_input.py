@@ -41,7 +41,7 @@ RAW = {"camera": False}
     ],
 )
 def test_absurd_magnitudes_are_refused_by_name(options: dict[str, Any], name: str) -> None:
-    from ihrcf_env.envs.config import make_config
+    from ihrcf_env.config.make import make_config
 
     with pytest.raises((TypeError, ValueError), match=name):
         make_config(task="landing-v1", raw=True, **options)

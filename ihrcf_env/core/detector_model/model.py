@@ -20,7 +20,7 @@ from ihrcf_env.core.checks import describe
 from ihrcf_env.core.detector_model.features import TagFeatures, image_margin
 from ihrcf_env.core.detector_model.params import QualityParams
 
-#: Camera qualities the model covers (:data:`ihrcf_env.sim.sensors.camera.CAMERA_QUALITIES`).
+#: Camera qualities the model covers (:data:`ihrcf_env.config.sensors.CAMERA_QUALITIES`).
 QUALITIES: tuple[str, ...] = ("ideal", "realistic")
 
 #: Failure reasons (``reason`` of :meth:`DetectorModel.corners`).
@@ -148,6 +148,15 @@ class DetectorModel:
         mean, sd = prm.error_moments(features.basis, features.side, features.noise_ratio, features.blur_px)
         e = mean + sd * z
         return c + e[:, :1] * features.radial + e[:, 1:] * features.tangential, ""
+
+    def __eq__(self, other: object) -> bool:
+        """Equal contents (the parameters of every quality and the fit's record): a model loaded
+        twice from one file equals itself."""
+        if not isinstance(other, DetectorModel):
+            return NotImplemented
+        return self is other or self.to_dict() == other.to_dict()
+
+    __hash__ = None  # type: ignore[assignment]  # compared by contents
 
     # -- file (ihrcf_env.core.detector_model.file) ----------------------------------------------------
     def to_dict(self) -> dict[str, Any]:

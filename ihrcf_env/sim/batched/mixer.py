@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 if TYPE_CHECKING:
-    from ihrcf_env.sim.drone import QuadParams
+    from ihrcf_env.config.vehicle import QuadParams
 
 Array = NDArray[np.float64]
 

@@ -25,13 +25,14 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
+from ihrcf_env.config.sensors import CameraConfig
 from ihrcf_env.core.estimators.detector import TagDetector
 from ihrcf_env.core.frames import matrix_from_quat
 from ihrcf_env.core.rig import tag_corners_deck
 from ihrcf_env.sim.assets import tag_texture
 from ihrcf_env.sim.deck import Deck
 from ihrcf_env.sim.sensors.base import TAG_CAMERA, BodyState, tag_reading
-from ihrcf_env.sim.sensors.camera import CameraConfig, DownCamera, Render, Window, tiny_render
+from ihrcf_env.sim.sensors.camera import DownCamera, Render, Window, tiny_render
 
 #: Points sampled per tag edge (corners included) to bound its image under lens distortion, where
 #: the straight edges of the tag bend.

@@ -2,7 +2,7 @@
 
 Frozen dataclasses; each checks its own fields in ``__post_init__`` with :mod:`ihrcf_env.core.checks`
 (physical bounds included), the messages naming the ``gym.make`` option. They are built by
-:func:`ihrcf_env.envs.config.make_config`, the one place options are read. SI units, radians.
+:func:`ihrcf_env.config.make.make_config`, the one place options are read. SI units, radians.
 """
 
 from __future__ import annotations
