@@ -324,3 +324,15 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+__all__ = [
+    "DESCRIPTION",
+    "MAX_PROCESSES",
+    "MAX_ROUNDS",
+    "MILD_DISTORTION",
+    "VECTOR_NS",
+    "VECTOR_OPTIONS",
+    "build_parser",
+    "calibration_for",
+    "main",
+]

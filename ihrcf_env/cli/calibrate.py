@@ -167,3 +167,10 @@ def _print_summary(run: CalibrationRun, path: str, elapsed: float) -> None:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+__all__ = [
+    "DESCRIPTION",
+    "PhaseProgress",
+    "build_parser",
+    "main",
+]

@@ -268,3 +268,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+__all__ = [
+    "DESCRIPTION",
+    "build_parser",
+    "format_episode",
+    "main",
+    "summary",
+]

@@ -79,3 +79,10 @@ LEVELS: dict[str, Level] = {
 DEFAULT_LEVEL = "moderate"
 #: Seeds of the benchmark protocol's test episodes (train and tune on other seeds).
 TEST_SEEDS: range = range(100_000, 100_100)
+
+__all__ = [
+    "DEFAULT_LEVEL",
+    "LEVELS",
+    "TEST_SEEDS",
+    "Level",
+]

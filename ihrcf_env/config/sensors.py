@@ -506,3 +506,27 @@ class IMUConfig:
 
 #: Accepted ``IMUConfig.rate_hz`` (Hz).
 IMU_RATE_BOUNDS = (1.0, 10_000.0)
+
+__all__ = [
+    "BACKGROUNDS",
+    "CAMERA_QUALITIES",
+    "FULL_SCALE_DN",
+    "IMU_NOISE_BOUNDS",
+    "IMU_NOISE_PRESETS",
+    "IMU_NOISE_UNITS",
+    "IMU_RATE_BOUNDS",
+    "MAX_LATENCY",
+    "MAX_RANGE_BOUNDS",
+    "PIPELINE_LATENCY",
+    "REFERENCE_REFLECTANCE",
+    "TOF_PRESETS",
+    "TOF_RATE_BOUNDS",
+    "VL53L1X",
+    "VL53L1X_BOUNDS",
+    "VL53L1X_UNITS",
+    "CameraConfig",
+    "IMUConfig",
+    "IMUNoise",
+    "ImagingParams",
+    "ToFConfig",
+]

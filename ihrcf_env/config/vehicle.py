@@ -277,3 +277,18 @@ class NavigationConfig:
         if isinstance(self.feedback, NavigationErrors):
             return self.feedback
         return None if self.feedback == "truth" else NavigationErrors()
+
+
+__all__ = [
+    "FEEDBACK_MODES",
+    "GAIN_BOUNDS",
+    "GAIN_UNITS",
+    "NAVIGATION_ERROR_BOUNDS",
+    "NAVIGATION_ERROR_UNITS",
+    "QUAD_BOUNDS",
+    "QUAD_UNITS",
+    "NavigationConfig",
+    "NavigationErrors",
+    "QuadParams",
+    "VelocityGains",
+]

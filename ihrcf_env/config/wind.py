@@ -133,3 +133,14 @@ class WindParams:
             )
         if not isinstance(self.drag, DragModel):
             raise TypeError(f"wind drag must be a DragModel, got {type(self.drag).__name__} {self.drag!r}")
+
+
+__all__ = [
+    "DRAG_BOUNDS",
+    "DRAG_UNITS",
+    "WIND_BOUNDS",
+    "WIND_UNITS",
+    "Disturbance",
+    "DragModel",
+    "WindParams",
+]

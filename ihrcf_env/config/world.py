@@ -145,3 +145,15 @@ class WorldConfig:
     @property
     def substeps(self) -> int:
         return self.physics_hz // self.control_hz
+
+
+__all__ = [
+    "ACTION_MODES",
+    "CAMERA_MODELS",
+    "CAMERA_OUTPUTS",
+    "DECK_BOUNDS",
+    "DECK_UNITS",
+    "PHYSICS_BACKENDS",
+    "DeckConfig",
+    "WorldConfig",
+]

@@ -148,3 +148,10 @@ class GruPolicy:
         if not isinstance(header, dict) or header.get("format") != FORMAT:
             raise ValueError(f"{os.fspath(path)!r}: GRU policy format {FORMAT} expected")
         return cls(weights, header["inputs"], header["obs_size"], dict(header.get("meta", {})))
+
+
+__all__ = [
+    "FORMAT",
+    "WEIGHTS",
+    "GruPolicy",
+]

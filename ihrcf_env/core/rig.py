@@ -105,3 +105,11 @@ def intrinsics_from_fov(width: int, height: int, fov: float) -> NDArray[np.float
         raise ValueError(f"fov must be in (0, pi) rad, got {fov!r}")
     f = (height / 2.0) / math.tan(fov / 2.0)
     return np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0], [0.0, 0.0, 1.0]])
+
+
+__all__ = [
+    "PAD_COLOURS",
+    "SensorRig",
+    "intrinsics_from_fov",
+    "tag_corners_deck",
+]

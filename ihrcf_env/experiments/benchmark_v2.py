@@ -215,3 +215,17 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+__all__ = [
+    "BASELINES",
+    "Job",
+    "cache_key",
+    "label",
+    "load_row",
+    "main",
+    "page_markdown",
+    "plan",
+    "run_cached",
+    "run_job",
+    "table_markdown",
+]

@@ -125,3 +125,9 @@ def save_realistic_example(
     if not cv2.imwrite(str(out), cv2.cvtColor(image, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 9]):
         raise OSError(f"could not write {out}")
     return out
+
+
+__all__ = [
+    "realism_cost_ms",
+    "save_realistic_example",
+]

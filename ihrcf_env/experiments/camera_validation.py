@@ -515,3 +515,17 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+__all__ = [
+    "BOOTSTRAP",
+    "DETECTION_TOLERANCE",
+    "ESTIMATORS",
+    "MAE_TOLERANCE",
+    "MODES",
+    "PRESETS",
+    "CameraValidation",
+    "PresetValidation",
+    "main",
+    "validate_camera_model",
+    "validate_preset",
+]

@@ -285,3 +285,13 @@ def fit_detector_model(
         "reports": reports,
     }
     return DetectorModel(params, fit=fit)
+
+
+__all__ = [
+    "CONTROL_DT",
+    "FRAMES_PER_TRACK",
+    "collect_samples",
+    "fit_detector_model",
+    "load_samples",
+    "save_samples",
+]

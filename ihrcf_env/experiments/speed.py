@@ -316,3 +316,18 @@ def estimation_ms(frames: int) -> float | None:
     finally:
         env.close()
     return 1e3 * float(np.mean(samples))
+
+
+__all__ = [
+    "CAMERA_MODES",
+    "WRAPPED",
+    "Speed",
+    "component_costs",
+    "estimation_ms",
+    "mode_speeds",
+    "projected_step_costs",
+    "raw_speed",
+    "steps_per_second",
+    "vector_scaling",
+    "wrapped_speed",
+]

@@ -120,3 +120,10 @@ if __name__ == "__main__":  # pragma: no cover
     print(envelope().text())
     print()
     print(envelope(turbulence=1.0, seeds=(0, 1, 2)).text())
+
+__all__ = [
+    "Envelope",
+    "HoldResult",
+    "envelope",
+    "hold_in_wind",
+]

@@ -109,3 +109,9 @@ class StartCurriculum(gym.Wrapper[Any, Any, Any, Any]):
 def curriculum_env(make: Callable[[], gym.Env]) -> StartCurriculum:
     """``StartCurriculum(make())`` with the default curriculum (a picklable env factory)."""
     return StartCurriculum(make())
+
+
+__all__ = [
+    "StartCurriculum",
+    "curriculum_env",
+]

@@ -555,3 +555,22 @@ def run_calibration(
         report=report,
     )
     return CalibrationRun(calibration=cal, chessboard=cb, ascent=asc, table_check_px=check)
+
+
+__all__ = [
+    "AscentResult",
+    "AscentSettings",
+    "CalibrationFailed",
+    "CalibrationRun",
+    "ChessboardResult",
+    "ChessboardSettings",
+    "Progress",
+    "StageRecord",
+    "run_ascent",
+    "run_calibration",
+    "run_chessboard",
+    "sample_board_pose",
+    "stage_targets",
+    "table_errors_px",
+    "true_touch_pixels",
+]

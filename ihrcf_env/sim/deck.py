@@ -417,3 +417,12 @@ class Deck:
     @property
     def top_half_extent(self) -> float:
         return self.config.size / 2
+
+
+__all__ = [
+    "Deck",
+    "DeckTrajectory",
+    "TickSeries",
+    "angular_velocity_between",
+    "rigid_point_velocity",
+]

@@ -207,3 +207,13 @@ class Wind:
         fa = self._drag.force((vx - wx, vy - wy, vz - wz))
         f0 = self._drag.force((vx, vy, vz))
         return (fa[0] - f0[0], fa[1] - f0[1], fa[2] - f0[2])
+
+
+__all__ = [
+    "FT",
+    "MAX_DISTURBANCE_FORCE",
+    "ConstantForce",
+    "Wind",
+    "disturbance_force",
+    "dryden_low_altitude",
+]

@@ -366,3 +366,10 @@ class VelocityController:
             self._thrust_model = s_model * s_model
             self._a_model = (self._thrust_model * r02 / m, self._thrust_model * r12 / m)
         return speeds
+
+
+__all__ = [
+    "CLASSIC_I_CLAMP",
+    "Quadrotor",
+    "VelocityController",
+]

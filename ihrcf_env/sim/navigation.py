@@ -183,3 +183,12 @@ def make_navigation(config: NavigationConfig, dt: float) -> Navigation:
     """The navigation model for ``config``, advanced in physics steps of ``dt`` seconds."""
     errors = config.errors
     return TruthNavigation() if errors is None else GNSSINSNavigation(errors, dt)
+
+
+__all__ = [
+    "GNSSINSNavigation",
+    "Navigation",
+    "TruthNavigation",
+    "Vec3",
+    "make_navigation",
+]

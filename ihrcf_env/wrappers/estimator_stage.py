@@ -276,3 +276,9 @@ class EstimatorStage:
             info[f"{name}_reason"] = est.reason
             info[f"{name}_residual"] = est.residual
             info[f"{name}_age"] = self.ages.get(name, 0.0)
+
+
+__all__ = [
+    "EstimatorStage",
+    "estimator_from_calibration",
+]

@@ -376,3 +376,21 @@ def make_deck_landing_v1(**options: Any) -> gym.Env:
 def make_deck_landing_v2(**options: Any) -> gym.Env:
     """Entry point of ``ihrcf_env/DeckLanding-v2`` (:func:`make_landing`; ``level=`` grades it)."""
     return make_landing("landing-v2", **options)
+
+
+__all__ = [
+    "ESTIMATE_FIELDS",
+    "MAX_AGE",
+    "MOTION",
+    "MOTION_FIELDS",
+    "POSITION_SCALE",
+    "RATE_SCALE",
+    "TRUTH_FIELDS",
+    "LandingObservation",
+    "heading_rotation",
+    "landing_obs_fields",
+    "make_deck_landing_v1",
+    "make_deck_landing_v2",
+    "make_landing",
+    "sensor_fields",
+]

@@ -66,3 +66,11 @@ def build_layout(blocks: Sequence[Block]) -> Layout:
             slices[prefix] = slice(start, i)
     slices["all"] = slice(0, i)
     return Layout(slices, scales, np.array(lows, np.float32), np.array(highs, np.float32))
+
+
+__all__ = [
+    "Block",
+    "Field",
+    "Layout",
+    "build_layout",
+]

@@ -314,3 +314,11 @@ class Calibration:
             + "; ".join(diffs)
             + f". Produce a matching file with:\n    {cmd}{rig_note}"
         )
+
+
+__all__ = [
+    "FORMAT_VERSION",
+    "Calibration",
+    "CalibrationError",
+    "default_calibration_path",
+]

@@ -189,3 +189,17 @@ class DetectorModel:
         from ihrcf_env.core.detector_model.file import load_model
 
         return load_model(path)
+
+
+__all__ = [
+    "FIELD_FEATURES",
+    "QUALITIES",
+    "REASON_BORDER",
+    "REASON_MISS",
+    "REASON_OBLIQUE",
+    "REASON_OUTSIDE",
+    "REASON_QUIET_ZONE",
+    "REASON_SMALL",
+    "CornerTrack",
+    "DetectorModel",
+]

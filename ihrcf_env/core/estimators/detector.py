@@ -167,3 +167,10 @@ def _int_pair(name: str, value: object, low: int) -> tuple[int, int]:
     if a < low or b < low:
         raise ValueError(f"{name} must be two integers >= {low}, got {value!r}")
     return a, b
+
+
+__all__ = [
+    "APRILTAG_CORNER_OFFSET_PX",
+    "TagDetector",
+    "apriltag_ids",
+]

@@ -132,3 +132,17 @@ def build_estimators(
             raise ValueError(f"estimator registered as {n!r} calls itself {source.name!r}")
         out[n] = source
     return out
+
+
+__all__ = [
+    "BUILTIN_ESTIMATORS",
+    "DEFAULT_ESTIMATORS",
+    "ESTIMATORS",
+    "RESERVED_NAMES",
+    "EstimatorConfig",
+    "EstimatorFactory",
+    "build_estimators",
+    "check_estimator_names",
+    "register_estimator",
+    "unregister_estimator",
+]

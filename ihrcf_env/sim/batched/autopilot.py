@@ -263,3 +263,10 @@ class BatchedVelocityController:
         fx = kp * e0 + kd * (vc0 - v0) + ki * integ[:, 0] - d[:, 0]
         fy = kp * e1 + kd * (vc1 - v1) + ki * integ[:, 1] - d[:, 1]
         return fx, fy, integ[:, 2]
+
+
+__all__ = [
+    "CLASSIC_I_CLAMP",
+    "Array",
+    "BatchedVelocityController",
+]

@@ -244,3 +244,14 @@ def main(argv: list[str] | None = None) -> None:
 
 if __name__ == "__main__":
     main()
+
+__all__ = [
+    "DT",
+    "SIZES",
+    "bench_camera",
+    "bench_numpy",
+    "bench_pybullet_drone",
+    "bench_rays",
+    "bench_world",
+    "main",
+]

@@ -172,3 +172,10 @@ class BatchedQuadrotor:
             self.max_velocity,
         )
         self._reported = None
+
+
+__all__ = [
+    "Array",
+    "BatchedQuadrotor",
+    "motor_lag",
+]

@@ -74,3 +74,9 @@ class BatchedMixer:
             scale = np.where(cand < scale, cand, scale)  # min(scale, cand) keeping scale on ties
         scale = np.where(scale < 0.0, 0.0, scale)
         return f + scale[:, None] * yaw
+
+
+__all__ = [
+    "Array",
+    "BatchedMixer",
+]

@@ -185,3 +185,9 @@ def _same_rays(a: ToFArray, b: ToFArray) -> bool:
     ca, cb = a.closed_form, b.closed_form
     assert ca is not None and cb is not None
     return ca is cb or ca.same_as(cb)
+
+
+__all__ = [
+    "BatchedToF",
+    "prefetch",
+]

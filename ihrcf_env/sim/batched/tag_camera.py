@@ -317,3 +317,8 @@ def _own_fraction(
     d_body = to_local(np.broadcast_to(segments, s_body.shape), rotation)
     f, _ = self_hits(s_body.reshape(-1, 3), d_body.reshape(-1, 3), 1.0)
     return f.reshape(s_body.shape[:2])
+
+
+__all__ = [
+    "BatchedTagCamera",
+]

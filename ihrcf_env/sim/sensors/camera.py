@@ -565,3 +565,16 @@ def tiny_render(
 def render_rgb(client: int, config: CameraConfig, view: object, proj: object) -> NDArray[np.uint8]:
     """One TinyRenderer frame as an (H, W, 3) uint8 array, with the config's light."""
     return tiny_render(client, config, view, proj)[0]
+
+
+__all__ = [
+    "DownCamera",
+    "RegionScene",
+    "Render",
+    "Window",
+    "check_window",
+    "grow_window",
+    "render_rgb",
+    "tiny_render",
+    "window_projection",
+]

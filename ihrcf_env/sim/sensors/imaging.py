@@ -392,3 +392,21 @@ class RealisticImager:
         oy, ox = (int(x) for x in rng.integers(0, m + 1, 2))
         sign = 1 if rng.random() < 0.5 else -1
         return add_sensor_noise(signal, self._sigma_lut, self._bank, (oy, ox), sign)
+
+
+__all__ = [
+    "NOISE_BANK_SCALE",
+    "EpisodeImaging",
+    "RealisticImager",
+    "add_sensor_noise",
+    "blur_kernel",
+    "draw_episode",
+    "draw_noise_bank",
+    "ground_homography",
+    "image_motion_px",
+    "make_texture",
+    "motion_blur",
+    "noise_sigma_lut",
+    "sky_mask",
+    "vignetting_gain",
+]

@@ -162,3 +162,9 @@ class IMU:
             "angular_velocity": gyro,
             "linear_acceleration": accel,
         }
+
+
+__all__ = [
+    "IMU",
+    "AttitudeError",
+]

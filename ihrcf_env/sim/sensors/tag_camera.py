@@ -314,3 +314,12 @@ def reading_row(out: dict[str, NDArray], i: int) -> dict[str, NDArray]:
         "tag_reason": np.array(str(out["tag_reason"][i])),
         "tag_status": np.array(int(out["tag_status"][i])),
     }
+
+
+__all__ = [
+    "RAY_MARGIN_M",
+    "REASON_DEPTH",
+    "REASON_OCCLUDED",
+    "ProjectedTagCamera",
+    "reading_row",
+]

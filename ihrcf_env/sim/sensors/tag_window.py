@@ -147,7 +147,7 @@ class TagScene:
         ids = [
             p.getBodyUniqueId(i, physicsClientId=world) for i in range(p.getNumBodies(physicsClientId=world))
         ]
-        visuals = tuple(p.getVisualShapeData(b, physicsClientId=world) for b in ids)  # ~0.1 ms
+        visuals = tuple(p.getVisualShapeData(b, physicsClientId=world) for b in ids)
         if visuals != self._visuals:
             self._visuals = visuals
             self._boxes = self._visual_boxes()
@@ -441,3 +441,9 @@ class WindowedTagCamera:
         if corners is None:
             return tag_reading(None, "tag not detected" if inside else "tag partly outside the image")
         return tag_reading(corners, "")
+
+
+__all__ = [
+    "TagScene",
+    "WindowedTagCamera",
+]

@@ -203,3 +203,8 @@ class ToFArray:
         valid = valid & (ranges >= self._min) & (ranges <= max_range)
         ranges = np.where(valid, ranges, max_range)
         return {"ranges": ranges.astype(np.float32), "ranges_valid": valid.astype(np.int8)}
+
+
+__all__ = [
+    "ToFArray",
+]
