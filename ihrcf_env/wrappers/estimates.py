@@ -64,7 +64,7 @@ from ihrcf_env.core.estimators import (
     check_estimator_names,
 )
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
-from ihrcf_env.wrappers.layout import Field, Layout, build_layout
+from ihrcf_env.wrappers.layout import Block, Field, Layout, build_layout
 
 POSITION_BOUND = 10.0  # m
 #: The key of the ground-truth pose block; always after the estimators.
@@ -73,9 +73,9 @@ GROUND_TRUTH = "ground_truth"
 ESTIMATE_KEYS: tuple[str, ...] = (*DEFAULT_ESTIMATORS, GROUND_TRUTH)
 #: Fields of one pose block of the flat observation.
 POSE_FIELDS: tuple[Field, ...] = (
-    Field("position", 3, -POSITION_BOUND, POSITION_BOUND),
-    Field("euler", 3, -math.pi, math.pi),
-    Field("valid", 1, 0.0, 1.0),
+    Field("position", 3, -POSITION_BOUND, POSITION_BOUND, unit="m", meaning="deck position, body frame"),
+    Field("euler", 3, -math.pi, math.pi, unit="rad", meaning="the deck's roll, pitch, yaw in the body frame"),
+    Field("valid", 1, 0.0, 1.0, meaning="1 = valid"),
 )
 POSE_SIZE = sum(f.size for f in POSE_FIELDS)
 #: Paths in the raw observation of the sensor values at the start of the flat observation.
@@ -90,15 +90,22 @@ SENSOR_PATHS: dict[str, tuple[str, ...]] = {
 
 def hover_layout(estimators: Iterable[str] = DEFAULT_ESTIMATORS, max_range: float = 4.0) -> Layout:
     """The flat layout (``flatten=True``) for these estimators and ToF ``max_range`` (m)."""
+    return build_layout(hover_blocks(estimators, max_range))
+
+
+def hover_blocks(estimators: Iterable[str] = DEFAULT_ESTIMATORS, max_range: float = 4.0) -> list[Block]:
+    """The blocks of the flat hover observation (:func:`hover_layout`), in order."""
     sensors = (
-        Field("ranges", 4, 0.0, max_range),
-        Field("ranges_valid", 4, 0.0, 1.0),
-        Field("imu.quaternion", 4, -1.0, 1.0),
-        Field("imu.angular_velocity", 3, -50.0, 50.0),
-        Field("imu.linear_acceleration", 3, -200.0, 200.0),
+        Field("ranges", 4, 0.0, max_range, unit="m", meaning="ToF ranges ps1..ps4"),
+        Field("ranges_valid", 4, 0.0, 1.0, meaning="1 = valid"),
+        Field("imu.quaternion", 4, -1.0, 1.0, meaning="attitude x, y, z, w, world from body"),
+        Field("imu.angular_velocity", 3, -50.0, 50.0, unit="rad/s", meaning="body rates, body frame"),
+        Field(
+            "imu.linear_acceleration", 3, -200.0, 200.0, unit="m/s^2", meaning="specific force, body frame"
+        ),
     )
     names = (*check_estimator_names(estimators), GROUND_TRUTH)
-    return build_layout([("", sensors), *((name, POSE_FIELDS) for name in names)])
+    return [("", sensors), *((name, POSE_FIELDS) for name in names)]
 
 
 def flat_slices(estimators: Iterable[str] = DEFAULT_ESTIMATORS) -> dict[str, slice]:

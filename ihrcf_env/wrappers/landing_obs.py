@@ -65,7 +65,7 @@ from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedEstimator, FusedP
 from ihrcf_env.core.frames import matrix_from_euler, matrix_from_quat
 from ihrcf_env.wrappers.estimates import GROUND_TRUTH, base_config
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
-from ihrcf_env.wrappers.layout import Field, build_layout
+from ihrcf_env.wrappers.layout import Block, Field, build_layout
 
 #: Largest age (s) shown for an estimate; also the age of one never seen.
 MAX_AGE = 10.0
@@ -73,37 +73,80 @@ POSITION_SCALE = 2.0  # m
 RATE_SCALE = 5.0  # rad/s
 
 
-def _f(name: str, size: int, scale: float, bound: float, non_negative: bool = False) -> Field:
-    return Field(name, size, 0.0 if non_negative else -bound, bound, scale)
+def _f(
+    name: str,
+    size: int,
+    scale: float,
+    bound: float,
+    non_negative: bool = False,
+    unit: str = "",
+    meaning: str = "",
+) -> Field:
+    return Field(name, size, 0.0 if non_negative else -bound, bound, scale, unit, meaning)
 
 
 def sensor_fields(max_range: float = 4.0) -> tuple[Field, ...]:
     """The sensor block; ranges are scaled by the ToF ``max_range`` (m)."""
     return (
-        _f("ranges", 4, max_range, 1.0, True),
-        _f("ranges_valid", 4, 1.0, 1.0, True),
-        _f("imu.up", 3, 1.0, 1.0),
-        _f("imu.angular_velocity", 3, RATE_SCALE, 50.0 / RATE_SCALE),
-        _f("imu.linear_acceleration", 3, GRAVITY, 200.0 / GRAVITY),
-        _f("nav_velocity", 3, 1.0, 20.0),
+        _f(
+            "ranges",
+            4,
+            max_range,
+            1.0,
+            True,
+            "m",
+            "ToF ranges ps1..ps4 (scale: the ToF max range); an invalid reading reads 1",
+        ),
+        _f("ranges_valid", 4, 1.0, 1.0, True, "", "1 = valid"),
+        _f("imu.up", 3, 1.0, 1.0, False, "", "the world's up axis in the body frame (IMU attitude)"),
+        _f("imu.angular_velocity", 3, RATE_SCALE, 50.0 / RATE_SCALE, False, "rad/s", "body rates"),
+        _f(
+            "imu.linear_acceleration",
+            3,
+            GRAVITY,
+            200.0 / GRAVITY,
+            False,
+            "m/s^2",
+            "specific force, body frame",
+        ),
+        _f("nav_velocity", 3, 1.0, 20.0, False, "m/s", "the autopilot's velocity estimate, heading frame"),
     )
 
 
 ESTIMATE_FIELDS: tuple[Field, ...] = (
-    _f("position", 3, POSITION_SCALE, 10.0 / POSITION_SCALE),
-    _f("normal", 3, 1.0, 1.0),
-    _f("yaw", 2, 1.0, 1.0),
-    _f("valid", 1, 1.0, 1.0, True),
-    _f("age", 1, 1.0, MAX_AGE, True),
+    _f(
+        "position",
+        3,
+        POSITION_SCALE,
+        10.0 / POSITION_SCALE,
+        False,
+        "m",
+        "deck origin (tag centre), heading frame",
+    ),
+    _f("normal", 3, 1.0, 1.0, False, "", "deck normal, heading frame"),
+    _f("yaw", 2, 1.0, 1.0, False, "", "cos, sin of the deck's yaw relative to the drone"),
+    _f("valid", 1, 1.0, 1.0, True, "", "1 = valid this step"),
+    _f(
+        "age",
+        1,
+        1.0,
+        MAX_AGE,
+        True,
+        "s",
+        "age of the values shown (an invalid estimate keeps its last values and its age grows)",
+    ),
 )
 TRUTH_FIELDS: tuple[Field, ...] = (
-    _f("position", 3, POSITION_SCALE, 10.0 / POSITION_SCALE),
-    _f("normal", 3, 1.0, 1.0),
-    _f("yaw", 2, 1.0, 1.0),
-    _f("velocity", 3, 1.0, 20.0),
-    _f("wind", 3, 1.0, 40.0),
+    _f("position", 3, POSITION_SCALE, 10.0 / POSITION_SCALE, False, "m", "true deck origin, heading frame"),
+    _f("normal", 3, 1.0, 1.0, False, "", "true deck normal, heading frame"),
+    _f("yaw", 2, 1.0, 1.0, False, "", "cos, sin of the true deck yaw relative to the drone"),
+    _f("velocity", 3, 1.0, 20.0, False, "m/s", "the drone's velocity relative to the deck, heading frame"),
+    _f("wind", 3, 1.0, 40.0, False, "m/s", "the wind, heading frame"),
 )
-MOTION_FIELDS: tuple[Field, ...] = (_f("velocity", 3, 1.0, 20.0), _f("normal_rate", 3, 1.0, 20.0))
+MOTION_FIELDS: tuple[Field, ...] = (
+    _f("velocity", 3, 1.0, 20.0, False, "m/s", "the deck's velocity relative to the drone, heading frame"),
+    _f("normal_rate", 3, 1.0, 20.0, False, "1/s", "the rate of the deck normal, heading frame"),
+)
 #: Observation block of the fused filter's deck motion (``deck_motion=True``).
 MOTION = "motion"
 
@@ -118,14 +161,24 @@ def landing_obs_fields(
     ToF ``max_range`` (m), ``privileged`` and ``deck_motion``. ``slices`` also has each estimator's
     whole block under its name and ``"all"``; ``scales[name]`` turns a slice back into physical
     units."""
-    blocks: list[tuple[str, tuple[Field, ...]]] = [("", sensor_fields(max_range))]
+    lay = build_layout(landing_blocks(estimators, max_range, privileged, deck_motion))
+    return lay.slices, lay.scales, lay.low, lay.high
+
+
+def landing_blocks(
+    estimators: Iterable[str] = DEFAULT_ESTIMATORS,
+    max_range: float = 4.0,
+    privileged: bool = False,
+    deck_motion: bool = False,
+) -> list[Block]:
+    """The blocks of the landing observation (:func:`landing_obs_fields`), in order."""
+    blocks: list[Block] = [("", sensor_fields(max_range))]
     blocks += [(name, ESTIMATE_FIELDS) for name in estimators]
     if deck_motion:
         blocks.append((MOTION, MOTION_FIELDS))
     if privileged:
         blocks.append((GROUND_TRUTH, TRUTH_FIELDS))
-    lay = build_layout(blocks)
-    return lay.slices, lay.scales, lay.low, lay.high
+    return blocks
 
 
 def heading_rotation(quaternion: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
