@@ -22,7 +22,23 @@ from typing import Any
 
 from gymnasium.envs.registration import register, registry
 
-__version__ = "0.2.0"
+from ihrcf_env._version import __version__
+
+__all__ = [
+    "DEPRECATED_IDS",
+    "ENV_IDS",
+    "HOVER_ID",
+    "HOVER_RAW_ID",
+    "LANDING_V1_ID",
+    "LANDING_V2_ID",
+    "VECTOR_IDS",
+    "__version__",
+    "make_config",
+    "register_estimator",
+    "register_fault",
+    "register_noise_model",
+    "register_sensor",
+]
 
 HOVER_ID = "ihrcf_env/DeckHover-v0"
 HOVER_RAW_ID = "ihrcf_env/DeckHoverRaw-v0"
@@ -92,9 +108,9 @@ for _old, _new in DEPRECATED_IDS.items():
 
 
 def make_config(**options: Any) -> Any:
-    """The validated :class:`~ihrcf_env.envs.config.DeckLandingConfig` of ``options`` (see
-    :func:`ihrcf_env.envs.config.make_config`; imports the simulator)."""
-    from ihrcf_env.envs.config import make_config as _make
+    """The resolved :class:`~ihrcf_env.config.landing.DeckLandingConfig` of ``options`` (see
+    :func:`ihrcf_env.config.make.make_config`)."""
+    from ihrcf_env.config.make import make_config as _make
 
     return _make(**options)
 

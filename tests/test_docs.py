@@ -199,3 +199,51 @@ def test_v2_table_has_the_wilson_interval() -> None:
     row = LandingRow("projected", 20, 10, (0.3, 0.4), (4.0, 6.0), (0.05, 0.1), (9.0, 12.0), {"timeout": 10})
     md = table_markdown({Job("moderate", "out/ppo/best.zip", "rendered", 20): row})
     assert "| moderate | best.zip | rendered | 10/20 (30%-70%) |" in md and "timeout x10" in md
+
+
+def test_the_observation_tables_are_generated_from_the_layout_code() -> None:
+    """``docs/observations.md`` holds the tables ``ihrcf_env.wrappers.obs_tables`` makes from the
+    wrappers' field lists, as they are now (rerun ``python -m ihrcf_env.wrappers.obs_tables --write
+    docs/observations.md`` after changing a layout)."""
+    from ihrcf_env.wrappers.obs_tables import TABLES, render
+
+    page = (DOCS / "observations.md").read_text()
+    assert render(page) == page
+    for key in TABLES:
+        assert f"<!-- layout:{key} -->" in page and f"<!-- /layout:{key} -->" in page
+
+
+def test_rendering_replaces_a_stale_table_and_refuses_an_unknown_one() -> None:
+    from ihrcf_env.wrappers.obs_tables import render, tables
+
+    stale = "intro\n<!-- layout:landing -->\n| old |\n<!-- /layout:landing -->\nend\n"
+    assert (
+        render(stale)
+        == f"intro\n<!-- layout:landing -->\n{tables()['landing']}\n<!-- /layout:landing -->\nend\n"
+    )
+    with pytest.raises(KeyError, match="nosuch"):
+        render("<!-- layout:nosuch -->\n<!-- /layout:nosuch -->\n")
+
+
+def test_the_documented_layouts_are_the_envs_layouts() -> None:
+    """The blocks the tables are made from are the ones each id's wrapper builds its observation
+    from (default options)."""
+    import gymnasium as gym
+
+    import ihrcf_env
+    from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS
+    from ihrcf_env.wrappers.estimates import hover_blocks
+    from ihrcf_env.wrappers.landing_obs import landing_blocks
+    from ihrcf_env.wrappers.layout import build_layout
+    from ihrcf_env.wrappers.obs_tables import LANDING_IDS
+
+    assert set(LANDING_IDS) == {ihrcf_env.LANDING_V1_ID, ihrcf_env.LANDING_V2_ID}
+    landing = build_layout(landing_blocks(DEFAULT_ESTIMATORS)).slices
+    for env_id in LANDING_IDS:
+        with gym.make(env_id, camera_model="projected") as env:
+            assert env.get_wrapper_attr("obs_slices") == landing
+            assert env.observation_space.shape == (landing["all"].stop,)
+    with gym.make(ihrcf_env.HOVER_ID, camera_model="projected", flatten=True) as env:
+        hover = build_layout(hover_blocks(DEFAULT_ESTIMATORS)).slices
+        assert env.get_wrapper_attr("flat_slices") == hover
+        assert env.observation_space.shape == (hover["all"].stop,)

@@ -97,7 +97,7 @@ def test_user_estimator_sensor_and_noise_model(registered: None, make_env: Any) 
 
 
 def test_bad_registrations_and_options_are_named(registered: None) -> None:
-    from ihrcf_env.envs.config import make_config
+    from ihrcf_env.config.make import make_config
 
     with pytest.raises(ValueError, match="already registered"):
         ihrcf_env.register_estimator("range_mean", RangeMean)

@@ -9,8 +9,9 @@ from typing import Any
 import gymnasium as gym
 from conftest import connected_clients
 
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.world import World
 
 #: What the tests built, kept alive so that garbage collection cannot close it in their place.
 _KEPT: list[Any] = []

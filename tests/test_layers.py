@@ -1,10 +1,12 @@
 """The layer contract: what each folder of the package may import.
 
 core/ and control/ are pure (numpy, scipy, OpenCV): usable on real drone logs, so no PyBullet and no
-Gymnasium. sim/ is PyBullet without Gymnasium. Only envs/ and the layers above it (wrappers/,
-experiments/, cli/) know Gymnasium. Checked twice: statically on every import statement of every
-module (lazy imports inside functions included), and dynamically by importing the pure layers in a
-fresh interpreter.
+Gymnasium. config/ (the backend-neutral configuration) imports only core/ and numpy/scipy/the
+standard library. sim/ is PyBullet without Gymnasium. Only envs/ and the layers above it (wrappers/,
+experiments/, cli/) know Gymnasium. The array layers, when present, stay off the simulator: tasks/
+(pure task rules) imports core/ and config/; fast/ (the compiled backend) imports core/, config/
+and tasks/. Checked twice: statically on every import statement of every module (lazy imports
+inside functions included), and dynamically by importing the pure layers in a fresh interpreter.
 """
 
 from __future__ import annotations
@@ -22,18 +24,28 @@ PKG = Path(ihrcf_env.__file__).resolve().parent
 
 # layer -> top-level modules / ihrcf_env sub-packages it must not import
 _LEARNING = ("ihrcf_env.rl", "torch", "stable_baselines3", "ray")
+#: Layers above the configuration: nothing below them may import these.
+_ABOVE_CONFIG = (
+    "ihrcf_env.sim",
+    "ihrcf_env.envs",
+    "ihrcf_env.wrappers",
+    "ihrcf_env.vector",
+    "ihrcf_env.record",
+    "ihrcf_env.control",
+    "ihrcf_env.experiments",
+    "ihrcf_env.cli",
+)
 FORBIDDEN: dict[str, tuple[str, ...]] = {
     "core": (
         "pybullet",
         "gymnasium",
-        "ihrcf_env.sim",
-        "ihrcf_env.envs",
-        "ihrcf_env.wrappers",
-        "ihrcf_env.control",
-        "ihrcf_env.experiments",
-        "ihrcf_env.cli",
+        "ihrcf_env.config",
+        "ihrcf_env.tasks",
+        "ihrcf_env.fast",
+        *_ABOVE_CONFIG,
         *_LEARNING,
     ),
+    "config": ("pybullet", "gymnasium", "ihrcf_env.tasks", "ihrcf_env.fast", *_ABOVE_CONFIG, *_LEARNING),
     "control": (
         "pybullet",
         "gymnasium",
@@ -59,34 +71,122 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
     "experiments": ("ihrcf_env.cli", *_LEARNING),
     # learning glue (SB3 / RLlib) sits on the Gymnasium API: envs by id, never the simulator
     "rl": ("pybullet", "ihrcf_env.sim", "ihrcf_env.experiments", "ihrcf_env.cli"),
+    # the array layers (checked when their folders exist): pure rules, and the compiled backend
+    "tasks": ("pybullet", "gymnasium", "ihrcf_env.fast", *_ABOVE_CONFIG, *_LEARNING),
+    "fast": ("pybullet", "gymnasium", *_ABOVE_CONFIG, *_LEARNING),
 }
+#: Layers checked only when their folder exists.
+OPTIONAL_LAYERS = ("tasks", "fast")
+#: What the pure layers may import at all: the standard library, these packages, and these
+#: ihrcf_env modules (the package root is above every layer: its version is ``ihrcf_env._version``).
+ALLOWED: dict[str, tuple[str, ...]] = {
+    "core": ("numpy", "scipy", "cv2", "threadpoolctl", "ihrcf_env.core", "ihrcf_env._version"),
+    "config": ("numpy", "scipy", "ihrcf_env.core", "ihrcf_env.config", "ihrcf_env._version"),
+}
+#: The one lazy import of config/ from a layer above it, inside a function that runs when
+#: ``make_config`` does: the registry of user components (sensors, noise models, faults) the
+#: options name. Importing config/ loads it not.
+LAZY_EXCEPTIONS: dict[str, tuple[str, ...]] = {"config": ("ihrcf_env.sim.registry",)}
 
 
-def _imports(path: Path) -> set[str]:
+def _layers() -> list[str]:
+    return sorted(k for k in FORBIDDEN if k not in OPTIONAL_LAYERS or (PKG / k).is_dir())
+
+
+def _imports(path: Path, top_level_only: bool = False) -> set[str]:
+    """The module names ``path`` imports (``from m import a`` gives ``m`` and ``m.a``); with
+    ``top_level_only``, those of the module's own statements, not inside functions or classes."""
+    tree = ast.parse(path.read_text(), str(path))
+    nodes = ast.iter_child_nodes(tree) if top_level_only else ast.walk(tree)
     names: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
-        if isinstance(node, ast.Import):
-            names.update(a.name for a in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            names.add(node.module)
-            names.update(f"{node.module}.{a.name}" for a in node.names)
+    for node in nodes:
+        if isinstance(node, ast.If):  # ``if TYPE_CHECKING:`` blocks at the top level
+            for child in ast.walk(node):
+                names |= _import_names(child)
+        names |= _import_names(node)
     return names
+
+
+def _import_names(node: ast.AST) -> set[str]:
+    if isinstance(node, ast.Import):
+        return {a.name for a in node.names}
+    if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+        return {node.module, *(f"{node.module}.{a.name}" for a in node.names)}
+    return set()
+
+
+def _matches(name: str, prefixes: tuple[str, ...]) -> bool:
+    return any(name == p or name.startswith(p + ".") for p in prefixes)
 
 
 def _violations(layer: str) -> list[str]:
     bad = []
+    lazy_ok = LAZY_EXCEPTIONS.get(layer, ())
     for f in sorted((PKG / layer).rglob("*.py")):
+        top = _imports(f, top_level_only=True)
         for name in _imports(f):
-            for forbidden in FORBIDDEN[layer]:
-                if name == forbidden or name.startswith(forbidden + "."):
-                    bad.append(f"{f.relative_to(PKG)} imports {name}")
+            if _matches(name, lazy_ok) and name not in top:
+                continue
+            if _matches(name, FORBIDDEN[layer]):
+                bad.append(f"{f.relative_to(PKG)} imports {name}")
     return bad
 
 
-@pytest.mark.parametrize("layer", sorted(FORBIDDEN))
+@pytest.mark.parametrize("layer", _layers())
 def test_layer_imports(layer: str) -> None:
     assert (PKG / layer).is_dir(), f"layer folder {layer}/ is missing"
     assert _violations(layer) == []
+
+
+def _modules(*layers: str) -> list[str]:
+    return sorted(
+        "ihrcf_env." + ".".join(f.relative_to(PKG).with_suffix("").parts).removesuffix(".__init__")
+        for layer in layers
+        for f in (PKG / layer).rglob("*.py")
+    )
+
+
+@pytest.mark.parametrize("layer", sorted(ALLOWED))
+def test_pure_layers_import_only_what_is_below_them(layer: str) -> None:
+    """core/ and config/ import the standard library, their allowed packages and the layers below
+    them, nothing else (the package root included: it registers the Gymnasium envs)."""
+    bad = []
+    lazy_ok = LAZY_EXCEPTIONS.get(layer, ())
+    for f in sorted((PKG / layer).rglob("*.py")):
+        top = _imports(f, top_level_only=True)
+        for name in _imports(f):
+            root = name.split(".")[0]
+            if root == "__future__" or (root in sys.stdlib_module_names and root != "ihrcf_env"):
+                continue
+            if _matches(name, ALLOWED[layer]) or (_matches(name, lazy_ok) and name not in top):
+                continue
+            bad.append(f"{f.relative_to(PKG)} imports {name}")
+    assert bad == []
+
+
+_DYNAMIC = ("import_module", "__import__")
+
+
+def _dynamic_imports(path: Path) -> set[str]:
+    """Names given as constants to ``importlib.import_module`` / ``__import__`` in ``path``."""
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant):
+            func = node.func
+            called = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", "")
+            if called in _DYNAMIC and isinstance(node.args[0].value, str):
+                out.add(node.args[0].value)
+    return out
+
+
+@pytest.mark.parametrize("module", _modules("core", "config"))
+def test_each_pure_module_imports_neither_pybullet_nor_gymnasium(module: str) -> None:
+    """Each of core's and config's own modules: no import of PyBullet or Gymnasium anywhere in it
+    (inside functions too, nor by name through importlib)."""
+    path = PKG.joinpath(*module.split(".")[1:])
+    path = path / "__init__.py" if path.is_dir() else path.with_suffix(".py")
+    names = _imports(path) | _dynamic_imports(path)
+    assert [n for n in names if _matches(n, ("pybullet", "gymnasium"))] == []
 
 
 def test_contract_catches_a_violation(tmp_path: Path) -> None:
@@ -96,19 +196,38 @@ def test_contract_catches_a_violation(tmp_path: Path) -> None:
 
 
 def test_pure_layers_do_not_load_pybullet_or_gymnasium_at_run_time() -> None:
-    mods = sorted(
-        "ihrcf_env." + ".".join(f.relative_to(PKG).with_suffix("").parts).removesuffix(".__init__")
-        for layer in ("core", "control")
-        for f in (PKG / layer).rglob("*.py")
-    )
+    """Importing every module of core/, control/ and config/ in a fresh interpreter loads no
+    PyBullet, and no Gymnasium module beyond those the package root loads to register its ids."""
+    mods = _modules("core", "control", "config")
     code = (
         "import sys, importlib\n"
+        "def loaded(): return {k for k in sys.modules if k.split('.')[0] in ('pybullet', 'gymnasium')}\n"
+        "import ihrcf_env\n"
+        "before = loaded()\n"
         f"for m in {mods!r}: importlib.import_module(m)\n"
-        "print(sorted(k for k in ('pybullet', 'gymnasium') if k in sys.modules))"
+        "print(sorted(loaded() - before))\n"
+        "print('pybullet' in sys.modules)"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    # importing the package root registers the envs with gymnasium; the pure modules add nothing more
-    assert "pybullet" not in out.stdout, out.stdout
+    added, pybullet = out.stdout.splitlines()
+    assert added == "[]", added
+    assert pybullet == "False"
+
+
+def test_the_layer_contract_has_no_import_of_the_package_root() -> None:
+    """core/ and config/ never import the package root (``from ihrcf_env import ...``): it registers
+    the Gymnasium envs. The version is ``ihrcf_env._version``."""
+    bad = [
+        f"{f.relative_to(PKG)}"
+        for layer in ("core", "config")
+        for f in (PKG / layer).rglob("*.py")
+        for node in ast.walk(ast.parse(f.read_text()))
+        if isinstance(node, ast.ImportFrom)
+        and node.module == "ihrcf_env"
+        or isinstance(node, ast.Import)
+        and any(a.name == "ihrcf_env" for a in node.names)
+    ]
+    assert bad == []
 
 
 def test_every_package_is_installed() -> None:

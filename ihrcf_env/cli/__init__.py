@@ -15,3 +15,7 @@ COMMANDS = {
     "evaluate": "evaluate",
     "fit-detector": "fit_detector",
 }
+
+__all__ = [
+    "COMMANDS",
+]

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import ihrcf_env  # noqa: F401  (registers the envs)
 from ihrcf_env.cli.common import check_output, command_main, int_in, make_parser, write_whole
+from ihrcf_env.config.world import PHYSICS_BACKENDS
 from ihrcf_env.core.metrics import table2_markdown
 from ihrcf_env.core.threads import limit_blas_threads
 from ihrcf_env.experiments.accuracy import accuracy
@@ -43,7 +44,6 @@ from ihrcf_env.experiments.vector_speed import (
     single_speed,
     vector_speed,
 )
-from ihrcf_env.sim.world import PHYSICS_BACKENDS
 from ihrcf_env.vector.checks import MAX_ENVS
 
 MILD_DISTORTION = (-0.05, 0.0)
@@ -336,3 +336,15 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+__all__ = [
+    "DESCRIPTION",
+    "MAX_PROCESSES",
+    "MAX_ROUNDS",
+    "MILD_DISTORTION",
+    "VECTOR_NS",
+    "VECTOR_OPTIONS",
+    "build_parser",
+    "calibration_for",
+    "main",
+]

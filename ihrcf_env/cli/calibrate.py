@@ -141,6 +141,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     default = f"calibration_{args.width}x{args.height}_fov{args.fov_deg:g}.json"
     out = check_output(ap, "--output", default if args.output is None else args.output)
     # Imported here so that ``--help`` does not start PyBullet.
+    from ihrcf_env.config.sensors import CameraConfig
     from ihrcf_env.core.calibration import CalibrationError
     from ihrcf_env.sim.calibration_procedure import (
         AscentSettings,
@@ -148,7 +149,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         ChessboardSettings,
         run_calibration,
     )
-    from ihrcf_env.sim.sensors import CameraConfig
 
     try:
         camera = CameraConfig(
@@ -212,3 +212,10 @@ def _print_summary(run: CalibrationRun, path: str, elapsed: float) -> None:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+__all__ = [
+    "DESCRIPTION",
+    "PhaseProgress",
+    "build_parser",
+    "main",
+]

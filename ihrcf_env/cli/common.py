@@ -162,3 +162,14 @@ def write_whole(path: str | Path, text: str) -> Path:
             os.unlink(tmp)
         raise
     return out
+
+
+__all__ = [
+    "MAX_SEED",
+    "HelpFormatter",
+    "check_output",
+    "int_in",
+    "make_parser",
+    "seed_type",
+    "write_whole",
+]

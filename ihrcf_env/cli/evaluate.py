@@ -22,9 +22,9 @@ import numpy as np
 
 from ihrcf_env import LANDING_V1_ID, LANDING_V2_ID
 from ihrcf_env.cli.common import MAX_SEED, command_main, int_in, make_parser, seed_type
+from ihrcf_env.config.levels import LEVELS, TEST_SEEDS
 from ihrcf_env.control.gru_policy import GruPolicy, PolicyFileError
 from ihrcf_env.core.metrics import failure_groups, wilson_interval
-from ihrcf_env.envs.levels import LEVELS, TEST_SEEDS
 from ihrcf_env.experiments.episode import EpisodeResult, run_episodes
 from ihrcf_env.experiments.policies import (
     SB3_ALGOS,
@@ -304,3 +304,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+__all__ = [
+    "DESCRIPTION",
+    "build_parser",
+    "format_episode",
+    "main",
+    "summary",
+]

@@ -127,3 +127,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+__all__ = [
+    "DEFAULT_OUTPUT",
+    "DESCRIPTION",
+    "MIN_FRAMES",
+    "build_parser",
+    "main",
+]

@@ -36,3 +36,8 @@ class AlphaBeta:
             r = z - self.x
             self.x += self.alpha * r
             self.v += self.beta * r / dt
+
+
+__all__ = [
+    "AlphaBeta",
+]

@@ -233,3 +233,11 @@ def _read_weight(name: str, key: str, raw: Any) -> NDArray[np.float64]:
     if arr.dtype.kind not in "biuf":
         raise PolicyFileError(f"{name}: weight {key!r} must be real numbers, got {arr.dtype}")
     return arr.astype(np.float64)
+
+
+__all__ = [
+    "FORMAT",
+    "WEIGHTS",
+    "GruPolicy",
+    "PolicyFileError",
+]

@@ -96,3 +96,10 @@ class HoverTracker:
         return tracking_action(
             obs[self.estimator], obs["imu"]["quaternion"], self.height, self.max_velocity, self.gains
         )
+
+
+__all__ = [
+    "HoverGains",
+    "HoverTracker",
+    "tracking_action",
+]

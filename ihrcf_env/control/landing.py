@@ -527,3 +527,13 @@ class LandingController:
             self.last_tag -= cmd[:2] * self.max_velocity[:2] * self.dt  # against the commanded motion
         self.z_cmd += float(cmd[2] * self.max_velocity[2]) * self.dt  # the autopilot's altitude set-point
         return cmd.astype(np.float32)
+
+
+__all__ = [
+    "LANDING_BOUNDS",
+    "LANDING_OFF_AT_INF",
+    "LANDING_UNITS",
+    "LandingConfig",
+    "LandingController",
+    "Measurement",
+]

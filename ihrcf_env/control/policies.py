@@ -219,3 +219,14 @@ class ScriptedLanding:
             self._get(obs, "nav_velocity")[:2] if self.use_nav_velocity else None,
         )
         return self.controller.act_measured(m)
+
+
+__all__ = [
+    "LANDING_CONFIGS",
+    "V1_LANDING_CONFIG",
+    "V2_LANDING_CONFIG",
+    "BlindDescent",
+    "Policy",
+    "ScriptedLanding",
+    "level_from_up",
+]

@@ -11,3 +11,8 @@ def clip(x: ArrayLike, low: float, high: float) -> NDArray[np.float64]:
     Python-level overhead on arrays of a few elements."""
     out: NDArray[np.float64] = np.minimum(np.maximum(np.asarray(x, dtype=np.float64), low), high)
     return out
+
+
+__all__ = [
+    "clip",
+]

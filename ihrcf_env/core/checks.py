@@ -207,3 +207,21 @@ def from_fields(name: str, cls: type[T], value: Any, default: T | None = None) -
         except (TypeError, ValueError) as e:
             raise type(e)(f"{name}[{key!r}]: {e}") from None
     raise type(error)(f"{name}: {error}") from None
+
+
+__all__ = [
+    "check_bool",
+    "check_fields",
+    "check_int",
+    "check_mapping",
+    "check_non_negative",
+    "check_positive",
+    "check_real",
+    "check_reals",
+    "check_str",
+    "describe",
+    "from_fields",
+    "is_int",
+    "is_real",
+    "set_field",
+]

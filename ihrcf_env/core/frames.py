@@ -196,3 +196,19 @@ def wrap_angle(a: ArrayLike, period: float = 2 * math.pi) -> NDArray[np.float64]
     a = np.asarray(a, dtype=np.float64)
     half = 0.5 * period
     return half - np.mod(half - a, period)
+
+
+__all__ = [
+    "R_BODY_CAM",
+    "as_array",
+    "body_pose_to_cam",
+    "cam_pose_to_body",
+    "euler_from_matrix",
+    "matrices_from_euler",
+    "matrix_from_euler",
+    "matrix_from_quat",
+    "quat_from_matrix",
+    "relative_pose",
+    "rotation_angle",
+    "wrap_angle",
+]

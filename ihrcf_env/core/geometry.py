@@ -296,3 +296,15 @@ def _rigid_fit(
     res = P @ R.T + t - Q
     rms = math.sqrt(float(np.einsum("ij,ij->", res, res)) / len(P))
     return R, t, rms
+
+
+__all__ = [
+    "Matrix3",
+    "apply_homography",
+    "collinear",
+    "fit_plane",
+    "homography_from_points",
+    "plane_z",
+    "quad_is_degenerate",
+    "rigid_fit",
+]

@@ -46,3 +46,8 @@ def read_json(
         raise error(f"{name}: not a valid {what} (JSON nested too deeply){invalid}") from None
     except ValueError as e:
         raise error(f"{name}: not a valid {what} ({e}){invalid}") from None
+
+
+__all__ = [
+    "read_json",
+]

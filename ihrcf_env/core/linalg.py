@@ -1,8 +1,8 @@
 """Dense linear algebra on tiny matrices (2x2 to 4x3) for per-frame estimator code.
 
-``numpy.linalg`` spends 3-7 us per call on a 3x3 matrix, almost all of it in Python-level checks
-and dispatch; OpenCV's compiled routines do the same work in 0.3-1.5 us. The estimators call these
-a few dozen times per camera frame, so they use the wrappers below. The results equal numpy's to
+On matrices this small ``numpy.linalg``'s cost is mostly Python-level checks and dispatch, which
+OpenCV's compiled routines avoid. The estimators call these a few dozen times per camera frame, so
+they use the wrappers below. The results equal numpy's to
 floating-point rounding (``tests/core/test_linalg.py``), not bit for bit: the algorithms differ
 (one-sided Jacobi SVD; for k <= 3 OpenCV inverts and solves in closed form, by the adjugate
 and Cramer's rule, which is accurate for the well-conditioned covariances met here).
@@ -81,3 +81,10 @@ def mahalanobis2(S: NDArray[np.float64], v: NDArray[np.float64]) -> float:
             )
             q = float(v @ sol[:, 0]) if ok else math.inf
     return q if math.isfinite(q) else math.inf
+
+
+__all__ = [
+    "mahalanobis2",
+    "spd_inverse",
+    "svd",
+]

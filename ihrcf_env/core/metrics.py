@@ -293,3 +293,26 @@ def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tup
     centre = (p + z2 / (2 * n)) / (1 + z2 / n)
     half = z / (1 + z2 / n) * math.sqrt(p * (1 - p) / n + z2 / (4 * n * n))
     return max(0.0, centre - half), min(1.0, centre + half)
+
+
+__all__ = [
+    "ESTIMATORS",
+    "LABELS",
+    "OUTCOMES",
+    "PAPER_TABLE2",
+    "POSE_AXES",
+    "TABLE_ORDER",
+    "EpisodeResult",
+    "ErrorStats",
+    "LandingSummary",
+    "error_stats",
+    "failure_groups",
+    "format_episode",
+    "format_landing_summary",
+    "pose_errors",
+    "summarize_landings",
+    "table2_markdown",
+    "table2_text",
+    "table_columns",
+    "wilson_interval",
+]

@@ -31,3 +31,9 @@ def asset_path(name: str) -> Path:
     if not p.is_file():
         raise FileNotFoundError(f"asset {name!r} not found at {p}; is the package installed completely?")
     return p
+
+
+__all__ = [
+    "asset_path",
+    "assets_dir",
+]

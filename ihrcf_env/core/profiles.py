@@ -398,3 +398,32 @@ def make_profile(
             return ship_profile(rng, ship)  # type: ignore[arg-type]
         raise ValueError(f"deck_profile must be one of {PROFILE_NAMES} or a callable, got {spec!r}")
     return CallableProfile(spec)
+
+
+__all__ = [
+    "DOFS",
+    "MAX_FREQUENCY",
+    "MAX_PHASE",
+    "MAX_ROTATION",
+    "MAX_START_TIME",
+    "MAX_TRANSLATION",
+    "PAPER_DURATION",
+    "PERIOD_BOUNDS",
+    "PROFILE_NAMES",
+    "SEA_STATE_AMPLITUDES",
+    "SEA_STATE_CHECK_POINTS",
+    "CallableProfile",
+    "MotionProfile",
+    "PoseArrays",
+    "ShiftedProfile",
+    "StaticProfile",
+    "SumOfSines",
+    "UnusablePoseError",
+    "check_sea_state_amplitudes",
+    "make_profile",
+    "paper_profile",
+    "profile_leg_lengths",
+    "sample_until_unusable",
+    "sea_state_amplitudes",
+    "sea_state_profile",
+]

@@ -132,3 +132,14 @@ def heave_energy_bound(heave: ArrayLike, vz: ArrayLike, omega: float) -> NDArray
     z = np.asarray(heave, dtype=np.float64)
     v = np.asarray(vz, dtype=np.float64)
     return np.sqrt(z**2 + (v / w) ** 2)
+
+
+__all__ = [
+    "QuiescenceThresholds",
+    "energy_index",
+    "heave_energy_bound",
+    "quiescent_fraction",
+    "quiescent_mask",
+    "quiescent_periods",
+    "tilt",
+]

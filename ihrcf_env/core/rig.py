@@ -97,7 +97,7 @@ def intrinsics_from_fov(width: int, height: int, fov: float) -> NDArray[np.float
     """Pinhole K (OpenCV pixel-centre convention) of a camera with vertical field of view ``fov`` (rad).
 
     Square pixels; the principal point is the image centre, ``((W - 1) / 2, (H - 1) / 2)``.
-    (A particular renderer may put it elsewhere: see ``ihrcf_env.sim.sensors.camera.CameraConfig``.)
+    (A particular renderer may put it elsewhere: see ``ihrcf_env.config.sensors.CameraConfig``.)
     """
     if width <= 0 or height <= 0:
         raise ValueError(f"image size must be positive, got {width}x{height}")
@@ -105,3 +105,11 @@ def intrinsics_from_fov(width: int, height: int, fov: float) -> NDArray[np.float
         raise ValueError(f"fov must be in (0, pi) rad, got {fov!r}")
     f = (height / 2.0) / math.tan(fov / 2.0)
     return np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0], [0.0, 0.0, 1.0]])
+
+
+__all__ = [
+    "PAD_COLOURS",
+    "SensorRig",
+    "intrinsics_from_fov",
+    "tag_corners_deck",
+]

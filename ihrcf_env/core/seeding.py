@@ -42,3 +42,10 @@ class SeedStreams:
     def generator(self, name: str) -> np.random.Generator:
         """A new generator of the stream ``name`` (the same draws every call)."""
         return np.random.default_rng(self.sequence(name))
+
+
+__all__ = [
+    "KEY_RANGE",
+    "SeedStreams",
+    "stream_id",
+]

@@ -348,3 +348,21 @@ def fits(profile: MotionProfile, geometry: StewartGeometry, horizon_s: float, dt
     """Whether the legs of ``geometry`` can follow ``profile`` over ``[0, horizon_s]`` (model s),
     checked as the deck does at reset (:func:`stroke_margin` >= 0)."""
     return stroke_margin(profile, geometry, horizon_s, dt)[0] >= 0.0
+
+
+__all__ = [
+    "BAND",
+    "BLOCK",
+    "DEFAULT_LENGTH_SCALE",
+    "FRIGATE",
+    "LARGE_STEWART",
+    "LENGTH_SCALE_BOUNDS",
+    "ShipMotion",
+    "ShipOptions",
+    "Vessel",
+    "fits",
+    "response_psd",
+    "ship_profile",
+    "stroke_margin",
+    "transfer",
+]

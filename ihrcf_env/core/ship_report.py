@@ -138,3 +138,13 @@ def ship_table(
 
 def _scale(lam: float | None) -> str:
     return "none listed" if lam is None else f"{lam:g}"
+
+
+__all__ = [
+    "PEAK_BAND",
+    "SCALES",
+    "deck_record",
+    "ship_table",
+    "smallest_fitting_scale",
+    "spectrum_ratios",
+]

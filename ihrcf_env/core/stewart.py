@@ -130,3 +130,8 @@ class StewartGeometry:
                 f"deck motion exceeds the Stewart leg stroke at t = {t:.3f} s: leg {leg + 1} would be "
                 f"{L[k, leg]:.4f} m, allowed [{self.min_leg:.4f}, {self.max_leg:.4f}] m"
             )
+
+
+__all__ = [
+    "StewartGeometry",
+]

@@ -39,3 +39,10 @@ def limit_blas_threads(n: int = 1) -> None:
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(limits=n)
+
+
+__all__ = [
+    "THREAD_VARIABLES",
+    "limit_blas_threads",
+    "one_blas_thread",
+]

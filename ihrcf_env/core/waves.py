@@ -145,3 +145,18 @@ def sea_state(spec: int | str | SeaState | Mapping[str, object]) -> SeaState:
         f"sea_state must be a WMO code {sorted(SEA_STATES)}, a name {SEA_STATE_NAMES}, a SeaState "
         f"or a dict of its fields, got {describe(spec)}"
     )
+
+
+__all__ = [
+    "GAMMA_BOUNDS",
+    "HS_BOUNDS",
+    "MAX_STEEPNESS",
+    "SEA_STATES",
+    "SEA_STATE_NAMES",
+    "TP_BOUNDS",
+    "WMO_HS_BANDS",
+    "SeaState",
+    "jonswap",
+    "pierson_moskowitz",
+    "sea_state",
+]

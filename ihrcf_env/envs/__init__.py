@@ -1,7 +1,5 @@
-"""Gymnasium environments and their validated configuration."""
+"""Gymnasium environments of the deck tasks; their configuration is :mod:`ihrcf_env.config`."""
 
-from ihrcf_env.envs.config import DeckLandingConfig, ObservationConfig, make_config
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
-from ihrcf_env.envs.task_config import TaskConfig
 
-__all__ = ["DeckLandingConfig", "DeckLandingEnv", "ObservationConfig", "TaskConfig", "make_config"]
+__all__ = ["DeckLandingEnv"]

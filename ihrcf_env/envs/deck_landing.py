@@ -49,8 +49,8 @@ Reward per step (each term also in ``info`` as ``reward_<name>``): ``position = 
 crash. Termination: touchdown (success if the relative vertical speed < 0.5 m/s, the relative tilt
 < 10 deg and the drone is over the deck; a crash otherwise), a tilt > 60 deg, or leaving the arena.
 Truncation only by ``max_episode_steps`` (TimeLimit). The weights and thresholds are the defaults of
-:class:`~ihrcf_env.envs.task_config.RewardWeights` and
-:class:`~ihrcf_env.envs.task_config.Thresholds`.
+:class:`~ihrcf_env.config.task.RewardWeights` and
+:class:`~ihrcf_env.config.task.Thresholds`.
 
 Misuse raises: a bad option TypeError/ValueError naming it (before any PyBullet client exists),
 ``step`` after a terminated episode or after ``close`` RuntimeError, copying or pickling TypeError.
@@ -67,6 +67,11 @@ import pybullet as p
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from ihrcf_env.config.landing import DeckLandingConfig
+from ihrcf_env.config.make import make_config
+from ihrcf_env.config.sensors import CameraConfig
+from ihrcf_env.config.task import ARENA_MARGIN, MIN_START_ALTITUDE
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.arrays import clip
 from ihrcf_env.core.checks import check_mapping, check_real, check_reals
 from ihrcf_env.core.frames import euler_from_matrix, quat_from_matrix
@@ -74,14 +79,12 @@ from ihrcf_env.core.profiles import PAPER_DURATION, MotionProfile, ShiftedProfil
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.core.seeding import SeedStreams
 from ihrcf_env.core.ship import fits
-from ihrcf_env.envs.config import ARENA_MARGIN, MIN_START_ALTITUDE, DeckLandingConfig, make_config
 from ihrcf_env.envs.display import require_gui_display
 from ihrcf_env.sim.deck import DeckTrajectory
 from ihrcf_env.sim.disturbances import Wind
 from ihrcf_env.sim.registry import SENSORS
-from ihrcf_env.sim.sensors import CameraConfig
 from ihrcf_env.sim.sensors.base import TAG_STATUS
-from ihrcf_env.sim.world import CAMERA_SENSORS, Snapshot, Touchdown, World, WorldConfig
+from ihrcf_env.sim.world import CAMERA_SENSORS, Snapshot, Touchdown, World
 
 RESET_OPTIONS = ("altitude", "offset", "yaw", "deck_time")
 #: Deck profiles drawn at random per episode (a draw the legs cannot follow is drawn again).
@@ -108,8 +111,8 @@ class DeckLandingEnv(gym.Env):
     pose in the drone body frame (``deck_position_body`` m, ``deck_euler_body`` roll/pitch/yaw rad),
     world poses of drone and deck, the six leg lengths and contact flags.
 
-    The env's one input is a validated :class:`~ihrcf_env.envs.config.DeckLandingConfig`
-    (``config``; or keyword options, validated by :func:`~ihrcf_env.envs.config.make_config` before
+    The env's one input is a validated :class:`~ihrcf_env.config.landing.DeckLandingConfig`
+    (``config``; or keyword options, validated by :func:`~ihrcf_env.config.make.make_config` before
     any PyBullet client exists). ``self.config`` is that config. Randomness: ``reset(seed=s)``
     seeds ``np_random``; each episode then draws one key from it and spawns independent streams
     (:class:`~ihrcf_env.core.seeding.SeedStreams`) for the start (``"start"``), the deck motion
@@ -122,7 +125,7 @@ class DeckLandingEnv(gym.Env):
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
     _gui_owner: ClassVar[DeckLandingEnv | None] = None
-    #: The task whose defaults ``**options`` take (see :data:`~ihrcf_env.envs.config.TASK_DEFAULTS`).
+    #: The task whose defaults ``**options`` take (see :data:`~ihrcf_env.config.make.TASK_DEFAULTS`).
     task_name = "hover"
 
     def __init__(self, config: DeckLandingConfig | None = None, **options: Any) -> None:

@@ -44,3 +44,8 @@ def require_gui_display() -> None:
     if not handle:
         raise RuntimeError(f"{_HINT}. Cannot connect to the X server of DISPLAY={display!r}")
     xlib.XCloseDisplay(handle)
+
+
+__all__ = [
+    "require_gui_display",
+]

@@ -1,7 +1,7 @@
 """``DeckLandingV1Env``: the landing task of ``ihrcf_env/DeckLanding-v1``, where sensing matters.
 
 A :class:`~ihrcf_env.envs.deck_landing.DeckLandingEnv` (same world, actions, sensors, options) with
-the landing goal of :class:`~ihrcf_env.envs.task_config.LandingGoal`; its defaults differ from the
+the landing goal of :class:`~ihrcf_env.config.task.LandingGoal`; its defaults differ from the
 hover task's (:data:`V1_DEFAULTS`):
 
 * **start** 1.5-3 m above the deck origin (``start_altitude`` 2.25 +- 0.75 m), any yaw
@@ -17,7 +17,7 @@ hover task's (:data:`V1_DEFAULTS`):
   tilt over 60 deg or leaving the arena is a crash (``info["crash_reason"]``). Both terminate; only
   the ``TimeLimit`` truncates.
 
-**Reward** (weights :class:`~ihrcf_env.envs.task_config.RewardWeightsV1`, per step, each term in
+**Reward** (weights :class:`~ihrcf_env.config.task.RewardWeightsV1`, per step, each term in
 ``info["reward_<term>"]``)::
 
     progress = Phi(s') - Phi(s)        Phi = -(distance d_xy + height h + speed |v_rel|)
@@ -54,9 +54,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ihrcf_env.envs.config import TASK_DEFAULTS
+from ihrcf_env.config.make import TASK_DEFAULTS
+from ihrcf_env.config.task import LandingGoal
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
-from ihrcf_env.envs.task_config import LandingGoal
 from ihrcf_env.sim.world import Snapshot, Touchdown
 
 #: ``gym.make`` defaults of v1 that differ from the hover task's (any of them can still be given).
@@ -70,9 +70,9 @@ TAG_EXTENT = 10.0 / 8.0 / 2.0
 
 class DeckLandingV1Env(DeckLandingEnv):
     """The v1 landing task (module docstring). ``config`` (or options validated by
-    :func:`~ihrcf_env.envs.config.make_config` with ``task="landing-v1"``, v1 defaults in
+    :func:`~ihrcf_env.config.make.make_config` with ``task="landing-v1"``, v1 defaults in
     :data:`V1_DEFAULTS`); ``self.goal`` is the config's
-    :class:`~ihrcf_env.envs.task_config.LandingGoal`, ``self.wind`` the env's wind (None when
+    :class:`~ihrcf_env.config.task.LandingGoal`, ``self.wind`` the env's wind (None when
     calm)."""
 
     task_name = "landing-v1"
@@ -199,7 +199,7 @@ class DeckLandingV1Env(DeckLandingEnv):
 class DeckLandingV2Env(DeckLandingV1Env):
     """The landing task of ``ihrcf_env/DeckLanding-v2``: v1's goal, start, reward and outcomes in
     the conditions real deck landings face, graded by ``level`` (``"calm"``, ``"moderate"``,
-    ``"rough"``; :mod:`ihrcf_env.envs.levels`): a ship's deck in a WMO sea state, wind with gusts,
+    ``"rough"``; :mod:`ihrcf_env.config.levels`): a ship's deck in a WMO sea state, wind with gusts,
     the wind-holding autopilot and ground effect."""
 
     task_name = "landing-v2"

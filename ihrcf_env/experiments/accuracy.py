@@ -102,3 +102,11 @@ def accuracy(
         return hover_rollout(env, frames, seed, altitude, track).error_stats()
     finally:
         env.close()
+
+
+__all__ = [
+    "HOVER_START",
+    "accuracy",
+    "hover_rollout",
+    "make_accuracy_env",
+]

@@ -1,6 +1,6 @@
 """The DeckLanding-v2 baseline table: ``python -m ihrcf_env.experiments.benchmark_v2``.
 
-Runs the benchmark protocol (the test seeds of :data:`~ihrcf_env.envs.levels.TEST_SEEDS`) for each
+Runs the benchmark protocol (the test seeds of :data:`~ihrcf_env.config.levels.TEST_SEEDS`) for each
 level and baseline and writes the table as Markdown (``docs/benchmark-v2.md`` by default), stamped
 like the results page: per level the blind descent (``blind:0.3``) and the scripted landing
 (:class:`~ihrcf_env.control.policies.ScriptedLanding`) with the projected camera; with
@@ -32,9 +32,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import ihrcf_env
+from ihrcf_env.config.levels import LEVELS, TEST_SEEDS
 from ihrcf_env.core.metrics import wilson_interval
 from ihrcf_env.core.threads import one_blas_thread
-from ihrcf_env.envs.levels import LEVELS, TEST_SEEDS
 from ihrcf_env.experiments.episode import run_episodes
 from ihrcf_env.experiments.policies import make_env_for
 from ihrcf_env.experiments.results import LandingRow, Stamp, landing_row, machine, pair, stamp_markdown
@@ -215,3 +215,17 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+__all__ = [
+    "BASELINES",
+    "Job",
+    "cache_key",
+    "label",
+    "load_row",
+    "main",
+    "page_markdown",
+    "plan",
+    "run_cached",
+    "run_job",
+    "table_markdown",
+]

@@ -15,13 +15,15 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from ihrcf_env.sim.sensors.camera import CameraConfig, DownCamera
+from ihrcf_env.config.sensors import CameraConfig
+from ihrcf_env.sim.sensors.camera import DownCamera
 
 
 def _hover_world(width: int, height: int, frames: int, camera: CameraConfig | None = None) -> Any:
     """A world at the paper's experiment: drone 1 m above the deck on the "paper" profile, 20 Hz."""
+    from ihrcf_env.config.world import WorldConfig
     from ihrcf_env.core.profiles import paper_profile
-    from ihrcf_env.sim.world import World, WorldConfig
+    from ihrcf_env.sim.world import World
 
     world = World(
         WorldConfig(camera=camera if camera is not None else CameraConfig(width=width, height=height))
@@ -123,3 +125,9 @@ def save_realistic_example(
     if not cv2.imwrite(str(out), cv2.cvtColor(image, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 9]):
         raise OSError(f"could not write {out}")
     return out
+
+
+__all__ = [
+    "realism_cost_ms",
+    "save_realistic_example",
+]

@@ -199,7 +199,7 @@ class CameraValidation:
 def _estimators(
     cal: Calibration, tag_size: float, tag_id: int, tof_model: object, names: Sequence[str] = ESTIMATORS
 ) -> DeckPoseEstimator:
-    from ihrcf_env.envs.config import fused_params_for_tof
+    from ihrcf_env.config.observation import fused_params_for_tof
     from ihrcf_env.wrappers import estimator_from_calibration
 
     return estimator_from_calibration(
@@ -233,11 +233,10 @@ def validate_preset(
     ``offset_fraction`` of the way to the image edge. ``estimators``: the registered estimators
     compared (default IHRCF, ATDA, fused). The first ``warmup`` frames of every trajectory reach
     the estimators but are not scored (e.g. ATDA's first frame, without its flip prior)."""
-    from ihrcf_env.sim.sensors.camera import CameraConfig
-    from ihrcf_env.sim.sensors.imu import IMUConfig
+    from ihrcf_env.config.sensors import CameraConfig, IMUConfig, ToFConfig
+    from ihrcf_env.config.world import WorldConfig
     from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
-    from ihrcf_env.sim.sensors.tof import ToFConfig
-    from ihrcf_env.sim.world import World, WorldConfig
+    from ihrcf_env.sim.world import World
 
     if preset not in PRESETS:
         raise ValueError(f"preset must be one of {tuple(PRESETS)}, got {preset!r}")
@@ -516,3 +515,17 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+__all__ = [
+    "BOOTSTRAP",
+    "DETECTION_TOLERANCE",
+    "ESTIMATORS",
+    "MAE_TOLERANCE",
+    "MODES",
+    "PRESETS",
+    "CameraValidation",
+    "PresetValidation",
+    "main",
+    "validate_camera_model",
+    "validate_preset",
+]

@@ -197,3 +197,15 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+__all__ = [
+    "BANDS",
+    "BOOTSTRAP",
+    "ESTIMATORS",
+    "BandComparison",
+    "LoopRun",
+    "compare",
+    "fly",
+    "main",
+    "markdown",
+]

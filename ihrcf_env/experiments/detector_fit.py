@@ -80,11 +80,13 @@ def collect_samples(
 ) -> DetectorSamples:
     """Render and detect ``frames`` track frames plus ``frames // 10`` small-tag and ``frames // 10``
     oblique frames of camera ``quality`` (see the module docstring), seeded by ``seed``."""
+    from ihrcf_env.config.sensors import CameraConfig
+    from ihrcf_env.config.world import WorldConfig
     from ihrcf_env.core.profiles import StaticProfile
     from ihrcf_env.sim.sensors.base import BodyState
-    from ihrcf_env.sim.sensors.camera import CameraConfig, DownCamera
+    from ihrcf_env.sim.sensors.camera import DownCamera
     from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
-    from ihrcf_env.sim.world import World, WorldConfig
+    from ihrcf_env.sim.world import World
 
     if quality not in QUALITIES:
         raise ValueError(f"quality must be one of {QUALITIES}, got {quality!r}")
@@ -247,8 +249,8 @@ def fit_detector_model(
     """Collect frames of both qualities (:func:`collect_samples`, seeds ``seed`` and ``seed + 1``)
     and fit the model; its ``fit`` record holds the settings, timings and the fit reports. With
     ``samples_dir`` the frames are also written there (``<quality>.npz``, :func:`save_samples`)."""
-    from ihrcf_env import __version__
-    from ihrcf_env.sim.sensors.camera import CameraConfig
+    from ihrcf_env._version import __version__
+    from ihrcf_env.config.sensors import CameraConfig
 
     collected: dict[str, DetectorSamples] = {}
     timings: dict[str, float] = {}
@@ -283,3 +285,13 @@ def fit_detector_model(
         "reports": reports,
     }
     return DetectorModel(params, fit=fit)
+
+
+__all__ = [
+    "CONTROL_DT",
+    "FRAMES_PER_TRACK",
+    "collect_samples",
+    "fit_detector_model",
+    "load_samples",
+    "save_samples",
+]

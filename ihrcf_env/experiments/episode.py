@@ -86,3 +86,10 @@ def run_episodes(
         if on_episode is not None:
             on_episode(r)
     return out
+
+
+__all__ = [
+    "EpisodePolicy",
+    "run_episode",
+    "run_episodes",
+]

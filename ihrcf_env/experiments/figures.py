@@ -121,3 +121,11 @@ def save_figures(rec: Recording, out: Path) -> list[Path]:
             ax.grid(alpha=0.3)
             save(fig, f"fig{num + k}_{key}_{kind}_error.png")
     return paths
+
+
+__all__ = [
+    "AXIS_COLORS",
+    "COLORS",
+    "STYLE",
+    "save_figures",
+]

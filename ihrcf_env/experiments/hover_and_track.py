@@ -112,3 +112,12 @@ def save_csv(rec: Recording, path: Path) -> Path:
         path, data, delimiter=",", header=",".join(csv_header(rec.estimators)), comments="", fmt="%.6g"
     )
     return path
+
+
+__all__ = [
+    "CONTROL_HZ",
+    "csv_header",
+    "run",
+    "save_csv",
+    "tracking_summary",
+]

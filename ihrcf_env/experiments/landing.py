@@ -65,3 +65,9 @@ def evaluate(
         return run_episodes(env, ctrl, episodes, seed, on_episode, profile)
     finally:
         env.close()
+
+
+__all__ = [
+    "PROFILES",
+    "evaluate",
+]

@@ -204,3 +204,15 @@ def make_env_for(env_id: str, kwargs: dict[str, Any], spec: str, algo: str = "PP
     except Exception:
         env.close()
         raise
+
+
+__all__ = [
+    "SB3_ALGOS",
+    "PolicyError",
+    "SB3Policy",
+    "load_gru",
+    "load_sb3",
+    "make_env_for",
+    "make_policy",
+    "with_deck_motion",
+]

@@ -110,3 +110,9 @@ class Progress:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+__all__ = [
+    "Progress",
+    "is_terminal",
+]

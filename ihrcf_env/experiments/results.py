@@ -427,3 +427,30 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+__all__ = [
+    "FULL",
+    "HEADLINE_BEGIN",
+    "HEADLINE_END",
+    "PRESETS",
+    "QUICK",
+    "LandingRow",
+    "Plan",
+    "Results",
+    "SpeedRow",
+    "Stamp",
+    "headline_markdown",
+    "landing_markdown",
+    "landing_row",
+    "machine",
+    "main",
+    "pair",
+    "replace_block",
+    "results_markdown",
+    "run",
+    "run_accuracy",
+    "run_landings",
+    "run_speed",
+    "speed_markdown",
+    "stamp_markdown",
+]

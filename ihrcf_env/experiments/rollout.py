@@ -166,3 +166,10 @@ def rollout(
         ended_early=ended_early,
         estimators=estimators,
     )
+
+
+__all__ = [
+    "Policy",
+    "Recording",
+    "rollout",
+]

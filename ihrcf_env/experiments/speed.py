@@ -211,9 +211,8 @@ def component_costs(frames: int = 100, sensor_preset: str = "ideal") -> dict[str
     (``ihrcf``, ``atda``, ``fused``) on the full-frame corners, in that order: IHRCF's 3-D corners
     and ATDA's IPPE solutions are computed once per frame and shared (``SensorFrame.memo``), so the
     fused filter's figure is its own work on top of them, as in the wrapped env."""
-    from ihrcf_env.core.calibration import Calibration, default_calibration_path
+    from ihrcf_env.config.make import make_config
     from ihrcf_env.core.estimators import ImuSample, SensorFrame
-    from ihrcf_env.envs.config import fused_params_for_tof, make_config
     from ihrcf_env.sim.sensors.base import TAG_CAMERA
     from ihrcf_env.sim.world import World
     from ihrcf_env.wrappers import estimator_from_calibration
@@ -229,12 +228,10 @@ def component_costs(frames: int = 100, sensor_preset: str = "ideal") -> dict[str
             w.reset(profile, frames / 20 + 5, altitude=1.0)
             w.reset_random(r)
         main, proj, win = worlds
-        deck = cfg.world.deck
+        deck, obs = cfg.world.deck, cfg.observation
+        assert obs.calibration is not None  # resolved by make_config (not raw)
         est = estimator_from_calibration(
-            Calibration.load(default_calibration_path()),
-            deck.tag_size,
-            deck.tag_id,
-            fused_params=fused_params_for_tof(getattr(cfg.world.tof, "model", None)),
+            obs.calibration, deck.tag_size, deck.tag_id, fused_params=obs.fused_params
         )
         rng = rngs[0]
         spent: dict[str, list[float]] = {}
@@ -319,3 +316,18 @@ def estimation_ms(frames: int) -> float | None:
     finally:
         env.close()
     return 1e3 * float(np.mean(samples))
+
+
+__all__ = [
+    "CAMERA_MODES",
+    "WRAPPED",
+    "Speed",
+    "component_costs",
+    "estimation_ms",
+    "mode_speeds",
+    "projected_step_costs",
+    "raw_speed",
+    "steps_per_second",
+    "vector_scaling",
+    "wrapped_speed",
+]

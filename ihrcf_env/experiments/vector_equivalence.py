@@ -16,7 +16,6 @@ reproduces them.
 from __future__ import annotations
 
 import argparse
-import warnings
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -27,8 +26,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 import ihrcf_env
+from ihrcf_env._warnings import older_version_allowed
+from ihrcf_env.config.levels import LEVELS, TEST_SEEDS
 from ihrcf_env.control.policies import ScriptedLanding
-from ihrcf_env.envs.levels import LEVELS, TEST_SEEDS
 
 #: Most episodes of one run (one vector env holds them all).
 MAX_EPISODES = 1024
@@ -69,8 +69,7 @@ def _outcome(info: dict[str, Any], i: int) -> str:
 def vector_episodes(env_id: str, n: int, seed: int, **options: Any) -> tuple[list[Episode], bool]:
     """Each env's first episode in one vector env of ``n`` envs (``reset(seed=seed)``) and whether
     it ran its estimators as one batch."""
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*is out of date", category=DeprecationWarning)
+    with older_version_allowed():
         vec = gym.make_vec(env_id, num_envs=n, **options)
     try:
         policies = [ScriptedLanding.from_env(e) for e in vec.envs]  # type: ignore[attr-defined]
@@ -97,8 +96,7 @@ def vector_episodes(env_id: str, n: int, seed: int, **options: Any) -> tuple[lis
 
 def single_episode(env_id: str, seed: int, **options: Any) -> Episode:
     """The scripted landing's episode in ``gym.make(env_id, **options)`` reset with ``seed``."""
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*is out of date", category=DeprecationWarning)
+    with older_version_allowed():
         env = gym.make(env_id, **options)
     try:
         policy = ScriptedLanding.from_env(env)
@@ -207,3 +205,14 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+__all__ = [
+    "MAX_EPISODES",
+    "Comparison",
+    "Episode",
+    "compare",
+    "main",
+    "markdown",
+    "single_episode",
+    "vector_episodes",
+]

@@ -18,9 +18,7 @@ import os
 import queue
 import statistics
 import time
-import warnings
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -28,6 +26,7 @@ import gymnasium as gym
 import numpy as np
 
 import ihrcf_env
+from ihrcf_env._warnings import older_version_allowed
 from ihrcf_env.core.threads import one_blas_thread
 
 #: Actions of the timed loops: ``"random"`` (seeded samples of the action space) or ``"zero"``.
@@ -83,14 +82,6 @@ def _check_actions(actions: str) -> str:
     return actions
 
 
-@contextmanager
-def _quiet() -> Iterator[None]:
-    """Gymnasium's warning that a newer version of the id exists off (v1 is timed on purpose)."""
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*is out of date", category=DeprecationWarning)
-        yield
-
-
 def _actor(space: gym.Space[Any], actions: str, seed: int) -> Callable[[], Any]:
     """The action source of a timed loop: seeded samples of ``space`` or its zero."""
     space.seed(seed)
@@ -110,7 +101,7 @@ def single_speed(
 ) -> float:
     """Steps per second of ``gym.make(env_id, **options)`` (module docstring: resets counted)."""
     _check_actions(actions)
-    with _quiet():
+    with older_version_allowed():  # v1 is timed on purpose
         env = gym.make(env_id, **options)
     try:
         act = _actor(env.action_space, actions, seed)
@@ -148,7 +139,7 @@ def _time_vector(
 ) -> tuple[float, float]:
     """(start, end) (``time.perf_counter``, s) of ``steps`` timed steps of a fresh vector env;
     ``ready()`` is called after the warm-up, just before the timing."""
-    with _quiet():
+    with older_version_allowed():  # v1 is timed on purpose
         env = gym.make_vec(env_id, num_envs=num_envs, **options)
     try:
         act = _actor(env.action_space, actions, seed)
@@ -264,3 +255,15 @@ def markdown_table(single_steps_per_s: float, rows: Sequence[VectorSpeed | Paire
             f"{r.env_steps_per_s / r.cores:.1f} | {ratio:.2f} | {spread} |"
         )
     return lines
+
+
+__all__ = [
+    "ACTIONS",
+    "BARRIER_TIMEOUT_S",
+    "PairedSpeed",
+    "VectorSpeed",
+    "markdown_table",
+    "process_speed",
+    "single_speed",
+    "vector_speed",
+]

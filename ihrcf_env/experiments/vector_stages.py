@@ -24,7 +24,6 @@ from __future__ import annotations
 import argparse
 import functools
 import time
-import warnings
 from collections import defaultdict
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -37,6 +36,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 import ihrcf_env
+from ihrcf_env._warnings import older_version_allowed
 from ihrcf_env.core.batch import pipeline
 from ihrcf_env.core.batch.fused import BatchFused
 from ihrcf_env.core.batch.pipeline import BatchDeckPoseEstimator
@@ -198,8 +198,7 @@ def breakdown(
     with the stage timers, and ``single_steps`` steps of the single env with the same options but
     its default physics (PyBullet's, the vector benchmark's reference)."""
     single_options = {k: v for k, v in options.items() if k != "physics"}
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*is out of date", category=DeprecationWarning)
+    with older_version_allowed():
         single = single_speed(env_id, steps=single_steps, seed=seed, **single_options)
         env = gym.make_vec(env_id, num_envs=num_envs, **options)
     try:
@@ -288,3 +287,15 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+__all__ = [
+    "KINDS",
+    "MAX_ENVS",
+    "STAGES",
+    "Breakdown",
+    "Stage",
+    "breakdown",
+    "main",
+    "markdown",
+    "stage_timers",
+]

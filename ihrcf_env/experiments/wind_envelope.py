@@ -17,10 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ihrcf_env.config.vehicle import VelocityGains
+from ihrcf_env.config.wind import WindParams
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.profiles import StaticProfile
-from ihrcf_env.sim.disturbances import Wind, WindParams
-from ihrcf_env.sim.drone import VelocityGains
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.disturbances import Wind
+from ihrcf_env.sim.world import World
 
 
 @dataclass(frozen=True)
@@ -118,3 +120,10 @@ if __name__ == "__main__":  # pragma: no cover
     print(envelope().text())
     print()
     print(envelope(turbulence=1.0, seeds=(0, 1, 2)).text())
+
+__all__ = [
+    "Envelope",
+    "HoldResult",
+    "envelope",
+    "hold_in_wind",
+]

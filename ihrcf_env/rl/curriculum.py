@@ -20,7 +20,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ihrcf_env.envs.config import MIN_START_ALTITUDE
+from ihrcf_env.config.task import MIN_START_ALTITUDE
 
 
 class StartCurriculum(gym.Wrapper[Any, Any, Any, Any]):
@@ -109,3 +109,9 @@ class StartCurriculum(gym.Wrapper[Any, Any, Any, Any]):
 def curriculum_env(make: Callable[[], gym.Env]) -> StartCurriculum:
     """``StartCurriculum(make())`` with the default curriculum (a picklable env factory)."""
     return StartCurriculum(make())
+
+
+__all__ = [
+    "StartCurriculum",
+    "curriculum_env",
+]

@@ -126,3 +126,14 @@ def summary(eval_csv: str | os.PathLike[str]) -> dict[str, float]:
         "best_success_rate": max(float(r["success_rate"]) for r in rows),
         "timesteps": float(rows[-1]["timesteps"]),
     }
+
+
+__all__ = [
+    "EVAL_FIELDS",
+    "TRAIN_FIELDS",
+    "CsvLog",
+    "plot_curves",
+    "read_csv",
+    "rolling_mean",
+    "summary",
+]

@@ -106,3 +106,15 @@ def policy_inputs(make: Callable[[], gym.Env], drop: Sequence[str]) -> list[int]
         env.close()
     frames, size = (1, shape[0]) if len(shape) == 1 else shape
     return [k * size + i for k in range(frames) for i in keep]
+
+
+__all__ = [
+    "V0_ID",
+    "V1_ID",
+    "SuccessInfo",
+    "default_env_id",
+    "input_indices",
+    "make_env",
+    "name_value",
+    "policy_inputs",
+]

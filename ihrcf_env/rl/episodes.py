@@ -26,7 +26,6 @@ from __future__ import annotations
 import concurrent.futures as cf
 import dataclasses
 import multiprocessing as mp
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -34,6 +33,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ihrcf_env._warnings import older_version_allowed
 from ihrcf_env.control.gru_policy import GruPolicy
 from ihrcf_env.control.policies import LANDING_CONFIGS, V1_LANDING_CONFIG, ScriptedLanding
 from ihrcf_env.core.checks import check_int
@@ -215,8 +215,7 @@ class _VectorQueue:
         finally:
             probe.close()
         options = {"camera_model": "projected", **env_kw, "batch_estimators": batch_estimators}
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message=".*is out of date", category=DeprecationWarning)
+        with older_version_allowed():
             self._vec: Any = gym.make_vec(env_id, num_envs=num_envs, **options)  # seeds as a list
         self.num_envs = num_envs
 
@@ -339,3 +338,18 @@ class VectorFlyer:
             self._local.close()
         if self._ex is not None:
             self._ex.shutdown(cancel_futures=True)
+
+
+__all__ = [
+    "Episode",
+    "Flight",
+    "Job",
+    "Pool",
+    "VectorFlyer",
+    "fly",
+    "fly_share",
+    "init_vector_worker",
+    "init_worker",
+    "make_expert",
+    "start_processes",
+]

@@ -220,3 +220,13 @@ def warm_start(
         return dagger(model, venv, expert, rounds, episodes, seed, noise, log=write)
     finally:
         probe.close()
+
+
+__all__ = [
+    "DAGGER_FIELDS",
+    "Round",
+    "collect",
+    "dagger",
+    "fit_policy",
+    "warm_start",
+]

@@ -90,3 +90,9 @@ def parse_args(
         ap.error("--vector: the start curriculum wraps single envs; use it without --vector")
     args.env_id = env_id
     return ap, args
+
+
+__all__ = [
+    "INT_OPTIONS",
+    "parse_args",
+]

@@ -330,3 +330,13 @@ def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
         pool.close()
     policy.save(cfg.out / "final.npz")
     return GruPolicy.load(cfg.out / "best.npz")
+
+
+__all__ = [
+    "RECURRENT_FIELDS",
+    "GruNet",
+    "RunConfig",
+    "fit",
+    "torch_threads",
+    "train",
+]

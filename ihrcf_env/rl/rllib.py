@@ -82,3 +82,13 @@ def progress_row(iteration: int, wall_s: float, result: Mapping[str, Any]) -> di
         "episode_len_mean": num("episode_len_mean"),
         "success_rate": num("success_rate"),
     }
+
+
+__all__ = [
+    "PROGRESS_FIELDS",
+    "RLLIB_ENV_NAME",
+    "env_creator",
+    "log_success",
+    "progress_row",
+    "register",
+]

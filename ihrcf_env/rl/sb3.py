@@ -411,3 +411,20 @@ def load_vecnormalize(path: Path, venv: Any) -> Any:
     vn = VecNormalize.load(str(path), venv)
     vn.training = True
     return vn
+
+
+__all__ = [
+    "CriticWarmupCallback",
+    "CurriculumCallback",
+    "EpisodeCsvCallback",
+    "EvalResult",
+    "HeldOutEvalCallback",
+    "NormUpdateCallback",
+    "ResumableCheckpointCallback",
+    "RunningNormExtractor",
+    "WallClockBudgetCallback",
+    "evaluate_on_seeds",
+    "load_vecnormalize",
+    "norm_extractors",
+    "set_initial_action_mean",
+]

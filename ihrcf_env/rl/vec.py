@@ -159,3 +159,9 @@ def make_sb3_vec_env(
     if seed is not None:
         out.seed(seed)
     return out
+
+
+__all__ = [
+    "Sb3VectorEnv",
+    "make_sb3_vec_env",
+]

@@ -33,7 +33,9 @@ import numpy as np
 import pybullet as p
 from numpy.typing import ArrayLike, NDArray
 
-from ihrcf_env import __version__
+from ihrcf_env._version import __version__
+from ihrcf_env.config.sensors import CameraConfig, ToFConfig
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.calibration import (
     Calibration,
     IntrinsicsResult,
@@ -46,8 +48,8 @@ from ihrcf_env.core.frames import matrix_from_euler
 from ihrcf_env.core.profiles import StaticProfile
 from ihrcf_env.core.rig import PAD_COLOURS, SensorRig, intrinsics_from_fov
 from ihrcf_env.sim.calibration_scene import DEFAULT_PAD_RADIUS, PAD_RGB, CalibrationScene
-from ihrcf_env.sim.sensors import CameraConfig, ToFArray, ToFConfig
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.sensors import ToFArray
+from ihrcf_env.sim.world import World
 
 #: ``progress(phase, done, total)``: called after every chessboard attempt / ascent stage.
 Progress = Callable[[str, int, int], None]
@@ -553,3 +555,22 @@ def run_calibration(
         report=report,
     )
     return CalibrationRun(calibration=cal, chessboard=cb, ascent=asc, table_check_px=check)
+
+
+__all__ = [
+    "AscentResult",
+    "AscentSettings",
+    "CalibrationFailed",
+    "CalibrationRun",
+    "ChessboardResult",
+    "ChessboardSettings",
+    "Progress",
+    "StageRecord",
+    "run_ascent",
+    "run_calibration",
+    "run_chessboard",
+    "sample_board_pose",
+    "stage_targets",
+    "table_errors_px",
+    "true_touch_pixels",
+]

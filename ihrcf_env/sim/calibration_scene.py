@@ -237,3 +237,13 @@ class CalibrationScene:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+__all__ = [
+    "DEFAULT_PAD_RADIUS",
+    "PAD_RGB",
+    "PARKING",
+    "CalibrationScene",
+    "chessboard_texture",
+    "write_disc_obj",
+]

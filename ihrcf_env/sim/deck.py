@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -21,45 +20,12 @@ import pybullet as p
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from ihrcf_env.core.checks import check_fields, check_int, set_field
+from ihrcf_env.config.world import DeckConfig
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.frames import matrix_from_quat, quat_from_matrix
 from ihrcf_env.core.profiles import MotionProfile, profile_leg_lengths, sample_until_unusable
 from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.sim.assets import asset_path, tag_texture
-
-#: Physical bounds (inclusive) of :class:`DeckConfig`'s real fields (the plate must stay much
-#: heavier than the drone: it is driven, not pushed).
-DECK_BOUNDS: dict[str, tuple[float, float]] = {
-    "size": (0.1, 5.0),
-    "thickness": (0.005, 0.2),
-    "mass": (10.0, 1e4),
-    "tag_size": (0.01, 4.0),
-    "friction": (0.0, 10.0),
-}
-DECK_UNITS = {"size": "m", "thickness": "m", "mass": "kg", "tag_size": "m"}
-
-
-@dataclass(frozen=True)
-class DeckConfig:
-    """Deck plate and tag. Metres, kilograms."""
-
-    size: float = 0.8  # square plate edge
-    thickness: float = 0.04
-    mass: float = 400.0
-    tag_id: int = 0
-    tag_size: float = 0.4  # edge of the tag's black square
-    friction: float = 1.0
-
-    def __post_init__(self) -> None:
-        # tag_id: its range is the tag family's, checked where the texture is made
-        set_field(self, "tag_id", check_int("deck tag_id", self.tag_id))
-        check_fields(self, lambda f: f"deck {f}", DECK_BOUNDS, DECK_UNITS)
-        if self.tag_size * 10 / 8 > self.size:
-            raise ValueError(
-                f"tag_size {self.tag_size} m (plus its white quiet zone) does not fit on the "
-                f"{self.size} m deck"
-            )
 
 
 class TickSeries:
@@ -451,3 +417,12 @@ class Deck:
     @property
     def top_half_extent(self) -> float:
         return self.config.size / 2
+
+
+__all__ = [
+    "Deck",
+    "DeckTrajectory",
+    "TickSeries",
+    "angular_velocity_between",
+    "rigid_point_velocity",
+]

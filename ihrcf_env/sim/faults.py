@@ -368,3 +368,23 @@ class ImuBiasStep:
                 v = np.asarray(out[key])
                 out[key] = (v + step).astype(v.dtype)
         return out
+
+
+__all__ = [
+    "MAX_ACCEL_STEP",
+    "MAX_GYRO_STEP",
+    "MAX_ONSET_S",
+    "N_TOF",
+    "REASON_FRAME_LOST",
+    "REASON_OCCLUDED",
+    "TAG_SQUARE",
+    "CameraDropout",
+    "ImuBiasStep",
+    "Reading",
+    "TagOcclusion",
+    "ToFDead",
+    "ToFStuck",
+    "check_onset",
+    "check_tof_sensors",
+    "lost_tag",
+]

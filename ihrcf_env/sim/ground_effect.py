@@ -135,3 +135,12 @@ def rotor_positions(
     r00, r01, _, r10, r11, _, r20, r21, _ = rotation
     px, py, pz = position
     return [(px + r00 * x + r01 * y, py + r10 * x + r11 * y, pz + r20 * x + r21 * y) for x, y in motor_xy]
+
+
+__all__ = [
+    "MIN_HEIGHT_RATIO",
+    "GroundEffect",
+    "cheeseman_bennett",
+    "deck_surface",
+    "rotor_positions",
+]

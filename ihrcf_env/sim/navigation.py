@@ -33,117 +33,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ihrcf_env.core.checks import check_fields, check_real
-
-#: Autopilot feedback modes.
-FEEDBACK_MODES: tuple[str, ...] = ("truth", "estimated")
+from ihrcf_env.config.vehicle import NavigationConfig, NavigationErrors
+from ihrcf_env.core.checks import check_real
 
 Vec3 = tuple[float, ...]
-
-
-#: Physical bounds (inclusive) of :class:`NavigationErrors`' fields: from an RTK fix to a poor
-#: standalone GNSS, position errors correlated over a second to hours, velocity errors over a
-#: millisecond to hours.
-NAVIGATION_ERROR_BOUNDS: dict[str, tuple[float, float]] = {
-    "horizontal_sigma": (0.0, 100.0),
-    "vertical_sigma": (0.0, 100.0),
-    "position_time_constant": (1.0, 1e4),
-    "velocity_time_constant": (1e-3, 1e4),
-    "velocity_noise": (0.0, 10.0),
-}
-NAVIGATION_ERROR_UNITS = {
-    "horizontal_sigma": "m",
-    "vertical_sigma": "m",
-    "position_time_constant": "s",
-    "velocity_time_constant": "s",
-    "velocity_noise": "m/s",
-}
-
-
-@dataclass(frozen=True)
-class NavigationErrors:
-    """Error figures of the GNSS/INS estimate (metres, seconds, m/s; 1 sigma, per axis).
-
-    ==========================  =========  =========================================================
-    field                       default    source
-    ==========================  =========  =========================================================
-    horizontal_sigma            0.71 m     Xsens MTi-G-700 GNSS/INS (user manual MT0605P sec. 4.4):
-                                           horizontal position 1.0 m STD (SBAS), split over x and y
-    vertical_sigma              0.33 m     barometric height: Bosch BMP388 relative accuracy
-                                           +-0.08 hPa = +-0.66 m, taken as 2 sigma
-    position_time_constant      300 s      assumption: GNSS/baro errors stay correlated for minutes
-    velocity_time_constant      2 s        assumption: the EKF's velocity error decorrelates over a
-                                           few GNSS fixes
-    velocity_noise              0.02 m/s   assumption; the white part, with the correlated part
-                                           (0.029 m/s horizontally) well inside the MTi-G-700's
-                                           0.1 m/s 1 sigma velocity figure (quoted at 30 m/s)
-    ==========================  =========  =========================================================
-    """
-
-    horizontal_sigma: float = 0.71
-    vertical_sigma: float = 0.33
-    position_time_constant: float = 300.0
-    velocity_time_constant: float = 2.0
-    velocity_noise: float = 0.02
-
-    def __post_init__(self) -> None:
-        check_fields(self, lambda f: f"NavigationErrors.{f}", NAVIGATION_ERROR_BOUNDS, NAVIGATION_ERROR_UNITS)
-
-    @property
-    def position_sigma(self) -> NDArray[np.float64]:
-        """(3,) stationary std of the position error per world axis (m)."""
-        return np.array([self.horizontal_sigma, self.horizontal_sigma, self.vertical_sigma])
-
-    @property
-    def velocity_sigma(self) -> NDArray[np.float64]:
-        """(3,) stationary std ``sigma_v`` of the correlated velocity error per axis (m/s)."""
-        tp, tv = self.position_time_constant, self.velocity_time_constant
-        return self.position_sigma * math.sqrt((tp + tv) / (tv * tp * tp))
-
-    def drift_std(self, horizon: float) -> NDArray[np.float64]:
-        """(3,) std of the change of the position error over ``horizon`` seconds (m) for the
-        continuous model: ``sqrt(2 (C(0) - C(T)))`` with the position error's autocovariance (a
-        first-order filter of pole ``a = 1/tau_p`` driven by exponentially correlated noise of
-        variance ``sigma_v^2`` and rate ``b = 1/tau_v``)
-        ``C(T) = sigma_v^2 (a e^{-bT} - b e^{-aT}) / (a (a^2 - b^2))``. This is the drift of a drone
-        holding its estimated position (what the autopilot flies on)."""
-        a = 1.0 / self.position_time_constant
-        b = 1.0 / self.velocity_time_constant
-        if a == b:
-            b *= 1.0 + 1e-9
-        sv2 = self.velocity_sigma**2
-        T = horizon
-        c0 = sv2 * (a - b) / (a * (a * a - b * b))
-        cT = sv2 * (a * math.exp(-b * T) - b * math.exp(-a * T)) / (a * (a * a - b * b))
-        return np.sqrt(np.maximum(2.0 * (c0 - cT), 0.0))
-
-
-@dataclass(frozen=True)
-class NavigationConfig:
-    """``feedback``: ``"truth"``, ``"estimated"`` (default :class:`NavigationErrors`) or a
-    :class:`NavigationErrors` (an estimate with custom figures)."""
-
-    feedback: str | NavigationErrors = "truth"
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.feedback, NavigationErrors) and self.feedback not in FEEDBACK_MODES:
-            raise ValueError(
-                f"autopilot_feedback must be one of {FEEDBACK_MODES} or a NavigationErrors, "
-                f"got {self.feedback!r}"
-            )
-
-    @property
-    def errors(self) -> NavigationErrors | None:
-        """The error figures, or None when the autopilot flies on the truth."""
-        if isinstance(self.feedback, NavigationErrors):
-            return self.feedback
-        return None if self.feedback == "truth" else NavigationErrors()
 
 
 @runtime_checkable
@@ -285,3 +183,12 @@ def make_navigation(config: NavigationConfig, dt: float) -> Navigation:
     """The navigation model for ``config``, advanced in physics steps of ``dt`` seconds."""
     errors = config.errors
     return TruthNavigation() if errors is None else GNSSINSNavigation(errors, dt)
+
+
+__all__ = [
+    "GNSSINSNavigation",
+    "Navigation",
+    "TruthNavigation",
+    "Vec3",
+    "make_navigation",
+]

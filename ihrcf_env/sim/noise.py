@@ -253,3 +253,18 @@ class GaussMarkov:
         self, value: NDArray[np.float64], valid: NDArray[np.bool_], dt: float, rng: np.random.Generator
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         return value + self.step(dt, rng), valid
+
+
+__all__ = [
+    "MAX_SIGMA",
+    "TAU_BOUNDS",
+    "BiasRandomWalk",
+    "Chain",
+    "ConstantBias",
+    "Dropout",
+    "GaussMarkov",
+    "GaussianNoise",
+    "NoNoise",
+    "NoiseModel",
+    "WhiteNoise",
+]

@@ -556,3 +556,28 @@ register_fault("tof_stuck", _faults.ToFStuck, ("ranges",))
 register_fault("camera_dropout", _faults.CameraDropout, ("tag_corners", "image"))
 register_fault("tag_occlusion", _faults.TagOcclusion, ("tag_corners",))
 register_fault("imu_bias_step", _faults.ImuBiasStep, ("angular_velocity", "linear_acceleration"))
+
+__all__ = [
+    "BUILTIN_MEASUREMENTS",
+    "FAULTS",
+    "NOISE_MODELS",
+    "NOISY_MEASUREMENTS",
+    "RESERVED_KEYS",
+    "SENSORS",
+    "Fault",
+    "FaultEntry",
+    "FaultSpec",
+    "SensorEntry",
+    "SensorOutput",
+    "apply_faults",
+    "build_fault",
+    "build_faults",
+    "check_faults",
+    "check_measurement_noise",
+    "check_sensor_names",
+    "measurement_sizes",
+    "register_fault",
+    "register_noise_model",
+    "register_sensor",
+    "world_measurements",
+]

@@ -12,45 +12,34 @@ import struct
 import tempfile
 import weakref
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
-from ihrcf_env.core.checks import check_str
+from ihrcf_env.config.sensors import CameraConfig
+from ihrcf_env.config.wind import Disturbance
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.frames import matrix_from_quat, quat_from_matrix, relative_pose
 from ihrcf_env.core.profiles import MotionProfile
-from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.core.seeding import SeedStreams
-from ihrcf_env.core.stewart import StewartGeometry
-from ihrcf_env.sim.deck import Deck, DeckConfig, DeckTrajectory, rigid_point_velocity
-from ihrcf_env.sim.disturbances import Disturbance, disturbance_force
-from ihrcf_env.sim.drone import QuadParams, Quadrotor, VelocityController, VelocityGains
+from ihrcf_env.sim.deck import Deck, DeckTrajectory, rigid_point_velocity
+from ihrcf_env.sim.disturbances import disturbance_force
+from ihrcf_env.sim.drone import Quadrotor, VelocityController
 from ihrcf_env.sim.ground_effect import GroundEffect, deck_surface, rotor_positions
-from ihrcf_env.sim.navigation import Navigation, NavigationConfig, make_navigation
+from ihrcf_env.sim.navigation import Navigation, make_navigation
 from ihrcf_env.sim.registry import apply_faults, finite_reading
-from ihrcf_env.sim.sensors import IMU, BodyState, CameraConfig, DownCamera, Sensor, ToFArray, ToFConfig
+from ihrcf_env.sim.sensors import IMU, BodyState, DownCamera, Sensor, ToFArray
 from ihrcf_env.sim.sensors.base import TAG_CAMERA
-from ihrcf_env.sim.sensors.imu import IMUConfig
 from ihrcf_env.sim.sensors.timing import DelayLine, SampleClock, no_frame_reading
 
 if TYPE_CHECKING:
-    from ihrcf_env.core.detector_model import DetectorModel
     from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
 
-ACTION_MODES: tuple[str, ...] = ("velocity", "motors")
-#: How the camera is simulated: ``"rendered"`` (TinyRenderer + the tag detector) or ``"projected"``
-#: (no image: the exact projection of the tag corners through a fitted detector model).
-CAMERA_MODELS: tuple[str, ...] = ("rendered", "projected")
-#: Integrators of the drone's flight (``WorldConfig.physics``).
-PHYSICS_BACKENDS: tuple[str, ...] = ("pybullet", "numpy")
-#: What the camera delivers: the ``"image"`` (rendered only) or the tag's ``"corners"`` (a rendered
-#: window around the tag + detection, or the projected model).
-CAMERA_OUTPUTS: tuple[str, ...] = ("image", "corners")
 #: Names of the camera sensors in ``World.sensors`` (read at ``camera_hz``, held in between).
 CAMERA_SENSORS: tuple[str, ...] = ("camera", TAG_CAMERA)
 
@@ -63,80 +52,6 @@ def _release(client: int, tmp: tempfile.TemporaryDirectory[str]) -> None:
     except p.error:
         pass
     tmp.cleanup()
-
-
-@dataclass(frozen=True)
-class WorldConfig:
-    """Everything that defines the simulated world. SI units."""
-
-    physics_hz: int = 240
-    control_hz: int = 20
-    camera: CameraConfig | None = field(default_factory=CameraConfig)  # None: no camera rendering
-    tof: ToFConfig = field(default_factory=ToFConfig)
-    imu: IMUConfig = field(default_factory=IMUConfig)
-    navigation: NavigationConfig = field(default_factory=NavigationConfig)
-    deck: DeckConfig = field(default_factory=DeckConfig)
-    stewart: StewartGeometry = field(default_factory=StewartGeometry)
-    quad: QuadParams = field(default_factory=QuadParams)
-    gains: VelocityGains = field(default_factory=VelocityGains)
-    rig: SensorRig = field(default_factory=SensorRig)
-    action_mode: str = "velocity"
-    camera_model: str = "rendered"
-    camera_output: str = "image"
-    camera_hz: int | None = None  # None: every control step
-    detector_model: DetectorModel | None = None  # "projected": the fitted model (None: the shipped one)
-    #: per-rotor ground effect over the deck and the ground (:mod:`ihrcf_env.sim.ground_effect`)
-    ground_effect: bool = False
-    #: registered sensors (:mod:`ihrcf_env.sim.registry`) read after the built-in ones
-    extra_sensors: tuple[str, ...] = ()
-    #: (measurement, registered noise model) pairs applied to the readings
-    measurement_noise: tuple[tuple[str, str], ...] = ()
-    #: sensor faults (:func:`ihrcf_env.sim.registry.check_faults`), applied after the noise models
-    faults: tuple[tuple[str, tuple[tuple[str, Any], ...]], ...] = ()
-    #: who integrates the drone's flight: ``"pybullet"`` (its rigid-body solver and contacts) or
-    #: ``"numpy"`` (:mod:`ihrcf_env.sim.batched`: the same forces integrated in numpy, contacts in
-    #: closed form, many worlds at once in a vector env)
-    physics: str = "pybullet"
-
-    def __post_init__(self) -> None:
-        if not (isinstance(self.physics_hz, int | np.integer) and self.physics_hz > 0):
-            raise ValueError(f"physics_hz must be a positive integer, got {self.physics_hz!r}")
-        if not (isinstance(self.control_hz, int | np.integer) and self.control_hz > 0):
-            raise ValueError(f"control_hz must be a positive integer, got {self.control_hz!r}")
-        if self.physics_hz % self.control_hz != 0:
-            raise ValueError(
-                f"control_hz ({self.control_hz}) must divide physics_hz ({self.physics_hz}) evenly"
-            )
-        if self.action_mode not in ACTION_MODES:
-            raise ValueError(f"action_mode must be one of {ACTION_MODES}, got {self.action_mode!r}")
-        check_str("physics", self.physics, PHYSICS_BACKENDS)
-        if self.camera_model not in CAMERA_MODELS:
-            raise ValueError(f"camera_model must be one of {CAMERA_MODELS}, got {self.camera_model!r}")
-        if self.camera_output not in CAMERA_OUTPUTS:
-            raise ValueError(f"camera_output must be one of {CAMERA_OUTPUTS}, got {self.camera_output!r}")
-        if self.camera_model == "projected" and self.camera_output == "image":
-            raise ValueError(
-                'camera_model="projected" renders no image: it delivers the tag corners only '
-                '(camera_output="corners"); use camera_model="rendered" for images'
-            )
-        hz = self.camera_hz
-        if hz is not None:
-            if isinstance(hz, bool) or not (isinstance(hz, int | np.integer) and hz > 0):
-                raise ValueError(f"camera_hz must be a positive integer (Hz) or None, got {hz!r}")
-            if self.control_hz % hz != 0:
-                raise ValueError(f"camera_hz ({hz}) must divide control_hz ({self.control_hz}) evenly")
-        for what, rate in (("tof_hz", self.tof.rate_hz), ("imu_hz", self.imu.rate_hz)):
-            if rate is not None and rate > self.physics_hz:
-                raise ValueError(f"{what} ({rate:g} Hz) must not exceed physics_hz ({self.physics_hz} Hz)")
-
-    @property
-    def camera_every(self) -> int:
-        """The camera delivers a frame every this many control steps."""
-        return 1 if self.camera_hz is None else self.control_hz // self.camera_hz
-
-    @property
-    def substeps(self) -> int:
-        return self.physics_hz // self.control_hz
 
 
 @dataclass
@@ -183,7 +98,7 @@ class World:
 
     Sensors (:class:`~ihrcf_env.sim.sensors.Sensor`) are in :attr:`sensors`, by name, in reading
     order; :meth:`read_sensors` reads them all. Disturbances
-    (:class:`~ihrcf_env.sim.disturbances.Disturbance`) added with :meth:`add_disturbance` push
+    (:class:`~ihrcf_env.config.wind.Disturbance`) added with :meth:`add_disturbance` push
     the drone at every physics step.
 
     In velocity mode the autopilot closes its position and velocity loops on :attr:`navigation`'s

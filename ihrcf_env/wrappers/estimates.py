@@ -23,7 +23,7 @@ Every estimator gets the same :class:`~ihrcf_env.core.estimators.SensorFrame` pe
 corners (detected once), the ranges, the IMU sample and the frame's time, so a temporal filter
 (``fused``) sees the real frame interval. ``fused_params`` sets the fused
 filter's :class:`~ihrcf_env.core.estimators.FusedParams`; by default they follow the env's ToF model
-(:func:`~ihrcf_env.envs.config.fused_params_for_tof`: the VL53L1X's per-sensor offsets give the
+(:func:`~ihrcf_env.config.observation.fused_params_for_tof`: the VL53L1X's per-sensor offsets give the
 filter a common-mode range-offset state).
 
 ``flatten=True`` gives one float32 Box for RL libraries, laid out as :func:`flat_slices` says (also
@@ -49,6 +49,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from ihrcf_env.config.landing import DeckLandingConfig
+from ihrcf_env.config.make import make_config
+from ihrcf_env.config.observation import ObservationConfig, resolve_observation
 from ihrcf_env.core.arrays import clip
 from ihrcf_env.core.calibration import Calibration
 from ihrcf_env.core.estimators import (
@@ -60,13 +63,8 @@ from ihrcf_env.core.estimators import (
     SensorFrame,
     check_estimator_names,
 )
-from ihrcf_env.envs.config import (
-    DeckLandingConfig,
-    make_config,
-    observation_options,
-)
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
-from ihrcf_env.wrappers.layout import Field, Layout, build_layout
+from ihrcf_env.wrappers.layout import Block, Field, Layout, build_layout
 
 POSITION_BOUND = 10.0  # m
 #: The key of the ground-truth pose block; always after the estimators.
@@ -75,9 +73,9 @@ GROUND_TRUTH = "ground_truth"
 ESTIMATE_KEYS: tuple[str, ...] = (*DEFAULT_ESTIMATORS, GROUND_TRUTH)
 #: Fields of one pose block of the flat observation.
 POSE_FIELDS: tuple[Field, ...] = (
-    Field("position", 3, -POSITION_BOUND, POSITION_BOUND),
-    Field("euler", 3, -math.pi, math.pi),
-    Field("valid", 1, 0.0, 1.0),
+    Field("position", 3, -POSITION_BOUND, POSITION_BOUND, unit="m", meaning="deck position, body frame"),
+    Field("euler", 3, -math.pi, math.pi, unit="rad", meaning="the deck's roll, pitch, yaw in the body frame"),
+    Field("valid", 1, 0.0, 1.0, meaning="1 = valid"),
 )
 POSE_SIZE = sum(f.size for f in POSE_FIELDS)
 #: Paths in the raw observation of the sensor values at the start of the flat observation.
@@ -92,15 +90,22 @@ SENSOR_PATHS: dict[str, tuple[str, ...]] = {
 
 def hover_layout(estimators: Iterable[str] = DEFAULT_ESTIMATORS, max_range: float = 4.0) -> Layout:
     """The flat layout (``flatten=True``) for these estimators and ToF ``max_range`` (m)."""
+    return build_layout(hover_blocks(estimators, max_range))
+
+
+def hover_blocks(estimators: Iterable[str] = DEFAULT_ESTIMATORS, max_range: float = 4.0) -> list[Block]:
+    """The blocks of the flat hover observation (:func:`hover_layout`), in order."""
     sensors = (
-        Field("ranges", 4, 0.0, max_range),
-        Field("ranges_valid", 4, 0.0, 1.0),
-        Field("imu.quaternion", 4, -1.0, 1.0),
-        Field("imu.angular_velocity", 3, -50.0, 50.0),
-        Field("imu.linear_acceleration", 3, -200.0, 200.0),
+        Field("ranges", 4, 0.0, max_range, unit="m", meaning="ToF ranges ps1..ps4"),
+        Field("ranges_valid", 4, 0.0, 1.0, meaning="1 = valid"),
+        Field("imu.quaternion", 4, -1.0, 1.0, meaning="attitude x, y, z, w, world from body"),
+        Field("imu.angular_velocity", 3, -50.0, 50.0, unit="rad/s", meaning="body rates, body frame"),
+        Field(
+            "imu.linear_acceleration", 3, -200.0, 200.0, unit="m/s^2", meaning="specific force, body frame"
+        ),
     )
     names = (*check_estimator_names(estimators), GROUND_TRUTH)
-    return build_layout([("", sensors), *((name, POSE_FIELDS) for name in names)])
+    return [("", sensors), *((name, POSE_FIELDS) for name in names)]
 
 
 def flat_slices(estimators: Iterable[str] = DEFAULT_ESTIMATORS) -> dict[str, slice]:
@@ -164,12 +169,17 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         max_residual: IHRCF rigid-fit RMS (m) above which the estimate is declared invalid.
         estimators: registered estimator names, in observation order (default ihrcf, atda, fused).
         fused_params: :class:`~ihrcf_env.core.estimators.FusedParams` of the fused estimator, or
-            None for the defaults matching the env's ToF model.
+            None for the defaults matching the env's ToF model and task.
+        observation: the resolved :class:`~ihrcf_env.config.observation.ObservationConfig` (as
+            :func:`~ihrcf_env.config.make.make_config` makes it); given, the options above are not
+            read again (``calibration`` only for the spec). Otherwise the options are resolved once
+            against the env's config, as ``gym.make`` resolves them.
 
     Bad options raise TypeError / ValueError naming the option before anything is built.
 
     Attributes:
         stage: the :class:`~ihrcf_env.wrappers.estimator_stage.EstimatorStage`.
+        observation_config: the resolved options.
         estimator: the :class:`DeckPoseEstimator` (detection once per frame + the estimators).
         estimators: ordered mapping name -> :class:`DeckPoseSource`.
         pose_keys: the estimator names then ``"ground_truth"``: the pose blocks, in order.
@@ -186,15 +196,22 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         max_residual: float = 0.01,
         estimators: Iterable[str] = DEFAULT_ESTIMATORS,
         fused_params: FusedParams | None = None,
+        *,
+        observation: ObservationConfig | None = None,
     ) -> None:
-        opts = observation_options(
-            calibration=calibration,
-            keep_image=keep_image,
-            flatten=flatten,
-            max_residual=max_residual,
-            estimators=estimators,
-            fused_params=fused_params,
-        )
+        config = base_config(env)
+        opts = observation
+        if opts is None:  # resolved here, for the env's world and task
+            opts = resolve_observation(
+                config.world,
+                config.task_name,
+                calibration=calibration,
+                keep_image=keep_image,
+                flatten=flatten,
+                max_residual=max_residual,
+                estimators=estimators,
+                fused_params=fused_params,
+            )
         gym.utils.RecordConstructorArgs.__init__(
             self,
             calibration=calibration,
@@ -202,11 +219,13 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
             flatten=opts.flatten,
             max_residual=opts.max_residual,
             estimators=opts.estimators,
-            fused_params=fused_params,
+            fused_params=fused_params if observation is None else opts.fused_params,
         )
         gym.ObservationWrapper.__init__(self, env)
-        world = base_config(env).world
-        self.stage = EstimatorStage.for_world(world, calibration, opts)
+        world = config.world
+        #: the resolved observation config (:class:`~ihrcf_env.config.observation.ObservationConfig`)
+        self.observation_config: ObservationConfig = opts
+        self.stage = EstimatorStage.for_world(world, opts)
         self.calibration = self.stage.calibration
         names = opts.estimators
         self.estimator: DeckPoseEstimator = self.stage.estimator
@@ -304,7 +323,7 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
 
 def make_deck_hover(**options: Any) -> gym.Env:
     """Entry point of ``ihrcf_env/DeckHover-v0``: the env of the validated options
-    (:func:`~ihrcf_env.envs.config.make_config`, ``task="hover"``) wrapped with
+    (:func:`~ihrcf_env.config.make.make_config`, ``task="hover"``) wrapped with
     :class:`DeckPoseObservation`, or the raw :class:`~ihrcf_env.envs.deck_landing.DeckLandingEnv`
     with ``raw=True``. Everything is checked (and the calibration read and matched to the camera)
     before the env is built; if the wrapper still fails, the env is closed before the error
@@ -316,16 +335,11 @@ def make_deck_hover(**options: Any) -> gym.Env:
     env = DeckLandingEnv(config)
     if config.observation.raw:
         return env
-    obs = config.observation
     try:
         return DeckPoseObservation(
             env,
             calibration=options.get("calibration"),  # as given: the spec records it
-            keep_image=obs.keep_image,
-            flatten=obs.flatten,
-            max_residual=obs.max_residual,
-            estimators=obs.estimators,
-            fused_params=obs.fused_params,  # resolved from the ToF model when not given
+            observation=config.observation,
         )
     except BaseException:
         env.close()

@@ -1,7 +1,7 @@
 """The estimator stage of the observation wrappers: raw observations in, deck-pose estimates out.
 
 One :class:`EstimatorStage` per wrapped env. It builds the estimators of an
-:class:`~ihrcf_env.envs.config.ObservationConfig` (calibration, names, fused parameters) and turns
+:class:`~ihrcf_env.config.observation.ObservationConfig` (calibration, names, fused parameters) and turns
 each raw observation into a :class:`~ihrcf_env.core.estimators.SensorFrame`: the tag corners (from
 ``tag_corners``, or detected once in ``image``), the ranges, the IMU sample and the frame's time.
 Everything it reads is in the raw observation: a camera frame is new when its ``camera_age`` is 0,
@@ -28,6 +28,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from ihrcf_env.config.observation import ObservationConfig
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.calibration import Calibration
 from ihrcf_env.core.estimators import (
     DeckPoseEstimator,
@@ -38,10 +40,8 @@ from ihrcf_env.core.estimators import (
     SensorFrame,
 )
 from ihrcf_env.core.rig import SensorRig
-from ihrcf_env.envs.config import ObservationConfig, fused_params_for_tof, load_calibration
 from ihrcf_env.sim.sensors.base import TAG_STATUS
 from ihrcf_env.sim.sensors.timing import NO_FRAME_YET
-from ihrcf_env.sim.world import WorldConfig
 
 
 class _Step(NamedTuple):
@@ -122,26 +122,22 @@ class EstimatorStage:
         self.reset()
 
     @classmethod
-    def for_world(cls, world: WorldConfig, calibration: object, options: ObservationConfig) -> EstimatorStage:
-        """The stage of an env's ``world`` for the wrapper options ``options``: ``calibration`` (as the
-        user gave it: None, a path or a Calibration) loaded and matched to the camera, the fused
-        parameters resolved from the ToF model when not given. ValueError without a camera."""
-        cam = world.camera
-        if cam is None:
+    def for_world(cls, world: WorldConfig, observation: ObservationConfig) -> EstimatorStage:
+        """The stage of an env's ``world`` for its resolved ``observation``
+        (:func:`~ihrcf_env.config.observation.resolve_observation`: the calibration loaded and matched
+        to the camera, the fused parameters chosen). ValueError for a raw observation."""
+        if observation.raw or observation.calibration is None:
             raise ValueError(
-                "camera=False leaves IHRCF and ATDA without an image: use camera=True, or raw=True "
-                "(gym.make) / the raw env for a camera-less simulation"
+                "the estimator stage needs a resolved, non-raw observation config "
+                "(ihrcf_env.config.observation.resolve_observation)"
             )
-        cal = load_calibration(calibration)
-        cal.check_matches(cam.width, cam.height, cam.fov, world.rig, distortion=cam.distortion)
-        fused = (
-            options.fused_params
-            if options.fused_params is not None
-            else fused_params_for_tof(world.tof.model)
+        return cls(
+            world,
+            observation.calibration,
+            observation.estimators,
+            observation.max_residual,
+            observation.fused_params,
         )
-        stage = cls(world, cal, options.estimators, options.max_residual, fused)
-        stage.calibration = cal
-        return stage
 
     def reset(self) -> None:
         self.estimator.reset()
@@ -280,3 +276,9 @@ class EstimatorStage:
             info[f"{name}_reason"] = est.reason
             info[f"{name}_residual"] = est.residual
             info[f"{name}_age"] = self.ages.get(name, 0.0)
+
+
+__all__ = [
+    "EstimatorStage",
+    "estimator_from_calibration",
+]

@@ -56,15 +56,16 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from ihrcf_env.config.make import make_config
+from ihrcf_env.config.observation import ObservationConfig, resolve_observation
 from ihrcf_env.core.batch.pipeline import BatchDeckPoseEstimator
 from ihrcf_env.core.calibration import Calibration
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedEstimator, FusedParams, PoseEstimate
 from ihrcf_env.core.frames import matrix_from_euler, matrix_from_quat
-from ihrcf_env.envs.config import make_config, observation_options
 from ihrcf_env.wrappers.estimates import GROUND_TRUTH, base_config
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
-from ihrcf_env.wrappers.layout import Field, build_layout
+from ihrcf_env.wrappers.layout import Block, Field, build_layout
 
 #: Largest age (s) shown for an estimate; also the age of one never seen.
 MAX_AGE = 10.0
@@ -72,37 +73,80 @@ POSITION_SCALE = 2.0  # m
 RATE_SCALE = 5.0  # rad/s
 
 
-def _f(name: str, size: int, scale: float, bound: float, non_negative: bool = False) -> Field:
-    return Field(name, size, 0.0 if non_negative else -bound, bound, scale)
+def _f(
+    name: str,
+    size: int,
+    scale: float,
+    bound: float,
+    non_negative: bool = False,
+    unit: str = "",
+    meaning: str = "",
+) -> Field:
+    return Field(name, size, 0.0 if non_negative else -bound, bound, scale, unit, meaning)
 
 
 def sensor_fields(max_range: float = 4.0) -> tuple[Field, ...]:
     """The sensor block; ranges are scaled by the ToF ``max_range`` (m)."""
     return (
-        _f("ranges", 4, max_range, 1.0, True),
-        _f("ranges_valid", 4, 1.0, 1.0, True),
-        _f("imu.up", 3, 1.0, 1.0),
-        _f("imu.angular_velocity", 3, RATE_SCALE, 50.0 / RATE_SCALE),
-        _f("imu.linear_acceleration", 3, GRAVITY, 200.0 / GRAVITY),
-        _f("nav_velocity", 3, 1.0, 20.0),
+        _f(
+            "ranges",
+            4,
+            max_range,
+            1.0,
+            True,
+            "m",
+            "ToF ranges ps1..ps4 (scale: the ToF max range); an invalid reading reads 1",
+        ),
+        _f("ranges_valid", 4, 1.0, 1.0, True, "", "1 = valid"),
+        _f("imu.up", 3, 1.0, 1.0, False, "", "the world's up axis in the body frame (IMU attitude)"),
+        _f("imu.angular_velocity", 3, RATE_SCALE, 50.0 / RATE_SCALE, False, "rad/s", "body rates"),
+        _f(
+            "imu.linear_acceleration",
+            3,
+            GRAVITY,
+            200.0 / GRAVITY,
+            False,
+            "m/s^2",
+            "specific force, body frame",
+        ),
+        _f("nav_velocity", 3, 1.0, 20.0, False, "m/s", "the autopilot's velocity estimate, heading frame"),
     )
 
 
 ESTIMATE_FIELDS: tuple[Field, ...] = (
-    _f("position", 3, POSITION_SCALE, 10.0 / POSITION_SCALE),
-    _f("normal", 3, 1.0, 1.0),
-    _f("yaw", 2, 1.0, 1.0),
-    _f("valid", 1, 1.0, 1.0, True),
-    _f("age", 1, 1.0, MAX_AGE, True),
+    _f(
+        "position",
+        3,
+        POSITION_SCALE,
+        10.0 / POSITION_SCALE,
+        False,
+        "m",
+        "deck origin (tag centre), heading frame",
+    ),
+    _f("normal", 3, 1.0, 1.0, False, "", "deck normal, heading frame"),
+    _f("yaw", 2, 1.0, 1.0, False, "", "cos, sin of the deck's yaw relative to the drone"),
+    _f("valid", 1, 1.0, 1.0, True, "", "1 = valid this step"),
+    _f(
+        "age",
+        1,
+        1.0,
+        MAX_AGE,
+        True,
+        "s",
+        "age of the values shown (an invalid estimate keeps its last values and its age grows)",
+    ),
 )
 TRUTH_FIELDS: tuple[Field, ...] = (
-    _f("position", 3, POSITION_SCALE, 10.0 / POSITION_SCALE),
-    _f("normal", 3, 1.0, 1.0),
-    _f("yaw", 2, 1.0, 1.0),
-    _f("velocity", 3, 1.0, 20.0),
-    _f("wind", 3, 1.0, 40.0),
+    _f("position", 3, POSITION_SCALE, 10.0 / POSITION_SCALE, False, "m", "true deck origin, heading frame"),
+    _f("normal", 3, 1.0, 1.0, False, "", "true deck normal, heading frame"),
+    _f("yaw", 2, 1.0, 1.0, False, "", "cos, sin of the true deck yaw relative to the drone"),
+    _f("velocity", 3, 1.0, 20.0, False, "m/s", "the drone's velocity relative to the deck, heading frame"),
+    _f("wind", 3, 1.0, 40.0, False, "m/s", "the wind, heading frame"),
 )
-MOTION_FIELDS: tuple[Field, ...] = (_f("velocity", 3, 1.0, 20.0), _f("normal_rate", 3, 1.0, 20.0))
+MOTION_FIELDS: tuple[Field, ...] = (
+    _f("velocity", 3, 1.0, 20.0, False, "m/s", "the deck's velocity relative to the drone, heading frame"),
+    _f("normal_rate", 3, 1.0, 20.0, False, "1/s", "the rate of the deck normal, heading frame"),
+)
 #: Observation block of the fused filter's deck motion (``deck_motion=True``).
 MOTION = "motion"
 
@@ -117,14 +161,24 @@ def landing_obs_fields(
     ToF ``max_range`` (m), ``privileged`` and ``deck_motion``. ``slices`` also has each estimator's
     whole block under its name and ``"all"``; ``scales[name]`` turns a slice back into physical
     units."""
-    blocks: list[tuple[str, tuple[Field, ...]]] = [("", sensor_fields(max_range))]
+    lay = build_layout(landing_blocks(estimators, max_range, privileged, deck_motion))
+    return lay.slices, lay.scales, lay.low, lay.high
+
+
+def landing_blocks(
+    estimators: Iterable[str] = DEFAULT_ESTIMATORS,
+    max_range: float = 4.0,
+    privileged: bool = False,
+    deck_motion: bool = False,
+) -> list[Block]:
+    """The blocks of the landing observation (:func:`landing_obs_fields`), in order."""
+    blocks: list[Block] = [("", sensor_fields(max_range))]
     blocks += [(name, ESTIMATE_FIELDS) for name in estimators]
     if deck_motion:
         blocks.append((MOTION, MOTION_FIELDS))
     if privileged:
         blocks.append((GROUND_TRUTH, TRUTH_FIELDS))
-    lay = build_layout(blocks)
-    return lay.slices, lay.scales, lay.low, lay.high
+    return blocks
 
 
 def heading_rotation(quaternion: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -150,10 +204,14 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         batch_estimators: run the estimators through their batched form with one row
             (:class:`~ihrcf_env.core.batch.pipeline.BatchDeckPoseEstimator`): the same numbers as a
             vector env's batched sub-env, bit for bit; default False.
+        observation: the resolved :class:`~ihrcf_env.config.observation.ObservationConfig` (as
+            :func:`~ihrcf_env.config.make.make_config` makes it); given, the options above are not
+            read again (``calibration`` only for the spec). Otherwise the options are resolved once
+            against the env's config (its world and task), as ``gym.make`` resolves them.
 
     Attributes: ``obs_slices`` (name -> slice), ``obs_scales`` (name -> scale: physical = value *
     scale), ``estimator_names``, ``estimators`` (name -> source), ``stage``, ``privileged``,
-    ``deck_motion``.
+    ``deck_motion``, ``observation_config`` (the resolved options).
     """
 
     def __init__(
@@ -166,29 +224,38 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         privileged: bool = False,
         deck_motion: bool = False,
         batch_estimators: bool = False,
+        *,
+        observation: ObservationConfig | None = None,
     ) -> None:
-        opts = observation_options(
-            calibration=calibration,
-            max_residual=max_residual,
-            estimators=estimators,
-            fused_params=fused_params,
-            privileged=privileged,
-            deck_motion=deck_motion,
-            batch_estimators=batch_estimators,
-        )
+        config = base_config(env)
+        opts = observation
+        if opts is None:  # resolved here, for the env's world and task
+            opts = resolve_observation(
+                config.world,
+                config.task_name,
+                calibration=calibration,
+                max_residual=max_residual,
+                estimators=estimators,
+                fused_params=fused_params,
+                privileged=privileged,
+                deck_motion=deck_motion,
+                batch_estimators=batch_estimators,
+            )
         gym.utils.RecordConstructorArgs.__init__(
             self,
             calibration=calibration,
             max_residual=opts.max_residual,
             estimators=opts.estimators,
-            fused_params=fused_params,
+            fused_params=fused_params if observation is None else opts.fused_params,
             privileged=opts.privileged,
             deck_motion=opts.deck_motion,
             batch_estimators=opts.batch_estimators,
         )
         gym.Wrapper.__init__(self, env)
-        world = base_config(env).world
-        self.stage = EstimatorStage.for_world(world, calibration, opts)
+        world = config.world
+        #: the resolved observation config (:class:`~ihrcf_env.config.observation.ObservationConfig`)
+        self.observation_config: ObservationConfig = opts
+        self.stage = EstimatorStage.for_world(world, opts)
         names = opts.estimators
         self.estimators = self.stage.sources
         self.estimator_names: tuple[str, ...] = names
@@ -350,7 +417,7 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
 
 def make_landing(task: str, **options: Any) -> gym.Env:
-    """A landing task's env from validated options (:func:`~ihrcf_env.envs.config.make_config`
+    """A landing task's env from validated options (:func:`~ihrcf_env.config.make.make_config`
     with ``task``) wrapped with :class:`LandingObservation` (``raw=True``: the raw env). No image is
     observed, so the rendered camera renders only the tag's window (``camera_output="corners"``
     unless given). Everything is checked before any physics client exists; a failed wrapper closes
@@ -361,17 +428,11 @@ def make_landing(task: str, **options: Any) -> gym.Env:
     env = (DeckLandingV2Env if task == "landing-v2" else DeckLandingV1Env)(config)
     if config.observation.raw:
         return env
-    obs = config.observation
     try:
         return LandingObservation(
             env,
             calibration=options.get("calibration"),  # as given: the spec records it
-            max_residual=obs.max_residual,
-            estimators=obs.estimators,
-            fused_params=obs.fused_params,  # resolved from the ToF model when not given
-            privileged=obs.privileged,
-            deck_motion=obs.deck_motion,
-            batch_estimators=obs.batch_estimators,
+            observation=config.observation,
         )
     except BaseException:
         env.close()
@@ -386,3 +447,21 @@ def make_deck_landing_v1(**options: Any) -> gym.Env:
 def make_deck_landing_v2(**options: Any) -> gym.Env:
     """Entry point of ``ihrcf_env/DeckLanding-v2`` (:func:`make_landing`; ``level=`` grades it)."""
     return make_landing("landing-v2", **options)
+
+
+__all__ = [
+    "ESTIMATE_FIELDS",
+    "MAX_AGE",
+    "MOTION",
+    "MOTION_FIELDS",
+    "POSITION_SCALE",
+    "RATE_SCALE",
+    "TRUTH_FIELDS",
+    "LandingObservation",
+    "heading_rotation",
+    "landing_obs_fields",
+    "make_deck_landing_v1",
+    "make_deck_landing_v2",
+    "make_landing",
+    "sensor_fields",
+]

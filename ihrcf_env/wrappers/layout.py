@@ -18,13 +18,16 @@ from numpy.typing import NDArray
 
 @dataclass(frozen=True)
 class Field:
-    """``size`` values named ``name``; stored as ``physical / scale`` within [low, high]."""
+    """``size`` values named ``name``; stored as ``physical / scale`` within [low, high]; ``unit``
+    of the physical value and ``meaning`` document it (the tables in ``docs/observations.md``)."""
 
     name: str
     size: int
     low: float
     high: float
     scale: float = 1.0
+    unit: str = ""
+    meaning: str = ""
 
 
 @dataclass(frozen=True)
@@ -42,6 +45,20 @@ class Layout:
 
 
 Block = tuple[str, Sequence[Field]]
+
+
+def layout_table(blocks: Sequence[Block]) -> str:
+    """The Markdown table of ``blocks``: each field's name (prefixed as in the slices), its slice
+    of the flat vector, size, scale (``physical = value * scale``) and meaning."""
+    layout = build_layout(blocks)
+    rows = ["| name | slice | size | scale | meaning |", "|---|---|---|---|---|"]
+    for prefix, fields in blocks:
+        for f in fields:
+            name = f"{prefix}.{f.name}" if prefix else f.name
+            sl = layout.slices[name]
+            scale = f"{f.scale:.4g} {f.unit}".strip()
+            rows.append(f"| `{name}` | {sl.start}:{sl.stop} | {f.size} | {scale} | {f.meaning} |")
+    return "\n".join(rows)
 
 
 def build_layout(blocks: Sequence[Block]) -> Layout:
@@ -66,3 +83,12 @@ def build_layout(blocks: Sequence[Block]) -> Layout:
             slices[prefix] = slice(start, i)
     slices["all"] = slice(0, i)
     return Layout(slices, scales, np.array(lows, np.float32), np.array(highs, np.float32))
+
+
+__all__ = [
+    "Block",
+    "Field",
+    "Layout",
+    "build_layout",
+    "layout_table",
+]

@@ -337,13 +337,15 @@ def test_deck_pose_estimator(rendered) -> None:
     image, _, R_bd, p_bd, _ = rendered
     _, ranges, tp, _, _ = scene(R_bd, p_bd)
     dpe = DeckPoseEstimator(RIG, TAG, 0, K, None, tp)
-    ihrcf, atda = dpe.estimate(image, ranges, np.ones(4, bool))
+    out = dpe.update(dpe.frame(image, ranges, np.ones(4, bool)))
+    ihrcf, atda = out["ihrcf"], out["atda"]
     for est in (ihrcf, atda):
         assert est.valid
         assert np.linalg.norm(est.position - p_bd) < 0.005
         assert math.degrees(rotation_angle(est.rotation, R_bd)) < 1.0
     assert np.array_equal(dpe.prior_rotation, atda.rotation)
-    lost_i, lost_a = dpe.estimate(np.full((512, 512, 3), 255, np.uint8), ranges, np.ones(4, bool))
+    lost = dpe.update(dpe.frame(np.full((512, 512, 3), 255, np.uint8), ranges, np.ones(4, bool)))
+    lost_i, lost_a = lost["ihrcf"], lost["atda"]
     assert_invalid(lost_i, "tag not found")
     assert_invalid(lost_a, "tag not found")
     assert np.array_equal(dpe.prior_rotation, atda.rotation)  # kept across a lost frame
@@ -479,11 +481,8 @@ def test_pipeline_detects_once_and_feeds_every_estimator(rendered, monkeypatch: 
     lost = dpe.update(dpe.frame(np.full((512, 512), 255, np.uint8), ranges, np.ones(4, bool), time=0.1))
     assert seen[-1].corners is None and seen[-1].time == 0.1  # a lost frame still reaches every estimator
     assert all(e.reason == TAG_NOT_FOUND for e in lost.values())
-    ihrcf, atda = dpe.estimate(image, ranges, np.ones(4, bool))  # the compatibility shortcut
-    np.testing.assert_array_equal(ihrcf.position, out["ihrcf"].position)
     dpe.reset()
     assert seen == [] and dpe.prior_rotation is None
     only_ihrcf = DeckPoseEstimator(RIG, TAG, 0, K, None, tp, estimators=("ihrcf",))
     assert only_ihrcf.prior_rotation is None
-    with pytest.raises(RuntimeError, match="atda"):
-        only_ihrcf.estimate(image, ranges, np.ones(4, bool))
+    assert list(only_ihrcf.update(only_ihrcf.frame(image, ranges, np.ones(4, bool)))) == ["ihrcf"]

@@ -19,19 +19,16 @@ import numpy as np
 import pytest
 
 import ihrcf_env  # noqa: F401  (registers the envs)
+from ihrcf_env.config.landing import DeckLandingConfig
+from ihrcf_env.config.make import make_config
+from ihrcf_env.config.observation import ObservationConfig
+from ihrcf_env.config.task import DEFAULT_HORIZON_S, MIN_START_ALTITUDE
 from ihrcf_env.core.profiles import (
     SEA_STATE_AMPLITUDES,
     check_sea_state_amplitudes,
     sea_state_profile,
 )
 from ihrcf_env.core.stewart import StewartGeometry
-from ihrcf_env.envs.config import (
-    DEFAULT_HORIZON_S,
-    MIN_START_ALTITUDE,
-    DeckLandingConfig,
-    ObservationConfig,
-    make_config,
-)
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
 from ihrcf_env.sim.deck import DeckTrajectory
 from ihrcf_env.sim.disturbances import ConstantForce

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import ihrcf_env  # noqa: F401  (registers the envs)
-from ihrcf_env.envs.config import make_config
+from ihrcf_env.config.make import make_config
 
 RAW = "ihrcf_env/DeckHoverRaw-v0"
 WRAPPED = "ihrcf_env/DeckHover-v0"

@@ -1,6 +1,6 @@
 """The ``faults=`` option end to end (World.read_sensors applies the faults after the noise models).
 
-Skipped until :func:`ihrcf_env.envs.config.make_config` takes ``faults``.
+Skipped until :func:`ihrcf_env.config.make.make_config` takes ``faults``.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from ihrcf_env.envs.config import make_config
+from ihrcf_env.config.make import make_config
 from ihrcf_env.sim.faults import REASON_FRAME_LOST
 
 RAW = "ihrcf_env/DeckHoverRaw-v0"

@@ -41,7 +41,7 @@ RAW = {"camera": False}
     ],
 )
 def test_absurd_magnitudes_are_refused_by_name(options: dict[str, Any], name: str) -> None:
-    from ihrcf_env.envs.config import make_config
+    from ihrcf_env.config.make import make_config
 
     with pytest.raises((TypeError, ValueError), match=name):
         make_config(task="landing-v1", raw=True, **options)
@@ -60,7 +60,7 @@ def test_absurd_magnitudes_are_refused_by_name(options: dict[str, Any], name: st
 )
 def test_tof_option_errors_start_with_the_option(options: dict[str, Any], name: str) -> None:
     """The error names the option given, not another one (``tof_noise``)."""
-    from ihrcf_env.envs.config import make_config
+    from ihrcf_env.config.make import make_config
 
     with pytest.raises((TypeError, ValueError)) as exc:
         make_config(task="landing-v1", raw=True, **options)
@@ -181,7 +181,7 @@ def test_a_sensor_output_named_like_an_env_key_is_refused(registries: Any, key: 
         ihrcf_env.register_sensor("baro", lambda world: _Const(), out)
     assert "baro" not in registries.SENSORS
     # also when the option names a sensor whose output clashes (an estimator registered after it)
-    from ihrcf_env.envs.config import make_config
+    from ihrcf_env.config.make import make_config
 
     registries.SENSORS["baro"] = registries.SensorEntry(lambda world: _Const(), out)
     with pytest.raises(ValueError, match=rf"sensor 'baro'.*{key!r}.*reserved"):
@@ -192,8 +192,9 @@ def test_a_sensor_output_named_like_an_env_key_is_refused(registries: Any, key: 
     "name", sorted({"tag", "crash", "camera", "tof", "all", "time", "touchdown", "ranges"} | _env_keys())
 )
 def test_an_estimator_named_like_an_env_key_is_refused(registries: Any, name: str) -> None:
+    from ihrcf_env.config.make import make_config
+
     from ihrcf_env.core.estimators.registry import ESTIMATORS
-    from ihrcf_env.envs.config import make_config
 
     with pytest.raises(ValueError, match=rf"{name!r} is reserved"):
         ihrcf_env.register_estimator(name, lambda config: _Const(name))
@@ -206,7 +207,7 @@ def test_an_estimator_named_like_an_env_key_is_refused(registries: Any, name: st
 def test_an_estimator_registered_after_a_sensor_of_its_name_is_refused_by_the_option(
     registries: Any,
 ) -> None:
-    from ihrcf_env.envs.config import make_config
+    from ihrcf_env.config.make import make_config
 
     ihrcf_env.register_sensor("baro", lambda world: _Const(), {"level": registries.SensorOutput((1,), 0, 2)})
     ihrcf_env.register_estimator("level", lambda config: _Const("level"))

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import ihrcf_env
-from ihrcf_env.envs.config import make_config
-from ihrcf_env.envs.levels import DEFAULT_LEVEL, LEVELS, TEST_SEEDS
+from ihrcf_env.config.levels import DEFAULT_LEVEL, LEVELS, TEST_SEEDS
+from ihrcf_env.config.make import make_config
 
 V2 = ihrcf_env.LANDING_V2_ID
 

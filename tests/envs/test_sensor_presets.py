@@ -12,10 +12,9 @@ import pytest
 from conftest import rollout, same_runs
 
 import ihrcf_env  # noqa: F401  (registers the env)
-from ihrcf_env.envs.config import SENSOR_PRESETS, make_config
-from ihrcf_env.sim.navigation import NavigationErrors
-from ihrcf_env.sim.sensors.imu import IMUNoise
-from ihrcf_env.sim.sensors.tof import VL53L1X
+from ihrcf_env.config.make import SENSOR_PRESETS, make_config
+from ihrcf_env.config.sensors import VL53L1X, IMUNoise
+from ihrcf_env.config.vehicle import NavigationErrors
 
 RAW = "ihrcf_env/DeckHoverRaw-v0"
 SMALL = {"camera_width": 96, "camera_height": 96}

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from ihrcf_env.envs.levels import LEVELS
+from ihrcf_env.config.levels import LEVELS
 from ihrcf_env.experiments.benchmark_v2 import Job, main, plan, run_job
 
 

@@ -13,12 +13,13 @@ import numpy as np
 import pybullet as p
 import pytest
 
+from ihrcf_env.config.vehicle import QuadParams, VelocityGains
 from ihrcf_env.sim import drone
 from ihrcf_env.sim.batched import autopilot as batched_autopilot
 from ihrcf_env.sim.batched.autopilot import BatchedVelocityController
 from ihrcf_env.sim.batched.floatmath import atan2, hypot2, hypot_over, remainder, yaw_quaternions
 from ihrcf_env.sim.batched.mixer import BatchedMixer
-from ihrcf_env.sim.drone import QuadParams, Quadrotor, VelocityController, VelocityGains
+from ihrcf_env.sim.drone import Quadrotor, VelocityController
 
 DT = 1.0 / 240
 

@@ -8,11 +8,12 @@ import numpy as np
 import pybullet as p
 import pytest
 
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.frames import matrix_from_quat
 from ihrcf_env.sim.batched import contact
 from ihrcf_env.sim.batched.surface import rotor_positions_batch, thrust_scale_batch
 from ihrcf_env.sim.ground_effect import GroundEffect, rotor_positions
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.world import World
 
 
 def test_drone_corners_come_from_the_urdf() -> None:

@@ -12,11 +12,12 @@ import numpy as np
 import pybullet as p
 import pytest
 
+from ihrcf_env.config.vehicle import QuadParams, VelocityGains
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.sim.batched import integrator
 from ihrcf_env.sim.batched.dynamics import BatchedQuadrotor
 from ihrcf_env.sim.batched.floatmath import matrices_from_quaternions, quaternions_from_matrices
-from ihrcf_env.sim.drone import QuadParams, Quadrotor, VelocityController, VelocityGains
+from ihrcf_env.sim.drone import Quadrotor, VelocityController
 
 DT = 1.0 / 240
 #: m and rotation-matrix elements: agreement required between PyBullet and numpy

@@ -8,9 +8,11 @@ from typing import Any
 
 import numpy as np
 
+from ihrcf_env.config.vehicle import NavigationErrors
+from ihrcf_env.config.wind import WindParams
 from ihrcf_env.sim.batched.external import ExternalInputs
-from ihrcf_env.sim.disturbances import ConstantForce, Wind, WindParams
-from ihrcf_env.sim.navigation import GNSSINSNavigation, NavigationErrors, TruthNavigation
+from ihrcf_env.sim.disturbances import ConstantForce, Wind
+from ihrcf_env.sim.navigation import GNSSINSNavigation, TruthNavigation
 
 DT = 1 / 240
 STEPS = 12

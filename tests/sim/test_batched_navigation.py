@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ihrcf_env.config.vehicle import NavigationErrors
 from ihrcf_env.sim.batched.navigation import error_tracks
-from ihrcf_env.sim.navigation import GNSSINSNavigation, NavigationErrors
+from ihrcf_env.sim.navigation import GNSSINSNavigation
 
 DT = 1 / 240
 STEPS = 12

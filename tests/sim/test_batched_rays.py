@@ -18,11 +18,13 @@ import pybullet as p
 import pytest
 from scipy.spatial.transform import Rotation
 
+from ihrcf_env.config.sensors import ToFConfig
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.frames import matrix_from_quat
 from ihrcf_env.sim.batched.ranging import BatchedToF
 from ihrcf_env.sim.batched.rays import RayScene, cast_rays, self_hits
-from ihrcf_env.sim.sensors.tof import ToFArray, ToFConfig
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.sensors.tof import ToFArray
+from ihrcf_env.sim.world import World
 
 EPS = 1e-3  # m: Bullet's convex-cast tolerance (see the module docstring)
 EDGE = 0.01  # m: hits farther than this from an edge have a face's normal in Bullet

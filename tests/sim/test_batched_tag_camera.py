@@ -17,6 +17,7 @@ import numpy as np
 import pybullet as p
 import pytest
 
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.detector_model import CornerTrack
 from ihrcf_env.core.frames import R_BODY_CAM, matrix_from_quat, quat_from_matrix
 from ihrcf_env.core.profiles import StaticProfile
@@ -27,7 +28,7 @@ from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
 from ihrcf_env.sim.sensors import BodyState
 from ihrcf_env.sim.sensors.base import TAG_CAMERA, TAG_STATUS
 from ihrcf_env.sim.sensors.tag_camera import RAY_MARGIN_M, ProjectedTagCamera
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.world import World
 
 EPS = 1e-3  # m: Bullet's convex-cast tolerance
 READS = 4

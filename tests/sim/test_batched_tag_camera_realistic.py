@@ -12,15 +12,16 @@ import pybullet as p
 import pytest
 from test_batched_tag_camera import look_at, place, scene_of
 
+from ihrcf_env.config.sensors import CameraConfig
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.detector_model import CornerTrack
 from ihrcf_env.core.frames import matrix_from_quat
 from ihrcf_env.core.profiles import StaticProfile
 from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
 from ihrcf_env.sim.sensors import BodyState
 from ihrcf_env.sim.sensors.base import TAG_CAMERA
-from ihrcf_env.sim.sensors.camera import CameraConfig
 from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.world import World
 
 N = 40
 

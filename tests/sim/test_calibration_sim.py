@@ -18,6 +18,8 @@ import pytest
 
 from ihrcf_env import HOVER_ID
 from ihrcf_env.cli.calibrate import main as calibrate_main
+from ihrcf_env.config.sensors import CameraConfig
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.calibration import (
     YCBCR_THRESHOLDS,
     Calibration,
@@ -40,8 +42,7 @@ from ihrcf_env.sim.calibration_procedure import (
     table_errors_px,
 )
 from ihrcf_env.sim.calibration_scene import DEFAULT_PAD_RADIUS, CalibrationScene
-from ihrcf_env.sim.sensors import CameraConfig
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.world import World
 
 CAM = CameraConfig()
 K_TRUE = CAM.intrinsics

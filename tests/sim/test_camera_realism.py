@@ -10,15 +10,15 @@ import numpy as np
 import pybullet as p
 import pytest
 
+from ihrcf_env.config.sensors import CameraConfig, ImagingParams
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.calibration import Calibration, default_calibration_path
 from ihrcf_env.core.estimators import TagDetector
 from ihrcf_env.core.frames import euler_from_matrix
 from ihrcf_env.core.profiles import StaticProfile, paper_profile
 from ihrcf_env.core.seeding import SeedStreams
-from ihrcf_env.sim.sensors import CameraConfig
 from ihrcf_env.sim.sensors.imaging import (
     EpisodeImaging,
-    ImagingParams,
     RealisticImager,
     add_sensor_noise,
     blur_kernel,
@@ -29,7 +29,7 @@ from ihrcf_env.sim.sensors.imaging import (
     sky_mask,
     vignetting_gain,
 )
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.world import World
 from ihrcf_env.wrappers import estimator_from_calibration
 
 REALISTIC = CameraConfig(quality="realistic")

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.profiles import paper_profile, sea_state_profile
 from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.sim.deck import DeckTrajectory
-from ihrcf_env.sim.world import WorldConfig
 
 DT = 1 / 240
 HALF = 0.02

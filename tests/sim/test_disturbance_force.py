@@ -9,14 +9,8 @@ from collections.abc import Sequence
 import numpy as np
 import pytest
 
-from ihrcf_env.sim.disturbances import (
-    MAX_DISTURBANCE_FORCE,
-    ConstantForce,
-    Disturbance,
-    Wind,
-    WindParams,
-    disturbance_force,
-)
+from ihrcf_env.config.wind import Disturbance, WindParams
+from ihrcf_env.sim.disturbances import MAX_DISTURBANCE_FORCE, ConstantForce, Wind, disturbance_force
 
 
 class Returns:

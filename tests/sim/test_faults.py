@@ -347,7 +347,7 @@ class FaultyReadings(gym.ObservationWrapper):  # type: ignore[type-arg]
 def hover_with(
     option: dict[str, Any], steps: int = 80, seed: int = 3, preset: str = "ideal"
 ) -> list[tuple[dict, dict]]:
-    from ihrcf_env.envs.config import make_config
+    from ihrcf_env.config.make import make_config
     from ihrcf_env.envs.deck_landing import DeckLandingEnv
     from ihrcf_env.wrappers.estimates import DeckPoseObservation
 

@@ -8,11 +8,12 @@ import numpy as np
 import pybullet as p
 import pytest
 
+from ihrcf_env.config.vehicle import QuadParams
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.frames import matrix_from_euler
 from ihrcf_env.core.profiles import StaticProfile
-from ihrcf_env.sim.drone import QuadParams
 from ihrcf_env.sim.ground_effect import GroundEffect, cheeseman_bennett, rotor_positions
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.world import World
 
 R = 0.1016  # the default rotor radius (8-inch propeller)
 

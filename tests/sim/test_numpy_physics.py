@@ -9,10 +9,12 @@ from typing import Any
 import numpy as np
 import pytest
 
+from ihrcf_env.config.vehicle import VelocityGains
+from ihrcf_env.config.wind import WindParams
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.profiles import paper_profile
-from ihrcf_env.sim.disturbances import Wind, WindParams
-from ihrcf_env.sim.drone import VelocityGains
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.disturbances import Wind
+from ihrcf_env.sim.world import World
 
 
 def _world(make_world: Any, physics: str, **kw: Any) -> World:
@@ -74,8 +76,8 @@ def test_the_physics_backend_is_checked_by_name() -> None:
 def test_worlds_advanced_together_read_the_ranges_of_a_world_alone(make_world: Any, tof_noise: str) -> None:
     """Numpy worlds cast their ToF rays in closed form; advanced together, the rays of all are cast
     in one call (ranging.prefetch), and each world reads what it reads when advanced alone."""
+    from ihrcf_env.config.sensors import ToFConfig
     from ihrcf_env.sim.batched.loop import advance
-    from ihrcf_env.sim.sensors.tof import ToFConfig
 
     def worlds() -> list[World]:
         out = []

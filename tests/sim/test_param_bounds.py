@@ -12,6 +12,25 @@ from typing import Any
 import numpy as np
 import pytest
 
+from ihrcf_env.config.sensors import (
+    IMU_NOISE_BOUNDS,
+    MAX_RANGE_BOUNDS,
+    VL53L1X,
+    VL53L1X_BOUNDS,
+    IMUConfig,
+    IMUNoise,
+    ToFConfig,
+)
+from ihrcf_env.config.vehicle import (
+    GAIN_BOUNDS,
+    NAVIGATION_ERROR_BOUNDS,
+    QUAD_BOUNDS,
+    NavigationErrors,
+    QuadParams,
+    VelocityGains,
+)
+from ihrcf_env.config.wind import DRAG_BOUNDS, WIND_BOUNDS, DragModel, WindParams
+from ihrcf_env.config.world import DECK_BOUNDS, DeckConfig, WorldConfig
 from ihrcf_env.control.filters import AlphaBeta
 from ihrcf_env.control.hover import HoverGains, tracking_action
 from ihrcf_env.control.landing import LANDING_BOUNDS, LANDING_OFF_AT_INF, LandingConfig, LandingController
@@ -28,22 +47,12 @@ from ihrcf_env.core.profiles import (
     sea_state_profile,
 )
 from ihrcf_env.core.rig import SensorRig
-from ihrcf_env.sim.deck import DECK_BOUNDS, DeckConfig
-from ihrcf_env.sim.disturbances import (
-    DRAG_BOUNDS,
-    WIND_BOUNDS,
-    DragModel,
-    Wind,
-    WindParams,
-    disturbance_force,
-)
-from ihrcf_env.sim.drone import GAIN_BOUNDS, QUAD_BOUNDS, QuadParams, VelocityGains
-from ihrcf_env.sim.navigation import NAVIGATION_ERROR_BOUNDS, GNSSINSNavigation, NavigationErrors
+from ihrcf_env.sim.disturbances import Wind, disturbance_force
+from ihrcf_env.sim.navigation import GNSSINSNavigation
 from ihrcf_env.sim.noise import GaussianNoise, GaussMarkov, WhiteNoise
 from ihrcf_env.sim.sensors.base import BodyState
-from ihrcf_env.sim.sensors.imu import IMU, IMU_NOISE_BOUNDS, IMUConfig, IMUNoise
-from ihrcf_env.sim.sensors.tof import MAX_RANGE_BOUNDS, VL53L1X, VL53L1X_BOUNDS, ToFConfig
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.sensors.imu import IMU
+from ihrcf_env.sim.world import World
 
 # Fields whose bound alone breaks a cross-field rule get a companion value.
 COMPANIONS: dict[tuple[type, str, str], dict[str, Any]] = {
@@ -249,7 +258,7 @@ def test_measured_defects_fail_at_construction(cls: type, kwargs: dict, field: s
 
 
 def test_env_options_name_the_parameter() -> None:
-    from ihrcf_env.envs.config import make_config
+    from ihrcf_env.config.make import make_config
 
     with pytest.raises(ValueError, match=r"autopilot_feedback\['horizontal_sigma'\].*horizontal_sigma"):
         make_config(camera=False, autopilot_feedback={"horizontal_sigma": 1e200})

@@ -12,13 +12,15 @@ import pybullet as p
 import pytest
 from scipy.spatial.transform import Rotation
 
+from ihrcf_env.config.sensors import CameraConfig
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.estimators import TagDetector
 from ihrcf_env.core.profiles import paper_profile
-from ihrcf_env.sim.sensors import CameraConfig, DownCamera
+from ihrcf_env.sim.sensors import DownCamera
 from ihrcf_env.sim.sensors.base import TAG_CAMERA, BodyState
 from ihrcf_env.sim.sensors.camera import check_window, tiny_render, window_projection
 from ihrcf_env.sim.sensors.tag_window import TagScene, WindowedTagCamera
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.world import World
 
 W = H = 512
 DISTORTION = (-0.08, 0.02)

@@ -15,13 +15,11 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from ihrcf_env.envs.config import make_config
+from ihrcf_env.config.make import make_config
+from ihrcf_env.config.sensors import CameraConfig, IMUConfig, ToFConfig
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.envs.deck_landing import MAX_SENSOR_AGE, DeckLandingEnv
-from ihrcf_env.sim.sensors import CameraConfig
-from ihrcf_env.sim.sensors.imu import IMUConfig
 from ihrcf_env.sim.sensors.timing import NO_FRAME_YET, DelayLine, SampleClock
-from ihrcf_env.sim.sensors.tof import ToFConfig
-from ihrcf_env.sim.world import WorldConfig
 
 DATA = Path(__file__).parent / "data" / "default_observations.json"
 ACTION = np.array([0.1, -0.05, -0.2, 0.0])

@@ -7,13 +7,15 @@ import pybullet as p
 import pytest
 from conftest import temp_dirs
 
+from ihrcf_env.config.sensors import ToFConfig
+from ihrcf_env.config.wind import Disturbance
+from ihrcf_env.config.world import DeckConfig, WorldConfig
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.profiles import StaticProfile
-from ihrcf_env.sim.deck import DeckConfig
-from ihrcf_env.sim.disturbances import ConstantForce, Disturbance
+from ihrcf_env.sim.disturbances import ConstantForce
 from ihrcf_env.sim.noise import Chain, Dropout, GaussianNoise, NoiseModel, NoNoise
-from ihrcf_env.sim.sensors import IMU, Sensor, ToFConfig
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.sensors import IMU, Sensor
+from ihrcf_env.sim.world import World
 
 N = 4000
 

@@ -6,11 +6,12 @@ import numpy as np
 import pybullet as p
 import pytest
 
+from ihrcf_env.config.sensors import CameraConfig, ToFConfig
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.frames import body_pose_to_cam, matrix_from_euler
 from ihrcf_env.core.profiles import CallableProfile, StaticProfile, paper_profile, sea_state_profile
 from ihrcf_env.core.rig import tag_corners_deck
-from ihrcf_env.sim.sensors import CameraConfig, ToFConfig
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.world import World
 
 
 @pytest.fixture

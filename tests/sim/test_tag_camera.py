@@ -11,15 +11,17 @@ import numpy as np
 import pybullet as p
 import pytest
 
+from ihrcf_env.config.sensors import CameraConfig
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core import detector_model as dm
 from ihrcf_env.core.detector_model import DetectorModel
 from ihrcf_env.core.estimators import TagDetector
 from ihrcf_env.core.frames import matrix_from_euler, quat_from_matrix
 from ihrcf_env.core.profiles import StaticProfile, paper_profile
-from ihrcf_env.sim.sensors import BodyState, CameraConfig, Sensor
+from ihrcf_env.sim.sensors import BodyState, Sensor
 from ihrcf_env.sim.sensors.base import TAG_CAMERA
 from ihrcf_env.sim.sensors.tag_camera import REASON_DEPTH, REASON_OCCLUDED, ProjectedTagCamera
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.world import World
 
 MODEL = DetectorModel.load()
 

@@ -11,22 +11,17 @@ import numpy as np
 import pybullet as p
 import pytest
 
+from ihrcf_env.config.sensors import VL53L1X, IMUConfig, IMUNoise, ToFConfig
+from ihrcf_env.config.vehicle import NavigationConfig, NavigationErrors
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.profiles import StaticProfile
 from ihrcf_env.core.seeding import SeedStreams
-from ihrcf_env.sim.navigation import (
-    GNSSINSNavigation,
-    NavigationConfig,
-    NavigationErrors,
-    TruthNavigation,
-    make_navigation,
-)
+from ihrcf_env.sim.navigation import GNSSINSNavigation, TruthNavigation, make_navigation
 from ihrcf_env.sim.noise import BiasRandomWalk, ConstantBias, GaussMarkov, WhiteNoise
-from ihrcf_env.sim.sensors import ToFConfig
 from ihrcf_env.sim.sensors.base import BodyState
-from ihrcf_env.sim.sensors.imu import IMU, AttitudeError, IMUConfig, IMUNoise
-from ihrcf_env.sim.sensors.tof import VL53L1X
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.sensors.imu import IMU, AttitudeError
+from ihrcf_env.sim.world import World
 
 DT = 0.05  # the default control period
 REL = 0.1  # statistics within 10 %

@@ -8,11 +8,13 @@ from typing import Any
 import numpy as np
 import pytest
 
+from ihrcf_env.config.vehicle import VelocityGains
+from ihrcf_env.config.wind import DragModel, WindParams
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.frames import matrix_from_quat
 from ihrcf_env.core.profiles import StaticProfile
-from ihrcf_env.sim.disturbances import DragModel, Wind, WindParams
-from ihrcf_env.sim.drone import VelocityGains
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.disturbances import Wind
+from ihrcf_env.sim.world import World
 
 
 def _world(make_world: Any, gains: VelocityGains, speed: float, camera: bool = False) -> World:

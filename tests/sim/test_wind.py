@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from ihrcf_env.sim.disturbances import Disturbance, DragModel, Wind, WindParams, dryden_low_altitude
+from ihrcf_env.config.wind import Disturbance, DragModel, WindParams
+from ihrcf_env.sim.disturbances import Wind, dryden_low_altitude
 
 
 def test_dryden_low_altitude_figures() -> None:

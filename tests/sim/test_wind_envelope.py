@@ -7,11 +7,13 @@ import math
 import numpy as np
 import pytest
 
+from ihrcf_env.config.vehicle import VelocityGains
+from ihrcf_env.config.wind import DragModel, WindParams
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.profiles import StaticProfile
 from ihrcf_env.experiments.wind_envelope import envelope, hold_in_wind
-from ihrcf_env.sim.disturbances import ConstantForce, DragModel, Wind, WindParams
-from ihrcf_env.sim.drone import VelocityGains
-from ihrcf_env.sim.world import World, WorldConfig
+from ihrcf_env.sim.disturbances import ConstantForce, Wind
+from ihrcf_env.sim.world import World
 
 
 def test_drag_at_10_m_s_is_within_the_published_range() -> None:
@@ -107,7 +109,7 @@ def test_bad_gains_are_refused() -> None:
 
 def test_the_classic_loop_is_the_default_and_drifts_in_a_fresh_breeze() -> None:
     """Existing tasks keep their autopilot: the classic loop saturates its integrator at 12 m/s."""
-    from ihrcf_env.sim.world import WorldConfig
+    from ihrcf_env.config.world import WorldConfig
 
     assert VelocityGains().wind_hold is False
     classic = hold_in_wind(

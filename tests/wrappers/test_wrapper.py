@@ -233,7 +233,7 @@ def test_fused_range_offset_state_follows_the_tof_model(make_env):
 def test_only_the_ship_deck_task_reseeds_the_fused_position() -> None:
     """DeckLanding-v2 (a Froude-scaled ship deck) turns ``reseed_agreeing`` on; v1 and the hover task
     keep the filter as it was."""
-    from ihrcf_env.envs.config import make_config
+    from ihrcf_env.config.make import make_config
 
     for task, on in (("landing-v2", True), ("landing-v1", False), ("hover", False)):
         params = make_config(task=task, camera_model="projected").observation.fused_params

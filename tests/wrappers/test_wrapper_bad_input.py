@@ -62,7 +62,7 @@ def test_max_residual_accepts_numpy_and_int_numbers():
     for good in (np.float32(0.02), 1):
         env = gym.make(HOVER_ID, max_residual=good, keep_image=False)
         try:
-            assert env.get_wrapper_attr("estimator").max_residual == float(good)
+            assert env.get_wrapper_attr("estimator").config.max_residual == float(good)
         finally:
             env.close()
 

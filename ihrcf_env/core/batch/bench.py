@@ -177,3 +177,14 @@ def main(argv: list[str] | None = None) -> None:
 
 if __name__ == "__main__":
     main()
+
+__all__ = [
+    "FUSED_STEPS",
+    "SIZES",
+    "TAG",
+    "fused_frames",
+    "main",
+    "make_frames",
+    "run",
+    "run_fused",
+]

@@ -301,3 +301,16 @@ def refine_cv_lm(
                     a[keep] for a in (p, e, pxw, J, jtj, jtb, diag, gmax, lam, up)
                 )
     return p_out[:, :3].copy(), p_out[:, 3:].copy(), e_out, iters
+
+
+__all__ = [
+    "MAX_ITER",
+    "MIN_GRADIENT",
+    "REL_ENERGY_TOL",
+    "SMALL_ENERGY",
+    "STEP_TOL",
+    "project",
+    "refine_cv_lm",
+    "rodrigues",
+    "rodrigues_vector",
+]

@@ -372,3 +372,9 @@ class BatchFused:
             params=self.params,
             max_residual=self.max_residual,
         )
+
+
+__all__ = [
+    "BatchFused",
+    "imu_batch",
+]

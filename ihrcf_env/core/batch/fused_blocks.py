@@ -153,3 +153,8 @@ class BlocksBatch:
         dv, lat = (p.atda_depth_sigma * d * d) ** 2, (p.atda_lateral_sigma * d) ** 2
         C = self.ray_covariance(X, R_wb @ R_BODY_CAM, dv, lat, 0.0)
         return np.einsum("nij,nj->ni", R_wb, p_bd), C
+
+
+__all__ = [
+    "BlocksBatch",
+]

@@ -113,3 +113,10 @@ def stack_atda_candidates(results: Sequence[list[Candidate] | str]) -> PnPCandid
         for s, (e, R, p) in enumerate(res[:2]):
             err[k, s], rot[k, s], pos[k, s], usable[k, s] = e, R, p, True
     return PnPCandidates(rot, pos, err, usable, code)
+
+
+__all__ = [
+    "BatchFrames",
+    "stack_atda_candidates",
+    "stack_frames",
+]

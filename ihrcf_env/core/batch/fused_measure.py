@@ -318,3 +318,11 @@ def range_only(
             p.ihrcf_depth_floor**2,
         )  # fmt: skip
     pos.update_along(i, zd, h, var, np.full(i.size, bf.gate[1]))
+
+
+__all__ = [
+    "MeasureParts",
+    "Rows",
+    "measure",
+    "range_only",
+]

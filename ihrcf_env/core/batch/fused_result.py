@@ -160,3 +160,31 @@ class BatchFusedOutput:
         if not self.valid[i]:
             return PoseEstimate.invalid(self.reason(i))
         return PoseEstimate(self.position[i], self.euler[i], self.rotation[i], True, float(self.residual[i]))
+
+
+__all__ = [
+    "ALL_REJECTED",
+    "ARRIVAL_NONFINITE",
+    "ARRIVAL_ZERO",
+    "ATDA_NOT_USED",
+    "BOTH_FAILED",
+    "CONVERGING_ANGLE",
+    "CONVERGING_POSITION",
+    "CONVERGING_UPDATES",
+    "CORNERS",
+    "IHRCF_FAILED",
+    "IMU_NONFINITE",
+    "IMU_ZERO",
+    "INNER",
+    "NONE",
+    "NOT_INITIALISED",
+    "NO_ATT",
+    "NO_POS",
+    "NUMERICAL",
+    "OK",
+    "OUTER",
+    "POSITION_NOT_INITIALISED",
+    "TAG_LOST",
+    "TIME_BACKWARDS",
+    "BatchFusedOutput",
+]

@@ -254,3 +254,19 @@ def matrix_from_euler_batch(euler: F64) -> F64:
         (-sp, cp * sr, cp * cr),
     )
     return np.stack([np.stack(r, axis=-1) for r in rows], axis=1)
+
+
+__all__ = [
+    "HOMOGRAPHY_ERRORS",
+    "PLANE_ERRORS",
+    "PLANE_Z_ERROR",
+    "RIGID_ERROR",
+    "apply_homography_batch",
+    "collinear_batch",
+    "euler_batch",
+    "fit_plane_batch",
+    "homography4_batch",
+    "matrix_from_euler_batch",
+    "plane_z_batch",
+    "rigid_fit_batch",
+]

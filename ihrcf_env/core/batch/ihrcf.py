@@ -166,3 +166,10 @@ def ihrcf_batch(
     return ihrcf_measure_batch(
         corners_px, ranges, ranges_valid, detected, touch_pixels, rig, tag_size, max_residual
     ).poses
+
+
+__all__ = [
+    "IHRCFBatch",
+    "ihrcf_batch",
+    "ihrcf_measure_batch",
+]

@@ -302,3 +302,11 @@ class BatchImm:
         """Rows ``i`` of this bank set to those of ``other`` (same models)."""
         for name in ("X", "Ps", "mu", "alive", "frames", "rejected_run", "last_accepted"):
             getattr(self, name)[i] = getattr(other, name)[i]
+
+
+__all__ = [
+    "BatchImm",
+    "Rows",
+    "largest_eigenvalue_batch",
+    "mahalanobis2_batch",
+]

@@ -148,3 +148,13 @@ def reprojection(K: F64, dist: F64, R: F64, t: F64, obj: F64, corners: F64) -> F
     """Reprojection residuals (..., 4, 2), px, of poses R (..., 3, 3), t (..., 3) of ``obj`` (4, 3)."""
     X = np.einsum("...ij,kj->...ki", R, obj) + t[..., None, :]
     return project(K, dist, X)[0] - corners
+
+
+__all__ = [
+    "distortion5",
+    "ippe_square",
+    "marker_points",
+    "project",
+    "reprojection",
+    "undistort",
+]

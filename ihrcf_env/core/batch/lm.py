@@ -218,3 +218,17 @@ def refine_lm(
         dup = np.flatnonzero(duplicate)
         R_out[dup], t_out[dup], cost_out[dup] = R_out[dup ^ 1], t_out[dup ^ 1], cost_out[dup ^ 1]
         return R_out, t_out, np.sqrt(cost_out / 4.0), iters
+
+
+__all__ = [
+    "CLEAR_RATIO2",
+    "HAT",
+    "LAM_REJECT",
+    "MAX_ITER",
+    "PRED_TOL",
+    "STEP_TOL",
+    "Camera",
+    "evaluate",
+    "refine_lm",
+    "solve6",
+]

@@ -158,3 +158,12 @@ class BatchDeckPoseEstimator:
             poses.estimate(int(i)) if bf.detected[i] else PoseEstimate.invalid(bf.corners_reason[i])
             for i in rows
         ]
+
+
+__all__ = [
+    "BATCHED",
+    "BatchDeckPoseEstimator",
+    "Estimates",
+    "batchable",
+    "batchable_names",
+]

@@ -206,3 +206,16 @@ class ATDABatch:
         self.prior[out.valid] = out.rotation[out.valid]
         self.has_prior |= out.valid
         return out
+
+
+__all__ = [
+    "AMBIGUITY_RATIO",
+    "MAX_LM_ITER",
+    "R_MARKER_DECK",
+    "UNDISTORT_ITERATIONS",
+    "ATDABatch",
+    "PnPCandidates",
+    "atda_batch",
+    "pnp_candidates",
+    "pnp_choose",
+]

@@ -139,3 +139,33 @@ def assemble(
     euler = np.where(ok[:, None], euler_batch(R), 0.0)
     rms = np.zeros(len(code)) if fit_rms is None else np.where(code == FIT_RESIDUAL, fit_rms, 0.0)
     return BatchPoses(p, euler, R, ok, np.where(ok, residual, 0.0), code, rms, max_residual)
+
+
+__all__ = [
+    "CORNER_AT_INFINITY",
+    "CORNER_BEHIND",
+    "DEGENERATE_LAYOUT",
+    "DEGENERATE_TAG",
+    "DEGENERATE_TOUCH",
+    "FEW_RANGES",
+    "FIT_COLLINEAR",
+    "FIT_NONFINITE",
+    "FIT_RESIDUAL",
+    "HOMOGRAPHY_H22",
+    "HOMOGRAPHY_NOT_UNIQUE",
+    "NONFINITE_CORNERS",
+    "NONFINITE_TOUCH",
+    "NOT_DETECTED",
+    "OK",
+    "OUTSIDE_TABLE",
+    "PLANE_COINCIDENT",
+    "PLANE_COLLINEAR",
+    "PLANE_PARALLEL",
+    "PNP_NO_SOLUTION",
+    "PREDICTED_RANGE",
+    "REASONS",
+    "TAG_BEHIND",
+    "BatchPoses",
+    "assemble",
+    "first_failure",
+]

@@ -61,3 +61,10 @@ def atda_single(
     prior = None if prior_rotation is None else as_array(prior_rotation, (3, 3), "prior_rotation")[None]
     c = pnp_candidates(corners[None], _DETECTED, K, dist, tag_size, rig, refine)
     return pnp_choose(c, prior).estimate(0)
+
+
+__all__ = [
+    "Candidate",
+    "atda_candidates_batched",
+    "atda_single",
+]

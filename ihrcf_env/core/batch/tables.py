@@ -70,3 +70,10 @@ def batch_table(touch_pixels: RangePixelTable | BatchTable | _Single | BatchTouc
         return uv, np.array([np.asarray(o[1], dtype=bool) for o in out]).reshape(-1, 4)
 
     return per_row
+
+
+__all__ = [
+    "BatchTable",
+    "BatchTouchPixels",
+    "batch_table",
+]

@@ -138,3 +138,20 @@ def check_fov(fov: Any) -> float:
     if not 0.0 < v < math.pi:
         raise ValueError(f"fov must be in (0, pi) rad, got {v!r}")
     return v
+
+
+__all__ = [
+    "DIST_LIMITS",
+    "LENS_DISTORTION_LIMIT",
+    "MAX_CAMERA_OFFSET",
+    "MAX_CHESSBOARD_RMS",
+    "MAX_IMAGE_SIZE",
+    "MAX_RIG_A",
+    "MAX_SEED",
+    "MAX_SKEW",
+    "check_camera_matrix",
+    "check_distortion",
+    "check_fov",
+    "check_rig",
+    "check_table_pixels",
+]

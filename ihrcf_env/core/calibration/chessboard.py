@@ -102,3 +102,11 @@ def calibrate_intrinsics(
     dr = np.asarray(dist, dtype=np.float64).ravel()[:5]
     d[: dr.size] = dr
     return IntrinsicsResult(K=np.asarray(K, dtype=np.float64), dist=d, rms=float(rms), n_views=len(imgs))
+
+
+__all__ = [
+    "IntrinsicsResult",
+    "calibrate_intrinsics",
+    "chessboard_object_points",
+    "find_chessboard",
+]

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ihrcf_env import __version__
+from ihrcf_env._version import __version__
 from ihrcf_env.core.calibration._checks import check_real_array
 from ihrcf_env.core.calibration.bounds import (
     LENS_DISTORTION_LIMIT,
@@ -314,3 +314,11 @@ class Calibration:
             + "; ".join(diffs)
             + f". Produce a matching file with:\n    {cmd}{rig_note}"
         )
+
+
+__all__ = [
+    "FORMAT_VERSION",
+    "Calibration",
+    "CalibrationError",
+    "default_calibration_path",
+]

@@ -182,3 +182,17 @@ def segment_pads(image: ArrayLike, min_area_px: int = 20) -> dict[str, PadDetect
     """
     ycc = rgb_to_ycbcr(image)
     return {c: segment_mask(ycbcr_mask(ycc, c), min_area_px=min_area_px) for c in PAD_COLOURS}
+
+
+__all__ = [
+    "YCBCR_MATRIX",
+    "YCBCR_OFFSET",
+    "YCBCR_THRESHOLDS",
+    "PadDetection",
+    "colour_mask",
+    "rgb_to_ycbcr",
+    "segment_mask",
+    "segment_pad",
+    "segment_pads",
+    "ycbcr_mask",
+]

@@ -192,3 +192,12 @@ class RangePixelTable:
 
     def __repr__(self) -> str:
         return "RangePixelTable(" + ", ".join(repr(t) for t in self.tables) + ")"
+
+
+__all__ = [
+    "MAX_PIXEL",
+    "MAX_TABLE_RANGE",
+    "SENSOR_NAMES",
+    "RangePixelTable",
+    "SensorTable",
+]

@@ -146,8 +146,8 @@ class TagFeatures:
 def _one_quad(
     corners: NDArray[np.float64], width: int, height: int
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float, float]:
-    """:func:`corner_basis` of one quad (4, 2) in plain Python (the per-frame path: ~10x faster than
-    numpy on four points), plus its :func:`image_margin` and shortest edge."""
+    """:func:`corner_basis` of one quad (4, 2) in plain Python (the per-frame path: on four points
+    plain Python avoids numpy's per-call overhead), plus its :func:`image_margin` and shortest edge."""
     z = [complex(x, y) for x, y in corners.tolist()]
     radial: list[list[float]] = []
     tangential: list[list[float]] = []
@@ -216,3 +216,16 @@ def tag_features(
         quiet_margin=quiet_margin,
         min_side=min_side,
     )
+
+
+__all__ = [
+    "BASIS_NAMES",
+    "N_BASIS",
+    "QUIET_ZONE_SCALE",
+    "TagFeatures",
+    "corner_basis",
+    "image_margin",
+    "noise_to_contrast",
+    "project_points",
+    "tag_features",
+]

@@ -97,3 +97,16 @@ def load_model(path: str | os.PathLike[str] | None = None) -> DetectorModel:
 
 def _reject_constant(name: str) -> float:
     raise ValueError(f"non-finite number {name} in JSON")
+
+
+__all__ = [
+    "FIT_COMMAND",
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "DetectorModelError",
+    "default_detector_model_path",
+    "load_model",
+    "model_from_dict",
+    "model_to_dict",
+    "save_model",
+]

@@ -349,3 +349,16 @@ def fit_detector_params(
         params[q] = replace(own, **shared)
         reports[q] = report
     return params, reports
+
+
+__all__ = [
+    "MAX_LAG",
+    "NOISE_FIELDS",
+    "NOISE_FIT_MAX_COS_ANGLE",
+    "NOISE_FIT_MIN_SIDE_PX",
+    "OUTLIER_PX",
+    "DetectorSamples",
+    "fit_detector_params",
+    "fit_quality",
+    "merge_samples",
+]

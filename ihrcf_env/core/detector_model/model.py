@@ -20,7 +20,7 @@ from ihrcf_env.core.checks import describe
 from ihrcf_env.core.detector_model.features import TagFeatures, image_margin
 from ihrcf_env.core.detector_model.params import QualityParams
 
-#: Camera qualities the model covers (:data:`ihrcf_env.sim.sensors.camera.CAMERA_QUALITIES`).
+#: Camera qualities the model covers (:data:`ihrcf_env.config.sensors.CAMERA_QUALITIES`).
 QUALITIES: tuple[str, ...] = ("ideal", "realistic")
 
 #: Failure reasons (``reason`` of :meth:`DetectorModel.corners`).
@@ -149,6 +149,15 @@ class DetectorModel:
         e = mean + sd * z
         return c + e[:, :1] * features.radial + e[:, 1:] * features.tangential, ""
 
+    def __eq__(self, other: object) -> bool:
+        """Equal contents (the parameters of every quality and the fit's record): a model loaded
+        twice from one file equals itself."""
+        if not isinstance(other, DetectorModel):
+            return NotImplemented
+        return self is other or self.to_dict() == other.to_dict()
+
+    __hash__ = None  # type: ignore[assignment]  # compared by contents
+
     # -- file (ihrcf_env.core.detector_model.file) ----------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """The JSON object of the model file (:func:`~ihrcf_env.core.detector_model.file.model_to_dict`)."""
@@ -180,3 +189,17 @@ class DetectorModel:
         from ihrcf_env.core.detector_model.file import load_model
 
         return load_model(path)
+
+
+__all__ = [
+    "FIELD_FEATURES",
+    "QUALITIES",
+    "REASON_BORDER",
+    "REASON_MISS",
+    "REASON_OBLIQUE",
+    "REASON_OUTSIDE",
+    "REASON_QUIET_ZONE",
+    "REASON_SMALL",
+    "CornerTrack",
+    "DetectorModel",
+]

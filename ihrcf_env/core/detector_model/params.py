@@ -148,3 +148,10 @@ class QualityParams:
         x = (np.asarray(min_side, dtype=np.float64) - self.size50_px) / self.size_width_px
         small = 1.0 / (1.0 + np.exp(np.clip(x, -50.0, 50.0)))
         return band, small, np.broadcast_to(self.miss_prob, np.shape(band)).astype(np.float64)
+
+
+__all__ = [
+    "COEFFICIENT_FIELDS",
+    "COEFFICIENT_LIMIT",
+    "QualityParams",
+]

@@ -207,3 +207,15 @@ class ATDAEstimator:
         if est.valid:
             self._prior = np.array(est.rotation)
         return est
+
+
+__all__ = [
+    "AMBIGUITY_RATIO",
+    "R_DECK_MARKER",
+    "ATDAEstimator",
+    "Candidate",
+    "atda_candidates",
+    "atda_choose",
+    "atda_estimate",
+    "atda_frame_candidates",
+]

@@ -216,3 +216,13 @@ class DeckPoseSource(Protocol):
     def reset(self) -> None: ...
 
     def update(self, frame: SensorFrame) -> PoseEstimate: ...
+
+
+__all__ = [
+    "DEGENERATE_REL_TOL",
+    "TAG_NOT_FOUND",
+    "DeckPoseSource",
+    "ImuSample",
+    "PoseEstimate",
+    "SensorFrame",
+]

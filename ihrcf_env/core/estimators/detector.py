@@ -7,6 +7,8 @@ refinement modes' measured corner errors and costs, and the offset of the ``"apr
 
 from __future__ import annotations
 
+import functools
+
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -21,6 +23,13 @@ _REFINE_METHODS: dict[str, int] = {
     "contour": cv2.aruco.CORNER_REFINE_CONTOUR,
     "apriltag": cv2.aruco.CORNER_REFINE_APRILTAG,
 }
+
+
+@functools.cache
+def apriltag_ids() -> int:
+    """Number of tags in the AprilTag 36h11 family (valid ``tag_id`` 0 .. n - 1)."""
+    dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
+    return int(dictionary.bytesList.shape[0])
 
 
 class TagDetector:
@@ -158,3 +167,10 @@ def _int_pair(name: str, value: object, low: int) -> tuple[int, int]:
     if a < low or b < low:
         raise ValueError(f"{name} must be two integers >= {low}, got {value!r}")
     return a, b
+
+
+__all__ = [
+    "APRILTAG_CORNER_OFFSET_PX",
+    "TagDetector",
+    "apriltag_ids",
+]

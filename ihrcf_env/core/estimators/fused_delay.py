@@ -57,3 +57,9 @@ def predict_ahead(
     if att is not None:
         att_ahead = att.predicted(dt)
     return pos_ahead, att_ahead
+
+
+__all__ = [
+    "imu_sample",
+    "predict_ahead",
+]

@@ -203,3 +203,11 @@ class MeasurementBlocks:
         return Measurement(
             "atda.position", R_wb @ atda.position, (0, 3), ray_covariance(X, R_wb @ R_BODY_CAM, dv, lat, 0.0)
         )
+
+
+__all__ = [
+    "Measurement",
+    "MeasurementBlocks",
+    "plane_covariance",
+    "ray_covariance",
+]

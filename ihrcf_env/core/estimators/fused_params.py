@@ -166,3 +166,8 @@ class FusedParams:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)!r}")
         if not 0.0 < self.gate_probability < 1.0:
             raise ValueError(f"gate_probability must be in (0, 1), got {self.gate_probability!r}")
+
+
+__all__ = [
+    "FusedParams",
+]

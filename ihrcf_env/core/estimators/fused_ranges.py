@@ -80,3 +80,10 @@ def ranges_distance(
     dxy = X[:2] - xy.sum(axis=0) / m
     var = sigma_r * sigma_r / m + float(dxy @ dxy) * tilt_var + floor_var
     return c + float(n_body @ camera_position), R_wb @ n_body, var
+
+
+__all__ = [
+    "ranges_distance",
+    "ranges_plane",
+    "ranges_tilt",
+]

@@ -262,3 +262,14 @@ class IHRCFEstimator:
         return ihrcf_measure(
             frame, frame.ranges, self.touch_pixels, self.rig, self.tag_size, self.max_residual
         )[1]
+
+
+__all__ = [
+    "IHRCFCorners",
+    "IHRCFEstimator",
+    "TouchPixels",
+    "ihrcf_corners",
+    "ihrcf_estimate",
+    "ihrcf_fit",
+    "ihrcf_measure",
+]

@@ -309,3 +309,10 @@ class Imm:
     def value_sigma(self) -> float:
         """Largest 1-sigma of the (combined) values."""
         return math.sqrt(max(largest_eigenvalue(self.value_cov), 0.0))
+
+
+__all__ = [
+    "Imm",
+    "largest_eigenvalue",
+    "wrap_angles",
+]

@@ -25,8 +25,7 @@ class DeckPoseEstimator:
 
     :meth:`frame` detects the tag once and packs a :class:`SensorFrame`; :meth:`update` feeds it to
     every estimator of :attr:`sources` (an ordered mapping name -> :class:`DeckPoseSource`) and
-    returns name -> :class:`PoseEstimate`. :meth:`estimate` is the two-estimator shortcut kept for
-    compatibility. :meth:`reset` resets every estimator (e.g. ATDA's flip prior).
+    returns name -> :class:`PoseEstimate`. :meth:`reset` resets every estimator (e.g. ATDA's flip prior).
 
     Args:
         rig, tag_size (m), K (3, 3), dist, touch_pixels, max_residual (m): see
@@ -61,31 +60,6 @@ class DeckPoseEstimator:
         )
         self.detector = TagDetector(tag_id, refine)
         self.sources: dict[str, DeckPoseSource] = build_estimators(self.config, estimators)
-
-    # the configuration, as attributes (compatibility)
-    @property
-    def rig(self) -> SensorRig:
-        return self.config.rig
-
-    @property
-    def tag_size(self) -> float:
-        return self.config.tag_size
-
-    @property
-    def K(self) -> NDArray[np.float64]:
-        return self.config.K
-
-    @property
-    def dist(self) -> NDArray[np.float64] | None:
-        return self.config.dist
-
-    @property
-    def touch_pixels(self) -> TouchPixels:
-        return self.config.touch_pixels
-
-    @property
-    def max_residual(self) -> float:
-        return self.config.max_residual
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -138,13 +112,7 @@ class DeckPoseEstimator:
             out[name] = est
         return out
 
-    def estimate(
-        self, image: ArrayLike, ranges: ArrayLike, ranges_valid: ArrayLike
-    ) -> tuple[PoseEstimate, PoseEstimate]:
-        """(IHRCF, ATDA) estimates from one image and the four ranges (m) of ps1..ps4 (compatibility:
-        needs both estimators; :meth:`frame` + :meth:`update` give all of them by name)."""
-        missing = [n for n in ("ihrcf", "atda") if n not in self.sources]
-        if missing:
-            raise RuntimeError(f"estimate() needs the ihrcf and atda estimators; {missing} not configured")
-        out = self.update(self.frame(image, ranges, ranges_valid))
-        return out["ihrcf"], out["atda"]
+
+__all__ = [
+    "DeckPoseEstimator",
+]

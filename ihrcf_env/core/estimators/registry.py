@@ -148,3 +148,17 @@ def build_estimators(
         check_source(n, source)
         out[n] = source
     return out
+
+
+__all__ = [
+    "BUILTIN_ESTIMATORS",
+    "DEFAULT_ESTIMATORS",
+    "ESTIMATORS",
+    "RESERVED_NAMES",
+    "EstimatorConfig",
+    "EstimatorFactory",
+    "build_estimators",
+    "check_estimator_names",
+    "register_estimator",
+    "unregister_estimator",
+]

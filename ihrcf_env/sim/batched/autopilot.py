@@ -29,7 +29,7 @@ from ihrcf_env.sim.batched.floatmath import (
 from ihrcf_env.sim.batched.mixer import BatchedMixer
 
 if TYPE_CHECKING:
-    from ihrcf_env.sim.drone import QuadParams, VelocityGains
+    from ihrcf_env.config.vehicle import QuadParams, VelocityGains
 
 Array = NDArray[np.float64]
 
@@ -41,7 +41,7 @@ _TWO_PI = 2 * math.pi
 
 class BatchedVelocityController:
     """N velocity controllers sharing ``params`` and ``gains`` (a
-    :class:`~ihrcf_env.sim.drone.VelocityGains`), each with its own state: ``p_ref`` (N, 3) m,
+    :class:`~ihrcf_env.config.vehicle.VelocityGains`), each with its own state: ``p_ref`` (N, 3) m,
     ``yaw_ref`` (N,) rad, ``integral`` (N, 3) m s, ``disturbance`` (N, 2) m/s^2 (world x, y)."""
 
     def __init__(self, params: QuadParams, gains: VelocityGains, n: int) -> None:
@@ -263,3 +263,10 @@ class BatchedVelocityController:
         fx = kp * e0 + kd * (vc0 - v0) + ki * integ[:, 0] - d[:, 0]
         fy = kp * e1 + kd * (vc1 - v1) + ki * integ[:, 1] - d[:, 1]
         return fx, fy, integ[:, 2]
+
+
+__all__ = [
+    "CLASSIC_I_CLAMP",
+    "Array",
+    "BatchedVelocityController",
+]

@@ -41,7 +41,7 @@ DT = 1.0 / 240
 
 def bench_numpy(n: int, steps: int) -> tuple[float, float]:
     """(controller, dynamics) seconds per drone per substep for N drones hovering in wind."""
-    from ihrcf_env.sim.drone import QuadParams, VelocityGains  # dataclasses; drone imports pybullet
+    from ihrcf_env.config.vehicle import QuadParams, VelocityGains
 
     params, gains = QuadParams(), VelocityGains(wind_hold=True)
     rng = np.random.default_rng(0)
@@ -71,7 +71,8 @@ def bench_pybullet_drone(steps: int) -> float:
     """Seconds per substep of one drone alone in a PyBullet client (scalar controller)."""
     import pybullet as p
 
-    from ihrcf_env.sim.drone import QuadParams, Quadrotor, VelocityController, VelocityGains
+    from ihrcf_env.config.vehicle import QuadParams, VelocityGains
+    from ihrcf_env.sim.drone import Quadrotor, VelocityController
 
     cid = p.connect(p.DIRECT)
     try:
@@ -117,10 +118,12 @@ def bench_rays(repeats: int) -> None:
     import pybullet as p
     from scipy.spatial.transform import Rotation
 
+    from ihrcf_env.config.sensors import ToFConfig
+    from ihrcf_env.config.world import WorldConfig
     from ihrcf_env.sim.batched.ranging import BatchedToF
     from ihrcf_env.sim.batched.rays import RayScene
-    from ihrcf_env.sim.sensors.tof import ToFArray, ToFConfig
-    from ihrcf_env.sim.world import World, WorldConfig
+    from ihrcf_env.sim.sensors.tof import ToFArray
+    from ihrcf_env.sim.world import World
 
     world = World(WorldConfig(camera=None))
     try:
@@ -162,6 +165,7 @@ def bench_camera(repeats: int) -> None:
     import pybullet as p
     from scipy.spatial.transform import Rotation
 
+    from ihrcf_env.config.world import WorldConfig
     from ihrcf_env.core.detector_model import CornerTrack
     from ihrcf_env.core.profiles import StaticProfile
     from ihrcf_env.sim.batched.detector import BatchedCornerTrack
@@ -169,7 +173,7 @@ def bench_camera(repeats: int) -> None:
     from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
     from ihrcf_env.sim.sensors.base import TAG_CAMERA, BodyState
     from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
-    from ihrcf_env.sim.world import World, WorldConfig
+    from ihrcf_env.sim.world import World
 
     world = World(WorldConfig(camera_model="projected", camera_output="corners"))
     try:
@@ -240,3 +244,14 @@ def main(argv: list[str] | None = None) -> None:
 
 if __name__ == "__main__":
     main()
+
+__all__ = [
+    "DT",
+    "SIZES",
+    "bench_camera",
+    "bench_numpy",
+    "bench_pybullet_drone",
+    "bench_rays",
+    "bench_world",
+    "main",
+]

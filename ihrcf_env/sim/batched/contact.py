@@ -151,3 +151,14 @@ def first_contact(
     out[on_ground.any(axis=1)] = GROUND
     out[in_deck] = DECK
     return out
+
+
+__all__ = [
+    "CONTACT_NAMES",
+    "boxes_overlap_deck",
+    "corners_world",
+    "drone_boxes",
+    "drone_corners",
+    "drone_radius",
+    "first_contact",
+]

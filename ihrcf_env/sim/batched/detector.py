@@ -203,3 +203,11 @@ def model_corners(
     mean, sd = prm.error_moments(basis, side, nr, blur)
     e = mean + sd * z
     return corners + e[..., :1] * radial + e[..., 1:] * tangential, status.astype(np.int64)
+
+
+__all__ = [
+    "BatchedCornerTrack",
+    "edge_margin",
+    "model_corners",
+    "quad_features",
+]

@@ -26,7 +26,7 @@ from ihrcf_env.sim.batched.floatmath import (
 from ihrcf_env.sim.batched.integrator import BULLET_MAX_COORDINATE_VELOCITY, bullet_step
 
 if TYPE_CHECKING:
-    from ihrcf_env.sim.drone import QuadParams
+    from ihrcf_env.config.vehicle import QuadParams
 
 Array = NDArray[np.float64]
 
@@ -42,7 +42,7 @@ class BatchedQuadrotor:
 
     ``position`` (N, 3) m, ``quaternion`` (N, 4) (x, y, z, w, body to world), ``velocity`` (N, 3)
     m/s, ``angular_velocity`` (N, 3) rad/s (world), ``rotor_speed`` (N, 4) rad/s in the motor order
-    of :class:`~ihrcf_env.sim.drone.QuadParams`. ``max_velocity``: Bullet's per-axis velocity clamp.
+    of :class:`~ihrcf_env.config.vehicle.QuadParams`. ``max_velocity``: Bullet's per-axis velocity clamp.
     """
 
     def __init__(
@@ -172,3 +172,10 @@ class BatchedQuadrotor:
             self.max_velocity,
         )
         self._reported = None
+
+
+__all__ = [
+    "Array",
+    "BatchedQuadrotor",
+    "motor_lag",
+]

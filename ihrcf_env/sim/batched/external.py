@@ -128,3 +128,8 @@ class _Layer:
         vx, vy, vz = va[:, 0], va[:, 1], va[:, 2]
         q = self._q0 * np.sqrt(vx * vx + vy * vy + vz * vz)
         return -(self._lin + q[:, None]) * va
+
+
+__all__ = [
+    "ExternalInputs",
+]

@@ -178,3 +178,15 @@ def quaternions_from_matrices(m: Array) -> Array:
             alt[:, k] = (mi[:, k, i] + mi[:, i, k]) * hi
             out[other[rows]] = alt
     return out
+
+
+__all__ = [
+    "Array",
+    "atan2",
+    "hypot2",
+    "hypot_over",
+    "matrices_from_quaternions",
+    "quaternions_from_matrices",
+    "remainder",
+    "yaw_quaternions",
+]

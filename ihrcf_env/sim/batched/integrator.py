@@ -131,3 +131,12 @@ def integrate_quaternions(quaternion: Array, angular_velocity: Array, dt: float)
     quaternion[:, 1] = -(ny * inv)
     quaternion[:, 2] = -(nz * inv)
     quaternion[:, 3] = nw * inv
+
+
+__all__ = [
+    "ANGULAR_MOTION_THRESHOLD",
+    "BULLET_MAX_COORDINATE_VELOCITY",
+    "Array",
+    "bullet_step",
+    "integrate_quaternions",
+]

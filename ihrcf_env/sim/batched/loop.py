@@ -414,3 +414,10 @@ def compose(
     """The world pose of ``(rel_pos, rel_quat)`` given in the frame ``(frame_pos, frame_quat)``."""
     R = matrices_from_quaternions(frame_quat[None])[0]
     return frame_pos + R @ rel_pos, _quat_mul(frame_quat, rel_quat)
+
+
+__all__ = [
+    "advance",
+    "compose",
+    "relative_pose",
+]

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 if TYPE_CHECKING:
-    from ihrcf_env.sim.drone import QuadParams
+    from ihrcf_env.config.vehicle import QuadParams
 
 Array = NDArray[np.float64]
 
@@ -74,3 +74,9 @@ class BatchedMixer:
             scale = np.where(cand < scale, cand, scale)  # min(scale, cand) keeping scale on ties
         scale = np.where(scale < 0.0, 0.0, scale)
         return f + scale[:, None] * yaw
+
+
+__all__ = [
+    "Array",
+    "BatchedMixer",
+]

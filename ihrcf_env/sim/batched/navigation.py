@@ -67,3 +67,8 @@ def error_tracks(navs: Sequence[GNSSINSNavigation], times: F64) -> tuple[F64, F6
         nav.position_error, nav.velocity_error, nav._white = ep[r].tolist(), ev[r].tolist(), white[r].tolist()
         nav._k = int(ks[fast[r], -1])
     return out[0], out[1], out[2]
+
+
+__all__ = [
+    "error_tracks",
+]

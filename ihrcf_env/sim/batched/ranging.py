@@ -17,8 +17,9 @@ from ihrcf_env.sim.batched.rays import RayHits, RayScene, cast_rays, nearest, se
 from ihrcf_env.sim.sensors.base import poses_key
 
 if TYPE_CHECKING:
+    from ihrcf_env.config.sensors import VL53L1X
     from ihrcf_env.sim.sensors.base import BodyState
-    from ihrcf_env.sim.sensors.tof import VL53L1X, ToFArray
+    from ihrcf_env.sim.sensors.tof import ToFArray
 
 
 class BatchedToF:
@@ -184,3 +185,9 @@ def _same_rays(a: ToFArray, b: ToFArray) -> bool:
     ca, cb = a.closed_form, b.closed_form
     assert ca is not None and cb is not None
     return ca is cb or ca.same_as(cb)
+
+
+__all__ = [
+    "BatchedToF",
+    "prefetch",
+]

@@ -205,3 +205,14 @@ def self_hits(
     f, n = _box_entry(s, d, np.broadcast_to(halves[None], s.shape))
     k = np.argmin(f, axis=1)
     return f[np.arange(len(f)), k], n[np.arange(len(f)), k]
+
+
+__all__ = [
+    "RayHits",
+    "RayScene",
+    "cast_rays",
+    "nearest",
+    "self_hits",
+    "to_local",
+    "to_world",
+]

@@ -63,3 +63,9 @@ def thrust_scale_batch(
     blend = cover * deck_ratio + (1.0 - cover) * ground_ratio
     out = np.where(cover >= 1.0, deck_ratio, blend)
     return np.where(over & (cover > 0.0), out, ground_ratio)
+
+
+__all__ = [
+    "rotor_positions_batch",
+    "thrust_scale_batch",
+]

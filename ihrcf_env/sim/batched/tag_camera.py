@@ -27,14 +27,14 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from ihrcf_env.config.sensors import FULL_SCALE_DN, CameraConfig
 from ihrcf_env.core.detector_model import QUIET_ZONE_SCALE, CornerTrack, DetectorModel
 from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 from ihrcf_env.sim.batched.detector import BatchedCornerTrack, model_corners
 from ihrcf_env.sim.batched.rays import RayScene, cast_rays, self_hits, to_local
 from ihrcf_env.sim.sensors.base import TAG_STATUS, tag_status_code
-from ihrcf_env.sim.sensors.camera import CameraConfig
-from ihrcf_env.sim.sensors.imaging import FULL_SCALE_DN, EpisodeImaging
+from ihrcf_env.sim.sensors.imaging import EpisodeImaging
 from ihrcf_env.sim.sensors.tag_camera import RAY_MARGIN_M, REASON_DEPTH, REASON_OCCLUDED
 
 _DEPTH, _OCCLUDED = tag_status_code(REASON_DEPTH), tag_status_code(REASON_OCCLUDED)
@@ -317,3 +317,8 @@ def _own_fraction(
     d_body = to_local(np.broadcast_to(segments, s_body.shape), rotation)
     f, _ = self_hits(s_body.reshape(-1, 3), d_body.reshape(-1, 3), 1.0)
     return f.reshape(s_body.shape[:2])
+
+
+__all__ = [
+    "BatchedTagCamera",
+]

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import cv2
@@ -19,13 +18,12 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
-from ihrcf_env.core.checks import check_real, set_field
+from ihrcf_env.config.sensors import CameraConfig
 from ihrcf_env.core.frames import R_BODY_CAM
-from ihrcf_env.core.rig import SensorRig, intrinsics_from_fov
+from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.sim.sensors.base import BodyState
 from ihrcf_env.sim.sensors.imaging import (
     EpisodeImaging,
-    ImagingParams,
     RealisticImager,
     add_sensor_noise,
     blur_kernel,
@@ -33,16 +31,6 @@ from ihrcf_env.sim.sensors.imaging import (
     image_motion_px,
     motion_blur,
 )
-
-#: Camera qualities: ``"ideal"`` (today's clean render) and ``"realistic"``.
-CAMERA_QUALITIES: tuple[str, ...] = ("ideal", "realistic")
-#: Largest ``CameraConfig.latency`` accepted (s).
-MAX_LATENCY = 1.0
-#: A typical delay (s) from exposure to detected tag corners of a global-shutter camera with
-#: on-board AprilTag detection on an embedded computer (exposure, readout and transfer, detection),
-#: the ``camera_latency`` of ``DeckLanding-v2``; the published figures behind it are in
-#: ``docs/sensors.md`` ("Timing and latency").
-PIPELINE_LATENCY = 0.045
 
 #: A pixel rectangle of the image, ``(x0, y0, width, height)``: columns ``x0 .. x0 + width - 1``,
 #: rows ``y0 .. y0 + height - 1`` (OpenCV convention: x right, y down, (0, 0) the top-left pixel).
@@ -76,93 +64,6 @@ class RegionScene(Protocol):
     ) -> Render | None:
         """:func:`tiny_render` of a region in this scene (world body ids in the mask), or None."""
         ...
-
-
-@dataclass(frozen=True)
-class CameraConfig:
-    """Downward camera. ``fov`` is the vertical field of view (rad); square pixels.
-
-    ``light_direction`` (world, pointing from the scene to the light) and the ambient/diffuse
-    coefficients set TinyRenderer's single light. ``distortion = (k1, k2)`` applies Brown-Conrady
-    radial lens distortion to the rendered image (0, 0: an ideal pinhole camera).
-
-    ``quality``: ``"ideal"`` (default; the image is bit for bit what it was before the realistic
-    model existed: grey deck on a blank background under the light above, no noise) or
-    ``"realistic"``: the sensor and scene model of ``imaging``
-    (:class:`~ihrcf_env.sim.sensors.imaging.ImagingParams`, default a Sony IMX296 global-shutter
-    camera; sources and assumptions there): a seeded sea (or ground) texture on the plane z = 0
-    where the renderer's segmentation mask is background, the episode's light direction and
-    ambient/diffuse coefficients (replacing the three fields above) and its exposure/gain, all
-    drawn in ``reset``; motion blur from the drone's velocity and angular velocity over the
-    exposure; vignetting; read and shot noise; 8-bit quantisation.
-
-    Its per-frame cost: :func:`~ihrcf_env.experiments.camera_realism.realism_cost_ms`.
-
-    Calibration: the realistic model changes radiometry and blur, never geometry. The projection
-    (``intrinsics``, principal point), the ``distortion`` and its remap are the same, and the
-    background is composited in the pinhole image before distorting; noise is zero-mean, the blur
-    kernel is centred (it spreads an edge symmetrically, it does not move it), and vignetting and
-    exposure are smooth gains. A calibration made with the ideal camera (the shipped one:
-    chessboard K and distortion for ATDA, range-to-pixel tables of the ToF spots for IHRCF)
-    therefore stays valid (``tests/sim/test_camera_realism.py`` checks the estimators' errors with
-    both qualities).
-    """
-
-    width: int = 512
-    height: int = 512
-    fov: float = math.radians(60.0)
-    near: float = 0.01
-    far: float = 10.0
-    light_direction: tuple[float, float, float] = (0.3, 0.2, 1.0)
-    ambient: float = 0.6
-    diffuse: float = 0.35
-    specular: float = 0.0
-    distortion: tuple[float, float] = (0.0, 0.0)
-    quality: str = "ideal"
-    imaging: ImagingParams = field(default_factory=ImagingParams)
-    #: delay (s) from a frame's exposure to its delivery to the observation (exposure, readout,
-    #: transfer and tag detection); 0: delivered in the control step it is exposed. See
-    #: ``docs/sensors.md`` ("Timing and latency") and :data:`PIPELINE_LATENCY`.
-    latency: float = 0.0
-
-    def __post_init__(self) -> None:
-        set_field(self, "latency", check_real("camera_latency", self.latency, "s", low=0.0, high=MAX_LATENCY))
-        if self.quality not in CAMERA_QUALITIES:
-            raise ValueError(f"camera quality must be one of {CAMERA_QUALITIES}, got {self.quality!r}")
-        if not isinstance(self.imaging, ImagingParams):
-            raise TypeError(f"camera imaging must be an ImagingParams, got {self.imaging!r}")
-        if not (isinstance(self.width, int | np.integer) and self.width > 0):
-            raise ValueError(f"camera width must be a positive integer, got {self.width!r}")
-        if not (isinstance(self.height, int | np.integer) and self.height > 0):
-            raise ValueError(f"camera height must be a positive integer, got {self.height!r}")
-        if not (math.isfinite(self.fov) and 0.0 < self.fov < math.radians(170.0)):
-            raise ValueError(f"camera fov must be in (0, 170 deg) in radians, got {self.fov!r}")
-        if not (0.0 < self.near < self.far):
-            raise ValueError(f"camera near/far must satisfy 0 < near < far, got {self.near}, {self.far}")
-        k = np.asarray(self.distortion, dtype=np.float64)
-        if k.shape != (2,) or not np.isfinite(k).all() or np.any(np.abs(k) > 1.0):
-            raise ValueError(
-                f"camera distortion must be two finite numbers (k1, k2) in [-1, 1], got {self.distortion!r}"
-            )
-
-    @property
-    def distortion_coefficients(self) -> NDArray[np.float64]:
-        """True OpenCV distortion vector (k1, k2, p1, p2, k3) of the image."""
-        return np.array([self.distortion[0], self.distortion[1], 0.0, 0.0, 0.0])
-
-    @property
-    def intrinsics(self) -> NDArray[np.float64]:
-        """True pinhole K of the rendered image (OpenCV convention). Estimators must not read this:
-        ATDA uses the chessboard calibration, IHRCF the range-to-pixel table.
-
-        TinyRenderer samples pixel (column i, row j) at screen point (i, H - 1 - j) of its
-        viewport, so in OpenCV's pixel-centre convention the principal point is (W/2, H/2 - 1),
-        not the image centre ((W - 1)/2, (H - 1)/2); checked against rendered tag corners.
-        """
-        K = intrinsics_from_fov(self.width, self.height, self.fov)
-        K[0, 2] = self.width / 2.0
-        K[1, 2] = self.height / 2.0 - 1.0
-        return K
 
 
 class DownCamera:
@@ -664,3 +565,16 @@ def tiny_render(
 def render_rgb(client: int, config: CameraConfig, view: object, proj: object) -> NDArray[np.uint8]:
     """One TinyRenderer frame as an (H, W, 3) uint8 array, with the config's light."""
     return tiny_render(client, config, view, proj)[0]
+
+
+__all__ = [
+    "DownCamera",
+    "RegionScene",
+    "Render",
+    "Window",
+    "check_window",
+    "grow_window",
+    "render_rgb",
+    "tiny_render",
+    "window_projection",
+]

@@ -1,6 +1,6 @@
 """Image-formation effects of a real camera, applied to a TinyRenderer frame (numpy/OpenCV only).
 
-The realistic camera (:class:`~ihrcf_env.sim.sensors.camera.CameraConfig` ``quality="realistic"``)
+The realistic camera (:class:`~ihrcf_env.config.sensors.CameraConfig` ``quality="realistic"``)
 turns the renderer's clean RGB frame into what a small global-shutter drone camera delivers:
 
 1. **background** -- the ground/sea is the plane z = 0, so its image is exactly a homography of a
@@ -30,119 +30,10 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-BACKGROUNDS: tuple[str, ...] = ("sea", "ground")
-
-#: 8-bit output: full scale in DN.
-FULL_SCALE_DN = 255.0
+from ihrcf_env.config.sensors import BACKGROUNDS, ImagingParams
 
 #: The noise bank stores unit normals as int8 in steps of 1 / NOISE_BANK_SCALE (clipped at +-3.97).
 NOISE_BANK_SCALE = 32.0
-
-
-@dataclass(frozen=True)
-class ImagingParams:
-    """Radiometry, noise, blur and scene-variation parameters of the realistic camera.
-
-    Sensor: **Sony IMX296** (IMX296LLR mono / IMX296LQR colour): 1/2.9-inch, 1456 x 1088 (1.58 MP),
-    3.45 um pixels, global shutter, 10-bit ADC, used in the Raspberry Pi Global Shutter Camera
-    (https://www.raspberrypi.com/news/new-raspberry-pi-global-shutter-camera/; Linux binding
-    https://kernel.org/doc/Documentation/devicetree/bindings/media/i2c/sony%2Cimx296.yaml) and in
-    M12-lens boards for Raspberry Pi / Jetson drones (e.g. InnoMaker CAM-IMX296: 60 fps at full
-    resolution, exposures down to 30 us, https://el.manuals.plus/inno/imx296-sensor-module-manual).
-
-    Noise figures: no EMVA 1288 sheet of the IMX296 was found (MATRIX VISION's IMX296 camera page
-    lists SNR and dynamic range as "TBD":
-    https://assets.balluff.com/documents/DRF_958401_AA_000/mvBC_page_sensors.html). **Assumed:**
-    the IMX296 shares the first-generation Sony Pregius 3.45 um pixel of the IMX250/IMX255, whose
-    EMVA 1288 measurements are SNRmax 40.3 dB and dynamic range 71.2 dB (IMX250, mvBlueFOX3-2051,
-    https://www.matrix-vision.com/manuals/mvBlueFOX3/mvBC_subsubsection_sensors_CMOS_models_2051.html)
-    and 40.3 / 71.3 dB (IMX255, same manual). Hence full well = 10^(40.3/10) = 10,700 e- and
-    temporal dark (read) noise = 10,700 / 10^(71.2/20) = 2.95 e-.
-
-    **Assumed** mapping to the 8-bit output: at 0 dB analog gain the full well is 255 DN
-    (42 e-/DN); at gain G, ``g = full_well / (255 G)`` electrons per DN. Shot-noise s.d. at mid
-    grey is then 1.7 DN at 0 dB and 3.5 DN at 12 dB.
-
-    Exposure (**assumed** auto-exposure policy): each episode draws the exposure the scene needs at
-    unity gain, log-uniform in ``scene_exposure_s`` (1-20 ms: overcast daylight to a lit lab); the
-    auto-exposure uses at most ``max_exposure_s`` (5 ms, to limit motion blur) and makes up the rest
-    with analog gain up to ``max_gain`` (8x = 18 dB; the IMX296 goes to 48 dB); the mean level is
-    then off by a log-normal factor of s.d. ``ae_error``. Light: azimuth uniform, elevation uniform
-    in ``light_elevation_deg``, ambient and diffuse coefficients uniform in their ranges.
-
-    Vignetting: relative illumination ``cos(theta)^vignetting_exponent`` of the field angle theta;
-    4 is the natural cos^4 law, 2 (default, **assumed** for a small M12 lens) gives 60 % in the
-    corners of the 60 deg (vertical) image.
-
-    Background: ``"sea"`` (wind waves, crests and a little foam) or ``"ground"`` (fractal grass and
-    soil); a periodic ``texture_px`` square texture covering ``texture_tile_m`` per period,
-    generated from ``texture_seed`` when the camera is built; each episode places and rotates it at
-    random and lets it drift at up to ``drift_speed`` m/s (surface current).
-    """
-
-    sensor: str = "Sony IMX296 (Raspberry Pi Global Shutter Camera)"
-    full_well_e: float = 10_700.0
-    read_noise_e: float = 2.95
-    max_gain: float = 8.0
-    max_exposure_s: float = 0.005
-    scene_exposure_s: tuple[float, float] = (0.001, 0.02)
-    ae_error: float = 0.08
-    light_elevation_deg: tuple[float, float] = (40.0, 85.0)
-    ambient: tuple[float, float] = (0.45, 0.65)
-    diffuse: tuple[float, float] = (0.25, 0.4)
-    vignetting_exponent: float = 2.0
-    blur_threshold_px: float = 0.3
-    background: str = "sea"
-    texture_px: int = 256
-    texture_tile_m: float = 3.0
-    texture_seed: int = 0
-    drift_speed: float = 0.2
-    noise_margin_px: int = 96
-
-    def __post_init__(self) -> None:
-        def positive(name: str) -> None:
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int | float) or not (math.isfinite(v) and v > 0):
-                raise ValueError(f"imaging {name} must be a positive finite number, got {v!r}")
-
-        def interval(name: str, lo: float, hi: float) -> None:
-            v = getattr(self, name)
-            ok = isinstance(v, tuple) and len(v) == 2 and all(isinstance(x, int | float) for x in v)
-            if not ok or not (lo <= v[0] <= v[1] <= hi):
-                raise ValueError(f"imaging {name} must be a (low, high) pair within [{lo}, {hi}], got {v!r}")
-
-        for name in ("full_well_e", "read_noise_e", "max_exposure_s", "texture_tile_m"):
-            positive(name)
-        if not (isinstance(self.max_gain, int | float) and 1.0 <= self.max_gain <= 1000.0):
-            raise ValueError(f"imaging max_gain must be in [1, 1000], got {self.max_gain!r}")
-        interval("scene_exposure_s", 1e-6, 10.0)
-        interval("light_elevation_deg", 5.0, 90.0)
-        interval("ambient", 0.0, 1.0)
-        interval("diffuse", 0.0, 1.0)
-        for name, hi in (("ae_error", 1.0), ("vignetting_exponent", 8.0), ("drift_speed", 10.0)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int | float) or not (0.0 <= v <= hi):
-                raise ValueError(f"imaging {name} must be in [0, {hi}], got {v!r}")
-        if not (isinstance(self.blur_threshold_px, int | float) and self.blur_threshold_px >= 0):
-            raise ValueError(f"imaging blur_threshold_px must be >= 0, got {self.blur_threshold_px!r}")
-        if self.background not in BACKGROUNDS:
-            raise ValueError(f"imaging background must be one of {BACKGROUNDS}, got {self.background!r}")
-        for name, lo, hi in (("texture_px", 16, 1024), ("noise_margin_px", 1, 1024)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or not (lo <= v <= hi):
-                raise ValueError(f"imaging {name} must be an integer in [{lo}, {hi}], got {v!r}")
-        if (
-            isinstance(self.texture_seed, bool)
-            or not isinstance(self.texture_seed, int)
-            or self.texture_seed < 0
-        ):
-            raise ValueError(
-                f"imaging texture_seed must be a non-negative integer, got {self.texture_seed!r}"
-            )
-
-    def electrons_per_dn(self, gain: float) -> float:
-        """Conversion ``g`` (e-/DN) of the 8-bit output at analog gain ``gain`` (1 = 0 dB)."""
-        return self.full_well_e / (FULL_SCALE_DN * gain)
 
 
 # -- background ------------------------------------------------------------------------------------
@@ -501,3 +392,21 @@ class RealisticImager:
         oy, ox = (int(x) for x in rng.integers(0, m + 1, 2))
         sign = 1 if rng.random() < 0.5 else -1
         return add_sensor_noise(signal, self._sigma_lut, self._bank, (oy, ox), sign)
+
+
+__all__ = [
+    "NOISE_BANK_SCALE",
+    "EpisodeImaging",
+    "RealisticImager",
+    "add_sensor_noise",
+    "blur_kernel",
+    "draw_episode",
+    "draw_noise_bank",
+    "ground_homography",
+    "image_motion_px",
+    "make_texture",
+    "motion_blur",
+    "noise_sigma_lut",
+    "sky_mask",
+    "vignetting_gain",
+]

@@ -20,12 +20,12 @@ period), ``n ~ N(0, 1)`` fresh each time:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ihrcf_env.core.checks import check_fields, check_real, check_reals, set_field
+from ihrcf_env.config.sensors import IMU_NOISE_BOUNDS, IMUConfig
+from ihrcf_env.core.checks import check_real
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.sim.noise import (
     Chain,
@@ -38,136 +38,6 @@ from ihrcf_env.sim.noise import (
 from ihrcf_env.sim.sensors.base import BodyState
 
 _GRAVITY_WORLD = np.array([0.0, 0.0, GRAVITY])
-
-#: IMU noise presets.
-IMU_NOISE_PRESETS: tuple[str, ...] = ("ideal", "realistic")
-
-_MG = 1e-3 * GRAVITY  # m/s^2 per milli-g
-_DEG = math.pi / 180.0
-
-
-_TAU = (1e-3, 1e4)  # s, correlation times
-
-#: Physical bounds (inclusive) of :class:`IMUNoise`'s fields: generous for any MEMS or tactical IMU
-#: and attitude filter.
-IMU_NOISE_BOUNDS: dict[str, tuple[float, float]] = {
-    "gyro_noise_density": (0.0, 0.1),
-    "gyro_bias_instability": (0.0, 1.0),
-    "gyro_bias_time_constant": _TAU,
-    "gyro_turn_on_bias": (0.0, 1.0),
-    "accel_noise_density": (0.0, 1.0),
-    "accel_bias_instability": (0.0, 10.0),
-    "accel_bias_time_constant": _TAU,
-    "accel_turn_on_bias": (0.0, 10.0),
-    "tilt_sigma": (0.0, 0.5),
-    "tilt_time_constant": _TAU,
-    "yaw_drift_rate": (0.0, 0.1),
-}
-IMU_NOISE_UNITS = {
-    "gyro_noise_density": "rad/s/sqrt(Hz)",
-    "gyro_bias_instability": "rad/s",
-    "gyro_bias_time_constant": "s",
-    "gyro_turn_on_bias": "rad/s",
-    "accel_noise_density": "m/s^2/sqrt(Hz)",
-    "accel_bias_instability": "m/s^2",
-    "accel_bias_time_constant": "s",
-    "accel_turn_on_bias": "m/s^2",
-    "tilt_sigma": "rad",
-    "tilt_time_constant": "s",
-    "yaw_drift_rate": "rad/s",
-}
-
-
-@dataclass(frozen=True)
-class IMUNoise:
-    """Noise figures of the IMU and of its attitude filter. SI units: rad/s, m/s^2, rad, s.
-
-    Sensor: Bosch **BMI088** data sheet (BST-BMI088-DS001, rev. 1.x), typical values:
-
-    ========================  ===================================  ====================================
-    field                     value                                source
-    ========================  ===================================  ====================================
-    gyro_noise_density        0.014 deg/s/sqrt(Hz)                 BMI088 gyro output noise density
-    gyro_bias_instability     2 deg/h                              BMI088 gyro bias stability
-    gyro_bias_time_constant   100 s                                assumption (Allan minimum region)
-    gyro_turn_on_bias         1 deg/s (1 sigma)                    BMI088 zero-rate offset +-1 deg/s
-    accel_noise_density       160, 160, 190 ug/sqrt(Hz) (x, y, z)  BMI088 accel output noise density
-    accel_bias_instability    0.2 mg                               BMI088 TCO 0.2 mg/K x 1 K in flight
-                                                                   (no instability figure is given)
-    accel_bias_time_constant  100 s                                assumption
-    accel_turn_on_bias        20 mg (1 sigma)                      BMI088 zero-g offset +-20 mg
-    ========================  ===================================  ====================================
-
-    Attitude filter: Xsens MTi user manual (MT0605P, sec. 4.3), MTi-30 AHRS typical dynamic
-    roll/pitch error 0.5 deg (1 sigma RMS), and "based on the rate gyros the attitude and heading
-    estimates will degrade slowly (typically a degree every minute)" without a heading reference
-    (a magnetometer is unusable next to a steel deck): ``tilt_sigma`` 0.5 deg, ``tilt_time_constant``
-    5 s (assumption: the filter's accelerometer-correction time scale), ``yaw_drift_rate`` 1 deg/min
-    (1 sigma).
-
-    The datasheet's typical offsets are taken as one standard deviation (a flight controller that
-    calibrates its gyro at boot would leave less: set the turn-on fields to what it leaves).
-    """
-
-    gyro_noise_density: float = 0.014 * _DEG
-    gyro_bias_instability: float = 2.0 * _DEG / 3600.0
-    gyro_bias_time_constant: float = 100.0
-    gyro_turn_on_bias: float = 1.0 * _DEG
-    accel_noise_density: float | tuple[float, float, float] = (0.160 * _MG, 0.160 * _MG, 0.190 * _MG)
-    accel_bias_instability: float = 0.2 * _MG
-    accel_bias_time_constant: float = 100.0
-    accel_turn_on_bias: float = 20.0 * _MG
-    tilt_sigma: float = 0.5 * _DEG
-    tilt_time_constant: float = 5.0
-    yaw_drift_rate: float = 1.0 * _DEG / 60.0
-
-    def __post_init__(self) -> None:
-        density = self.accel_noise_density
-        if isinstance(density, tuple | list | np.ndarray):
-            if len(density) != 3:
-                raise ValueError(
-                    f"IMUNoise.accel_noise_density must be one number or 3 (x, y, z), got {density!r}"
-                )
-            lo, hi = IMU_NOISE_BOUNDS["accel_noise_density"]
-            set_field(
-                self,
-                "accel_noise_density",
-                check_reals("IMUNoise.accel_noise_density", density, 3, "m/s^2/sqrt(Hz)", low=lo, high=hi),
-            )
-            bounds = {k: v for k, v in IMU_NOISE_BOUNDS.items() if k != "accel_noise_density"}
-        else:
-            bounds = IMU_NOISE_BOUNDS
-        check_fields(self, lambda f: f"IMUNoise.{f}", bounds, IMU_NOISE_UNITS)
-
-
-#: Accepted ``IMUConfig.rate_hz`` (Hz).
-IMU_RATE_BOUNDS = (1.0, 10_000.0)
-
-
-@dataclass(frozen=True)
-class IMUConfig:
-    """``noise``: a key of :data:`IMU_NOISE_PRESETS` or an :class:`IMUNoise` (custom figures)."""
-
-    noise: str | IMUNoise = "ideal"
-    #: output data rate (Hz) on the IMU's own clock (the latest sample is shown); None: one sample
-    #: per control step
-    rate_hz: float | None = None
-
-    def __post_init__(self) -> None:
-        if self.rate_hz is not None:
-            lo, hi = IMU_RATE_BOUNDS
-            set_field(self, "rate_hz", check_real("imu_hz", self.rate_hz, "Hz", low=lo, high=hi))
-        if not isinstance(self.noise, IMUNoise) and self.noise not in IMU_NOISE_PRESETS:
-            raise ValueError(
-                f"imu_noise must be one of {IMU_NOISE_PRESETS} or an IMUNoise, got {self.noise!r}"
-            )
-
-    @property
-    def model(self) -> IMUNoise | None:
-        """The noise figures, or None for the ideal IMU."""
-        if isinstance(self.noise, IMUNoise):
-            return self.noise
-        return None if self.noise == "ideal" else IMUNoise()
 
 
 def _quat_multiply(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -292,3 +162,9 @@ class IMU:
             "angular_velocity": gyro,
             "linear_acceleration": accel,
         }
+
+
+__all__ = [
+    "IMU",
+    "AttitudeError",
+]

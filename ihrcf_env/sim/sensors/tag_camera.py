@@ -29,6 +29,7 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
+from ihrcf_env.config.sensors import FULL_SCALE_DN, CameraConfig
 from ihrcf_env.core.detector_model import (
     QUIET_ZONE_SCALE,
     CornerTrack,
@@ -42,8 +43,7 @@ from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 from ihrcf_env.sim.deck import Deck
 from ihrcf_env.sim.sensors.base import TAG_CAMERA, BodyState, poses_key, tag_reading
-from ihrcf_env.sim.sensors.camera import CameraConfig
-from ihrcf_env.sim.sensors.imaging import FULL_SCALE_DN, EpisodeImaging, draw_episode, image_motion_px
+from ihrcf_env.sim.sensors.imaging import EpisodeImaging, draw_episode, image_motion_px
 
 if TYPE_CHECKING:
     from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
@@ -314,3 +314,12 @@ def reading_row(out: dict[str, NDArray], i: int) -> dict[str, NDArray]:
         "tag_reason": np.array(str(out["tag_reason"][i])),
         "tag_status": np.array(int(out["tag_status"][i])),
     }
+
+
+__all__ = [
+    "RAY_MARGIN_M",
+    "REASON_DEPTH",
+    "REASON_OCCLUDED",
+    "ProjectedTagCamera",
+    "reading_row",
+]

@@ -25,13 +25,14 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
+from ihrcf_env.config.sensors import CameraConfig
 from ihrcf_env.core.estimators.detector import TagDetector
 from ihrcf_env.core.frames import matrix_from_quat
 from ihrcf_env.core.rig import tag_corners_deck
 from ihrcf_env.sim.assets import tag_texture
 from ihrcf_env.sim.deck import Deck
 from ihrcf_env.sim.sensors.base import TAG_CAMERA, BodyState, tag_reading
-from ihrcf_env.sim.sensors.camera import CameraConfig, DownCamera, Render, Window, tiny_render
+from ihrcf_env.sim.sensors.camera import DownCamera, Render, Window, tiny_render
 
 #: Points sampled per tag edge (corners included) to bound its image under lens distortion, where
 #: the straight edges of the tag bend.
@@ -146,7 +147,7 @@ class TagScene:
         ids = [
             p.getBodyUniqueId(i, physicsClientId=world) for i in range(p.getNumBodies(physicsClientId=world))
         ]
-        visuals = tuple(p.getVisualShapeData(b, physicsClientId=world) for b in ids)  # ~0.1 ms
+        visuals = tuple(p.getVisualShapeData(b, physicsClientId=world) for b in ids)
         if visuals != self._visuals:
             self._visuals = visuals
             self._boxes = self._visual_boxes()
@@ -440,3 +441,9 @@ class WindowedTagCamera:
         if corners is None:
             return tag_reading(None, "tag not detected" if inside else "tag partly outside the image")
         return tag_reading(corners, "")
+
+
+__all__ = [
+    "TagScene",
+    "WindowedTagCamera",
+]

@@ -100,3 +100,11 @@ def no_frame_reading(name: str, width: int, height: int) -> dict[str, NDArray]:
     if name == "camera":
         return {"image": np.zeros((height, width, 3), np.uint8)}
     return tag_reading(None, NO_FRAME_YET)
+
+
+__all__ = [
+    "NO_FRAME_YET",
+    "DelayLine",
+    "SampleClock",
+    "no_frame_reading",
+]

@@ -36,16 +36,13 @@ Two models (:class:`ToFConfig` ``noise``):
 
 from __future__ import annotations
 
-import functools
-import math
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
-from ihrcf_env.core.checks import check_fields, check_int, check_real, set_field
+from ihrcf_env.config.sensors import ToFConfig
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.sim.noise import NoiseModel, NoNoise
 from ihrcf_env.sim.sensors.base import BodyState, poses_key
@@ -53,138 +50,6 @@ from ihrcf_env.sim.sensors.base import BodyState, poses_key
 if TYPE_CHECKING:
     from ihrcf_env.sim.batched.ranging import BatchedToF
     from ihrcf_env.sim.deck import Deck
-
-#: Ranges of ST's long distance mode used to calibrate :class:`VL53L1X`'s SNR model: an 88 %
-#: (white) target, 33 ms timing budget, full 16x16 SPAD region of interest.
-REFERENCE_REFLECTANCE = 0.88
-
-#: Physical bounds (inclusive) of :class:`VL53L1X`'s real-valued fields: any real ToF sensor fits.
-VL53L1X_BOUNDS: dict[str, tuple[float, float]] = {
-    "fov": (math.radians(1.0), math.radians(90.0)),
-    "reflectance": (0.01, 1.0),
-    "ambient": (0.0, 1.0),
-    "dark_range": (0.05, 50.0),
-    "ambient_range": (0.01, 20.0),
-    "sigma_at_limit": (1e-4, 1.0),
-    "sigma_floor": (0.0, 1.0),
-    "offset_sigma": (0.0, 1.0),
-    "min_range": (0.0, 10.0),
-    "dropout": (0.0, 1.0),
-}
-VL53L1X_UNITS = {
-    "fov": "rad",
-    "dark_range": "m",
-    "ambient_range": "m",
-    "sigma_at_limit": "m",
-    "sigma_floor": "m",
-    "offset_sigma": "m",
-    "min_range": "m",
-}
-#: Bounds (m) of :class:`ToFConfig` ``max_range``.
-MAX_RANGE_BOUNDS = (0.1, 100.0)
-
-
-@dataclass(frozen=True)
-class VL53L1X:
-    """The realistic ToF model (see the module docstring). Metres, radians; ``ambient`` in [0, 1]
-    (0 dark, 1 strong ambient light), ``reflectance`` in (0, 1], ``dropout`` a probability."""
-
-    fov: float = math.radians(27.0)
-    rays: int = 16
-    reflectance: float = 0.54
-    ambient: float = 0.0
-    dark_range: float = 3.6
-    ambient_range: float = 0.73
-    sigma_at_limit: float = 0.010
-    sigma_floor: float = 0.001
-    offset_sigma: float = 0.0025
-    min_range: float = 0.04
-    dropout: float = 0.01
-
-    def __post_init__(self) -> None:
-        set_field(self, "rays", check_int("VL53L1X.rays", self.rays, low=1, high=256))
-        check_fields(self, lambda f: f"VL53L1X.{f}", VL53L1X_BOUNDS, VL53L1X_UNITS)
-        if not self.ambient_range < self.dark_range:
-            raise ValueError(
-                f"ambient_range ({self.ambient_range:g} m) must be shorter than dark_range "
-                f"({self.dark_range:g} m)"
-            )
-
-    def directions(self) -> NDArray[np.float64]:
-        """(rays, 3) unit vectors in the sensor frame (beam axis +z), uniform over the cone's solid
-        angle: a Vogel (golden-angle) spiral."""
-        return self._directions.copy()
-
-    @functools.cached_property
-    def _directions(self) -> NDArray[np.float64]:
-        k = np.arange(self.rays) + 0.5
-        cos_a = 1.0 - k / self.rays * (1.0 - math.cos(self.fov / 2))
-        sin_a = np.sqrt(1.0 - cos_a**2)
-        phi = k * math.pi * (3.0 - math.sqrt(5.0))
-        return np.column_stack([sin_a * np.cos(phi), sin_a * np.sin(phi), cos_a])
-
-    @functools.cached_property
-    def _mean_cos3(self) -> float:
-        return float(np.mean(self._directions[:, 2] ** 3))
-
-    @functools.cached_property
-    def flat_gain(self) -> float:
-        """Weighted mean ray length over distance for a perpendicular flat target (weights
-        ``cos^3``): the reading is divided by it, so such a target reads its true distance."""
-        c = self._directions[:, 2]
-        return float(np.sum(c**2) / np.sum(c**3))
-
-    @functools.cached_property
-    def snr_min(self) -> float:
-        """SNR at the range limit (relative units: ``S = 1`` for a perpendicular rho = 1 target at 1 m)."""
-        return math.sqrt(REFERENCE_REFLECTANCE * self._mean_cos3 / self.dark_range**2)
-
-    @functools.cached_property
-    def strong_ambient(self) -> float:
-        """Ambient level ``A`` of strong ambient light (``ambient = 1``), same units as the signal."""
-        s = REFERENCE_REFLECTANCE * self._mean_cos3 / self.ambient_range**2
-        return (s / self.snr_min) ** 2 - s
-
-    def sigma(self, signal: NDArray[np.float64] | float) -> NDArray[np.float64]:
-        """Repeatability (m, 1 sigma) at total signal ``signal`` (see the module docstring)."""
-        s = np.maximum(np.asarray(signal, dtype=np.float64), 1e-12)
-        snr = s / np.sqrt(s + self.ambient * self.strong_ambient)
-        return np.sqrt(self.sigma_floor**2 + (self.sigma_at_limit * self.snr_min / snr) ** 2)
-
-
-#: Accepted ``ToFConfig.rate_hz`` (Hz): the VL53L1X ranges at up to 50 Hz (timing budget 20 ms).
-TOF_RATE_BOUNDS = (1.0, 100.0)
-
-#: ToF presets: ``"ideal"`` (one noise-free ray) and ``"realistic"`` (:class:`VL53L1X` defaults).
-TOF_PRESETS: dict[str, VL53L1X | None] = {"ideal": None, "realistic": VL53L1X()}
-
-
-@dataclass(frozen=True)
-class ToFConfig:
-    """Four ToF sensors looking along the optical axis. ``noise`` is a key of :data:`TOF_PRESETS` or a
-    :class:`VL53L1X` (custom parameters); ``max_range`` (m) caps the readings."""
-
-    max_range: float = 4.0
-    noise: str | VL53L1X = "ideal"
-    #: ranging frequency (Hz) on the sensor's own clock (the VL53L1X's timing budget plus its
-    #: inter-measurement period: 20-50 Hz in practice); None: one reading per control step
-    rate_hz: float | None = None
-
-    def __post_init__(self) -> None:
-        lo, hi = MAX_RANGE_BOUNDS
-        set_field(self, "max_range", check_real("tof max_range", self.max_range, "m", low=lo, high=hi))
-        if self.rate_hz is not None:
-            lo, hi = TOF_RATE_BOUNDS
-            set_field(self, "rate_hz", check_real("tof_hz", self.rate_hz, "Hz", low=lo, high=hi))
-        if not isinstance(self.noise, VL53L1X) and self.noise not in TOF_PRESETS:
-            raise ValueError(
-                f"tof_noise must be one of {sorted(TOF_PRESETS)} or a VL53L1X, got {self.noise!r}"
-            )
-
-    @property
-    def model(self) -> VL53L1X | None:
-        """The cone model, or None for the ideal single ray."""
-        return self.noise if isinstance(self.noise, VL53L1X) else TOF_PRESETS[self.noise]
 
 
 class ToFArray:
@@ -338,3 +203,8 @@ class ToFArray:
         valid = valid & (ranges >= self._min) & (ranges <= max_range)
         ranges = np.where(valid, ranges, max_range)
         return {"ranges": ranges.astype(np.float32), "ranges_valid": valid.astype(np.int8)}
+
+
+__all__ = [
+    "ToFArray",
+]

@@ -3,7 +3,7 @@
 Each :class:`Level` sets the defaults of a group of options (any of them can still be given): the
 deck on the ``"ship"`` profile in a WMO sea state at a Froude length scale
 (:mod:`ihrcf_env.core.ship`), the mean wind range with Dryden gusts
-(:class:`~ihrcf_env.sim.disturbances.WindParams`), and the wind-holding autopilot with ground
+(:class:`~ihrcf_env.config.wind.WindParams`), and the wind-holding autopilot with ground
 effect for every level. The sea states and scales are those the paper's Stewart platform can
 reproduce (``docs/deck-motion.md``); the wind ranges follow the Beaufort scale: ``calm`` up to a
 gentle breeze (Beaufort 0-3), ``moderate`` a fresh breeze (8-12 m/s, Beaufort 5, an ordinary day
@@ -79,3 +79,10 @@ LEVELS: dict[str, Level] = {
 DEFAULT_LEVEL = "moderate"
 #: Seeds of the benchmark protocol's test episodes (train and tune on other seeds).
 TEST_SEEDS: range = range(100_000, 100_100)
+
+__all__ = [
+    "DEFAULT_LEVEL",
+    "LEVELS",
+    "TEST_SEEDS",
+    "Level",
+]

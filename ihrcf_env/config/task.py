@@ -2,7 +2,7 @@
 
 Frozen dataclasses; each checks its own fields in ``__post_init__`` with :mod:`ihrcf_env.core.checks`
 (physical bounds included), the messages naming the ``gym.make`` option. They are built by
-:func:`ihrcf_env.envs.config.make_config`, the one place options are read. SI units, radians.
+:func:`ihrcf_env.config.make.make_config`, the one place options are read. SI units, radians.
 """
 
 from __future__ import annotations
@@ -267,3 +267,25 @@ class TaskConfig:
                 f"start_offset {self.start.offset:g} m must stay {ARENA_MARGIN} m inside arena_half_width "
                 f"{self.arena.half_width:g} m"
             )
+
+
+__all__ = [
+    "ARENA_MARGIN",
+    "CEILING_MARGIN",
+    "DEFAULT_HORIZON_S",
+    "MAX_ARENA",
+    "MAX_COMMAND",
+    "MAX_HORIZON_S",
+    "MAX_WEIGHT",
+    "MIN_START_ALTITUDE",
+    "TAG_VIEW_ALTITUDE",
+    "Arena",
+    "DeckMotion",
+    "LandingGoal",
+    "ProfileSpec",
+    "RewardWeights",
+    "RewardWeightsV1",
+    "StartDistribution",
+    "TaskConfig",
+    "Thresholds",
+]
