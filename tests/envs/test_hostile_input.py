@@ -193,7 +193,6 @@ def test_a_sensor_output_named_like_an_env_key_is_refused(registries: Any, key: 
 )
 def test_an_estimator_named_like_an_env_key_is_refused(registries: Any, name: str) -> None:
     from ihrcf_env.config.make import make_config
-
     from ihrcf_env.core.estimators.registry import ESTIMATORS
 
     with pytest.raises(ValueError, match=rf"{name!r} is reserved"):
