@@ -1,6 +1,6 @@
 """Small fixed-size linear algebra written out for JAX: 3-vectors, 3x3 matrices, the intrinsic
-Z-Y-X Euler angles of :mod:`ihrcf_env.core.frames`, and eigenvectors of small symmetric matrices by a
-fixed number of cyclic Jacobi sweeps (no data-dependent loop, no ``jnp.linalg``)."""
+Z-Y-X Euler angles of :mod:`ihrcf_env.core.frames`, and the SVD of small matrices by a fixed number of
+one-sided Jacobi sweeps (no data-dependent loop, no ``jnp.linalg``)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ __all__ = [
     "det3",
     "dot",
     "euler_from_matrix",
-    "jacobi_eigh",
+    "jacobi_svd",
     "matrix_from_euler",
     "matvec",
     "matmul",
@@ -85,36 +85,31 @@ def matrix_from_euler(euler: Array) -> Array:
     )
 
 
-def _rotate(carry: tuple[Array, Array], pq: tuple[int, int]) -> tuple[Array, Array]:
-    """One Jacobi rotation annihilating ``A[p, q]`` of the symmetric ``A``; ``V`` collects them."""
-    A, V = carry
-    p, q = pq
-    apq = A[p, q]
-    theta = (A[q, q] - A[p, p]) / jnp.where(apq == 0.0, 1.0, 2.0 * apq)
-    t = jnp.sign(theta) / (jnp.abs(theta) + jnp.sqrt(theta * theta + 1.0))
-    t = jnp.where(theta == 0.0, 1.0, t)
-    t = jnp.where(apq == 0.0, 0.0, t)
-    c = 1.0 / jnp.sqrt(t * t + 1.0)
-    s = t * c
-    n = A.shape[0]
-    G = jnp.eye(n, dtype=A.dtype)
-    G = G.at[p, p].set(c).at[q, q].set(c).at[p, q].set(s).at[q, p].set(-s)
-    A = G.T @ A @ G
-    A = A.at[p, q].set(0.0).at[q, p].set(0.0)
-    return A, V @ G
-
-
-def jacobi_eigh(A: Array, sweeps: int = 8) -> tuple[Array, Array]:
-    """Eigenvalues (n,) (unsorted) and eigenvectors (columns of (n, n)) of a small symmetric ``A`` by
-    ``sweeps`` cyclic Jacobi sweeps (a fixed count: quadratic convergence reaches rounding in
-    a few sweeps for n <= 4)."""
-    n = A.shape[0]
+def jacobi_svd(A: Array, sweeps: int = 8) -> tuple[Array, Array, Array]:
+    """Thin SVD of a small (m, n) ``A`` by ``sweeps`` one-sided (Hestenes) Jacobi sweeps: singular
+    values (n,) (unsorted), the rotated columns ``A V`` (m, n) (column j is ``s_j u_j``) and the
+    right singular vectors (columns of (n, n)). Small singular values come out with high relative
+    accuracy, as LAPACK's."""
+    n = A.shape[1]
     pairs = [(p, q) for p in range(n) for q in range(p + 1, n)]
 
     def sweep(carry: tuple[Array, Array], _: None) -> tuple[tuple[Array, Array], None]:
-        for pq in pairs:
-            carry = _rotate(carry, pq)
-        return carry, None
+        B, V = carry
+        for p, q in pairs:
+            bp, bq = B[:, p], B[:, q]
+            alpha = jnp.sum(bp * bp)
+            beta = jnp.sum(bq * bq)
+            gamma = jnp.sum(bp * bq)
+            skip = gamma == 0.0
+            zeta = (beta - alpha) / jnp.where(skip, 1.0, 2.0 * gamma)
+            t = jnp.where(zeta >= 0.0, 1.0, -1.0) / (jnp.abs(zeta) + jnp.sqrt(1.0 + zeta * zeta))
+            t = jnp.where(skip, 0.0, t)
+            c = 1.0 / jnp.sqrt(1.0 + t * t)
+            s = c * t
+            B = B.at[:, p].set(c * bp - s * bq).at[:, q].set(s * bp + c * bq)
+            vp, vq = V[:, p], V[:, q]
+            V = V.at[:, p].set(c * vp - s * vq).at[:, q].set(s * vp + c * vq)
+        return (B, V), None
 
-    (D, V), _ = lax.scan(sweep, (A, jnp.eye(n, dtype=A.dtype)), None, length=sweeps)
-    return jnp.diagonal(D), V
+    (B, V), _ = lax.scan(sweep, (A, jnp.eye(n, dtype=A.dtype)), None, length=sweeps)
+    return jnp.sqrt(jnp.sum(B * B, axis=0)), B, V
