@@ -9,7 +9,10 @@ array twins; ``docs/jax-backend.md`` lists what each one matches. Needs the ``[j
 Modules: :mod:`.linalg3` (3-vectors, 3x3 matrices, Euler angles, symmetric eigenvectors),
 :mod:`.camera` (tag points through the camera), :mod:`.rays` (range beams against the ground, the
 Stewart base and the deck plate), :mod:`.homography`, :mod:`.plane`, :mod:`.rigid`,
-:mod:`.table` and :mod:`.ihrcf` (the IHRCF pose), :mod:`.ippe` and :mod:`.lm` (the tag's PnP).
+:mod:`.table` and :mod:`.ihrcf` (the IHRCF pose), :mod:`.ippe`, :mod:`.lm` and :mod:`.pnp` (ATDA's
+PnP), :mod:`.dynamics` (the physics tick, mixer, ground effect), :mod:`.autopilot` (the velocity
+controller), :mod:`.deck_motion` (profiles, the ship, Stewart legs), :mod:`.contact` (touchdown
+geometry), :mod:`.wind` and :mod:`.imm` (the fused filter's bank).
 """
 
 from __future__ import annotations
