@@ -12,7 +12,7 @@ Stewart base and the deck plate), :mod:`.homography`, :mod:`.plane`, :mod:`.rigi
 :mod:`.table` and :mod:`.ihrcf` (the IHRCF pose), :mod:`.ippe`, :mod:`.lm` and :mod:`.pnp` (ATDA's
 PnP), :mod:`.dynamics` (the physics tick, mixer, ground effect), :mod:`.autopilot` (the velocity
 controller), :mod:`.deck_motion` (profiles, the ship, Stewart legs), :mod:`.contact` (touchdown
-geometry), :mod:`.wind` and :mod:`.imm` (the fused filter's bank).
+geometry), :mod:`.wind`, :mod:`.navigation` (GNSS/INS errors) and :mod:`.imm` (the fused filter's bank).
 """
 
 from __future__ import annotations
