@@ -52,10 +52,10 @@ def nav_constants(errors: Any, dt: float) -> NavConstants:
         phi_p,
         tp * (1.0 - phi_p),
         1.0 / tp,
-        tuple((sv * math.sqrt(1.0 - phi_v**2)).tolist()),  # type: ignore[arg-type]
+        tuple((sv * math.sqrt(1.0 - phi_v**2)).tolist()),
         float(errors.velocity_noise),
-        tuple(sp.tolist()),  # type: ignore[arg-type]
-        tuple(sv.tolist()),  # type: ignore[arg-type]
+        tuple(sp.tolist()),
+        tuple(sv.tolist()),
         1.0 / tp,
         1.0 / tv,
     )
