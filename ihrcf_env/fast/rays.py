@@ -18,7 +18,7 @@ from jax import Array
 
 from ihrcf_env.fast.linalg3 import matvec, tmatvec
 
-__all__ = ["RayHits", "Scene", "cast_rays", "true_ranges"]
+__all__ = ["RayHits", "Scene", "body_hits", "cast_rays", "true_ranges"]
 
 
 class Scene(NamedTuple):
@@ -137,6 +137,32 @@ def cast_rays(
     return _nearest(jnp.stack([f_g, f_c, f_b], axis=-1), jnp.stack([n_g, n_c, n_b], axis=-2))
 
 
+def body_hits(
+    position: Array,
+    rotation: Array,
+    deck_position: Array,
+    deck_rotation: Array,
+    starts_body: Array,
+    directions_body: Array,
+    max_range: Array | float,
+    scene: Scene,
+    self_fraction: Array | None = None,
+    self_normal: Array | None = None,
+) -> tuple[RayHits, Array]:
+    """Hits of rays fixed in the body frame (``starts_body``, ``directions_body`` (R, 3)) of the
+    drone at ``position`` with ``rotation`` (world from body), up to ``max_range``, and the rays'
+    world directions (R, 3). ``self_fraction`` (R,) (``inf``: none) and ``self_normal`` (R, 3,
+    body frame) are the rays' hits on the drone's own boxes (a constant of the mounting)."""
+    starts = matvec(rotation, starts_body) + position
+    dirs = matvec(rotation, directions_body)
+    h = cast_rays(starts, dirs, max_range, deck_position, deck_rotation, scene)
+    if self_fraction is not None:
+        own_n = jnp.zeros_like(dirs) if self_normal is None else matvec(rotation, self_normal)
+        fr = jnp.stack([jnp.where(h.hit, h.fraction, jnp.inf), self_fraction], axis=-1)
+        h = _nearest(fr, jnp.stack([h.normal, own_n], axis=-2))
+    return h, dirs
+
+
 def true_ranges(
     position: Array,
     rotation: Array,
@@ -153,11 +179,16 @@ def true_ranges(
     ``directions_body`` (R, 3)) of the drone at ``position`` with ``rotation`` (world from body);
     a miss reads ``max_range``. ``self_fraction`` (R,) (``inf``: none) and ``self_normal`` (R, 3,
     body frame) are the beams' hits on the drone's own boxes (a constant of the mounting)."""
-    starts = matvec(rotation, starts_body) + position
-    dirs = matvec(rotation, directions_body)
-    h = cast_rays(starts, dirs, max_range, deck_position, deck_rotation, scene)
-    if self_fraction is not None:
-        own_n = jnp.zeros_like(dirs) if self_normal is None else matvec(rotation, self_normal)
-        fr = jnp.stack([jnp.where(h.hit, h.fraction, jnp.inf), self_fraction], axis=-1)
-        h = _nearest(fr, jnp.stack([h.normal, own_n], axis=-2))
+    h, _ = body_hits(
+        position,
+        rotation,
+        deck_position,
+        deck_rotation,
+        starts_body,
+        directions_body,
+        max_range,
+        scene,
+        self_fraction,
+        self_normal,
+    )
     return jnp.where(h.hit, h.fraction * max_range, max_range), h.hit
