@@ -26,11 +26,15 @@ from ihrcf_env.fast.linalg3 import matrix_from_euler
 __all__ = [
     "ShipConstants",
     "ShipMotion",
+    "ShipPhasor",
     "deck_pose",
     "leg_lengths",
     "ship_constants",
     "ship_motion",
+    "ship_phasor",
+    "ship_phasor_advance",
     "ship_pose",
+    "ship_pose_of_phasor",
     "sines_arrays",
     "sum_of_sines",
 ]
@@ -191,7 +195,37 @@ def ship_pose(t: Array, motion: ShipMotion, c: ShipConstants) -> tuple[Array, Ar
     """(offset (3,) m, rpy (3,) rad) of the deck point at model time ``t`` (s)."""
     tf = t * math.sqrt(c.length_scale)
     wt = motion.omega_e * tf
-    m = jnp.sum(motion.re * jnp.cos(wt) - motion.im * jnp.sin(wt), axis=1)
+    return _deck_point(jnp.sum(motion.re * jnp.cos(wt) - motion.im * jnp.sin(wt), axis=1), c)
+
+
+class ShipPhasor(NamedTuple):
+    """The components' phases at one time, ``cos`` and ``sin`` of ``omega_e t`` (n,) (full-scale
+    time), and their rotation over one step, ``step_cos`` and ``step_sin`` (n,)."""
+
+    cos: Array
+    sin: Array
+    step_cos: Array
+    step_sin: Array
+
+
+def ship_phasor(t: Array, dt: Array | float, motion: ShipMotion, c: ShipConstants) -> ShipPhasor:
+    """The phasors at model time ``t`` (s) advancing by ``dt`` (s, model) per step: the deck pose
+    at a fixed rate without a cosine and sine per component and step."""
+    ts = math.sqrt(c.length_scale)
+    wt = motion.omega_e * (t * ts)
+    wd = motion.omega_e * (dt * ts)
+    return ShipPhasor(jnp.cos(wt), jnp.sin(wt), jnp.cos(wd), jnp.sin(wd))
+
+
+def ship_phasor_advance(ph: ShipPhasor) -> ShipPhasor:
+    """The phasors one step later (a rotation: exact up to rounding, which grows by about one unit
+    of the last place per step)."""
+    c = ph.cos * ph.step_cos - ph.sin * ph.step_sin
+    s = ph.sin * ph.step_cos + ph.cos * ph.step_sin
+    return ph._replace(cos=c, sin=s)
+
+
+def _deck_point(m: Array, c: ShipConstants) -> tuple[Array, Array]:
     rpy = m[3:]
     cr, sr = jnp.cos(rpy[0]), jnp.sin(rpy[0])
     cp, sp = jnp.cos(rpy[1]), jnp.sin(rpy[1])
@@ -200,8 +234,12 @@ def ship_pose(t: Array, motion: ShipMotion, c: ShipConstants) -> tuple[Array, Ar
     y1, z1 = y * cr - z * sr, y * sr + z * cr
     x2, z2 = x * cp + z1 * sp, -x * sp + z1 * cp
     rot = jnp.stack([x2 * cy - y1 * sy, x2 * sy + y1 * cy, z2])
-    offset = (m[:3] + rot - jnp.asarray(c.deck)) / c.length_scale
-    return offset, rpy
+    return (m[:3] + rot - jnp.asarray(c.deck)) / c.length_scale, rpy
+
+
+def ship_pose_of_phasor(ph: ShipPhasor, motion: ShipMotion, c: ShipConstants) -> tuple[Array, Array]:
+    """(offset (3,) m, rpy (3,) rad) of the deck point at the phasors' time."""
+    return _deck_point(motion.re @ ph.cos - motion.im @ ph.sin, c)
 
 
 def deck_pose(offset: Array, rpy: Array, home_position: Array) -> tuple[Array, Array]:
