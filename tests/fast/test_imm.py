@@ -5,6 +5,7 @@ along a direction, for positions and for angles (wrapped near +-pi)."""
 from __future__ import annotations
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 from fast_helpers import rel_err
@@ -25,21 +26,18 @@ def _run(angles: bool):
     cfg = imm.imm_config(angles=angles, **ARGS)
 
     def seq(z3, z1, zs, h, var, R3, gate, dts, u):
-        st = imm.imm_start(cfg)
-        st = imm.reseed(st, z3[0], R3, 0.3)
-        oks, d2s = [], []
-        for k in range(4):
-            st = imm.predict(st, dts[k], cfg, u[k])
-            st, ok, d2 = imm.update(st, z3[k + 1], 0, 3, R3, gate, cfg)
-            oks.append(ok)
-            d2s.append(d2)
-            st, ok, d2 = imm.update(st, z1[k], 2, 3, R3[2:3, 2:3], gate, cfg)
-            oks.append(ok)
-            d2s.append(d2)
-            st, ok, d2 = imm.update_along(st, zs[k], h, var, gate, cfg)
-            oks.append(ok)
-            d2s.append(d2)
-        return st, (oks, d2s), imm.x(st, cfg), imm.value_sigma(st, cfg)
+        st = imm.reseed(imm.imm_start(cfg), z3[0], R3, 0.3)
+
+        def frame(st, inp):  # one frame: predict, then three gated updates (under lax.scan)
+            dt, uk, z3k, z1k, zsk = inp
+            st = imm.predict(st, dt, cfg, uk)
+            st, ok_a, d2_a = imm.update(st, z3k, 0, 3, R3, gate, cfg)
+            st, ok_b, d2_b = imm.update(st, z1k, 2, 3, R3[2:3, 2:3], gate, cfg)
+            st, ok_c, d2_c = imm.update_along(st, zsk, h, var, gate, cfg)
+            return st, (jnp.stack([ok_a, ok_b, ok_c]), jnp.stack([d2_a, d2_b, d2_c]))
+
+        st, (oks, d2s) = jax.lax.scan(frame, st, (dts, u, z3[1:], z1, zs))
+        return st, (oks.reshape(-1), d2s.reshape(-1)), imm.x(st, cfg), imm.value_sigma(st, cfg)
 
     return jax.jit(jax.vmap(seq))
 
@@ -80,10 +78,10 @@ def test_sequence_matches_batch_imm(angles: bool) -> None:
         ):
             want_ok.append(ok)
             want_d2.append(d2)
-    got_ok = np.stack([np.asarray(o) for o in oks])
+    got_ok = np.asarray(oks).T  # (updates, N), in the order of the frames' updates
     assert np.array_equal(got_ok, np.stack(want_ok))
     assert 0.1 < got_ok.mean() < 0.95  # accepted and rejected measurements both
-    g, w = np.stack([np.asarray(d) for d in d2s]), np.stack(want_d2)
+    g, w = np.asarray(d2s).T, np.stack(want_d2)
     assert np.array_equal(np.isinf(g), np.isinf(w))
     fin = np.isfinite(w)
     assert rel_err(g[fin], w[fin]) < 1e-9
