@@ -1,0 +1,10 @@
+"""The JAX kernels' tests run in float64: x64 is switched on when this package's tests are
+collected (it stays on for the rest of the process, which the other tests never notice: they do
+not use JAX)."""
+
+from __future__ import annotations
+
+import pytest
+
+jax = pytest.importorskip("jax")
+jax.config.update("jax_enable_x64", True)

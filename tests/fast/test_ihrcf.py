@@ -1,0 +1,176 @@
+"""IHRCF and its geometry (ihrcf_env.fast.homography / plane / rigid / table / ihrcf) against the
+numpy batched estimator (ihrcf_env.core.batch), float64: the same reason codes row by row, the
+poses within 1e-9 relative."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from fast_helpers import Counted, rel_err, rotations
+
+from ihrcf_env.core.batch import result as rs
+from ihrcf_env.core.batch.geometry import fit_plane_batch, homography4_batch, rigid_fit_batch
+from ihrcf_env.core.batch.ihrcf import ihrcf_measure_batch
+from ihrcf_env.core.batch.tables import BatchTable
+from ihrcf_env.core.calibration.tables import RangePixelTable
+from ihrcf_env.core.frames import R_BODY_CAM
+from ihrcf_env.core.rig import SensorRig, intrinsics_from_fov, tag_corners_deck
+from ihrcf_env.fast.homography import homography4
+from ihrcf_env.fast.ihrcf import ihrcf, ihrcf_setup
+from ihrcf_env.fast.plane import fit_plane
+from ihrcf_env.fast.rigid import rigid_fit
+from ihrcf_env.fast.table import lookup, touch_table
+
+RIG = SensorRig()
+TAG = 0.4
+K = intrinsics_from_fov(512, 512, math.radians(60))
+XY = RIG.sensor_xy_cam
+N = 256  # frames per call: one shape, one compilation
+
+
+def _table() -> RangePixelTable:
+    d = np.linspace(0.3, 3.0, 40)
+    u = K[0, 0] * XY[:, 0] / d[:, None] + K[0, 2]
+    v = K[1, 1] * XY[:, 1] / d[:, None] + K[1, 2]
+    pixels = np.stack([u, v], axis=2)
+    pixels[5, 2] = np.nan  # ps3 has one sample fewer: tables of different lengths
+    return RangePixelTable.from_samples(np.tile(d[:, None], 4), pixels)
+
+
+TABLE = _table()
+SETUP = ihrcf_setup(touch_table(TABLE), RIG, TAG)
+IHRCF = Counted(lambda c, r, v, d: ihrcf(c, r, v, d, SETUP))
+LOOKUP = Counted(lambda r: lookup(SETUP.table, r))
+HOMOGRAPHY = Counted(homography4)
+PLANE = Counted(fit_plane)
+RIGID = Counted(rigid_fit, in_axes=(None, 0))
+
+
+def frames(seed: int, n: int, noise_px: float = 0.3):
+    """Tag corners and ranges of decks below the drone (camera frame), with pixel noise."""
+    rng = np.random.default_rng(seed)
+    R_bd = rotations(rng, n, 0.25)
+    p_bd = np.column_stack([rng.uniform(-0.2, 0.2, (n, 2)), -rng.uniform(0.5, 2.5, n)])
+    R_cd = R_BODY_CAM.T @ R_bd
+    t_cd = (p_bd - RIG.camera_position_array) @ R_BODY_CAM
+    P = np.einsum("nij,kj->nki", R_cd, tag_corners_deck(TAG)) + t_cd[:, None, :]
+    corners = np.stack(
+        [K[0, 0] * P[..., 0] / P[..., 2] + K[0, 2], K[1, 1] * P[..., 1] / P[..., 2] + K[1, 2]], -1
+    )
+    corners += rng.normal(0.0, noise_px, corners.shape)
+    nrm = R_cd[:, :, 2]
+    off = (nrm * t_cd).sum(1)
+    ranges = (off[:, None] - nrm[:, None, 0] * XY[:, 0] - nrm[:, None, 1] * XY[:, 1]) / nrm[:, None, 2]
+    ranges += rng.normal(0.0, 0.002, ranges.shape)
+    valid = np.ones((n, 4), dtype=bool)
+    detected = np.ones(n, dtype=bool)
+    return corners, ranges, valid, detected
+
+
+def edge_cases(corners, ranges, valid, detected):
+    """Rows 0..9 turned into failures of each kind."""
+    detected[0] = False
+    corners[1, 2] = np.nan
+    valid[2, :2] = False  # two ranges
+    ranges[3, 1] = np.nan  # three valid: the plane through them
+    ranges[4] = [5.0, 5.0, 5.0, 5.0]  # outside the table
+    ranges[5, 3] = 0.1  # below the table's span
+    corners[6] = [[10.0, 10.0], [20.0, 20.0], [30.0, 30.0], [40.0, 40.0]]  # collinear corners
+    corners[7, 1] = corners[7, 0]  # a coincident corner
+    ranges[8] = [1.0, 1.0, 3.0, 3.0]  # a steep plane: corners far off, residual too large
+    valid[9] = False
+
+
+def compare(seed: int, n: int, edges: bool) -> float:
+    c, r, v, d = frames(seed, n)
+    if edges:
+        edge_cases(c, r, v, d)
+    want = ihrcf_measure_batch(c, r, v, d, TABLE, RIG, TAG).poses
+    got = IHRCF(c, r, v, d)
+    assert np.array_equal(np.asarray(got.code), want.code), np.flatnonzero(np.asarray(got.code) != want.code)
+    assert np.array_equal(np.asarray(got.valid), want.valid)
+    err = max(
+        rel_err(got.rotation, want.rotation),
+        rel_err(got.position, want.position),
+        rel_err(got.euler, want.euler),
+        rel_err(got.residual, want.residual, floor=1e-3),
+        rel_err(got.fit_rms, want.fit_rms, floor=1e-3),
+    )
+    return err
+
+
+def test_ihrcf_matches_batched_estimator() -> None:
+    err = compare(0, N, edges=False)
+    assert err < 1e-9
+
+
+def test_ihrcf_failure_codes_match() -> None:
+    c, r, v, d = frames(1, N)
+    edge_cases(c, r, v, d)
+    want = ihrcf_measure_batch(c, r, v, d, TABLE, RIG, TAG).poses
+    codes = set(want.code[:10].tolist())
+    assert {rs.NOT_DETECTED, rs.NONFINITE_CORNERS, rs.FEW_RANGES, rs.OUTSIDE_TABLE} <= codes
+    assert compare(1, N, edges=True) < 1e-9
+
+
+def test_table_lookup_matches() -> None:
+    rng = np.random.default_rng(3)
+    r = rng.uniform(0.2, 3.2, (200, 4))
+    r[0] = [np.nan, 0.3, 3.0, 0.1]
+    want_uv, want_in = BatchTable(TABLE)(r)
+    uv, inside = LOOKUP(r)
+    assert np.array_equal(np.asarray(inside), want_in)
+    assert rel_err(uv, want_uv) < 1e-12
+
+
+def test_homography_matches_including_degenerate() -> None:
+    rng = np.random.default_rng(4)
+    src = rng.uniform(-1, 1, (128, 4, 2))
+    dst = rng.uniform(0, 500, (128, 4, 2))
+    src[0] = [[0, 0], [1, 1], [2, 2], [0, 1]]  # three collinear
+    src[1, 3] = src[1, 2]  # coincident
+    want_H, want_code = homography4_batch(src, dst)
+    H, code = HOMOGRAPHY(src, dst)
+    assert np.array_equal(np.asarray(code), want_code) and want_code[:2].tolist() == [1, 1]
+    ok = want_code == 0
+    assert rel_err(np.asarray(H)[ok], want_H[ok], floor=1e-6) < 1e-9
+
+
+def test_plane_fit_matches_including_degenerate() -> None:
+    rng = np.random.default_rng(5)
+    pts = rng.normal(size=(128, 4, 3)) * [0.1, 0.1, 0.02] + [0.0, 0.0, 1.0]
+    use = rng.random((128, 4)) > 0.15
+    pts[0] = [[0, 0, 1], [1, 1, 2], [2, 2, 3], [3, 3, 4]]  # collinear (4 points)
+    use[0] = True
+    pts[1] = [[0, 0, 1], [1, 1, 2], [2, 2, 3], [0, 1, 0]]
+    use[1] = [True, True, True, False]  # collinear (3 points)
+    pts[2] = 1.0
+    use[2] = True  # coincident
+    pts[3, 1] = [5.0, 0.0, 1.0]  # a vertical plane through the x axis
+    pts[3, :, 1] = 0.0
+    use[3] = True
+    want_n, want_d, want_code = fit_plane_batch(pts, use)
+    n, d, code = PLANE(pts, use)
+    assert np.array_equal(np.asarray(code), want_code)
+    assert {1, 2, 3} <= set(want_code.tolist())
+    assert rel_err(n, want_n) < 1e-9 and rel_err(d, want_d) < 1e-9
+
+
+def test_rigid_fit_matches() -> None:
+    rng = np.random.default_rng(6)
+    P = tag_corners_deck(TAG)
+    R = rotations(rng, 128, 3.0)
+    Q = np.einsum("nij,kj->nki", R, P) + rng.normal(size=(128, 1, 3)) + rng.normal(0, 1e-3, (128, 4, 3))
+    want = rigid_fit_batch(P, Q)
+    got = RIGID(P, Q)
+    for g, w in zip(got, want, strict=True):
+        assert rel_err(g, w, floor=1e-3) < 1e-9
+    assert not np.asarray(RIGID(np.zeros((4, 3)), Q)[3]).any()  # coincident P: no rotation
+
+
+def test_compiled_once() -> None:
+    before = IHRCF.traces
+    for seed in (7, 8):
+        IHRCF(*frames(seed, N))
+    assert IHRCF.traces - before <= 1

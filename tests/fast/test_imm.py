@@ -1,0 +1,92 @@
+"""The IMM bank (ihrcf_env.fast.imm) against core.batch.imm.BatchImm, float64: a sequence of
+predictions (with and without an input), gated 3-value and 1-value updates and scalar updates
+along a direction, for positions and for angles (wrapped near +-pi)."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from fast_helpers import rel_err
+
+from ihrcf_env.core.batch.imm import BatchImm
+from ihrcf_env.fast import imm
+
+N = 128
+ARGS = dict(
+    sigmas=(0.5, 0.4, 1.0),
+    drifts=[np.full(3, 0.2), np.array([2.0, 2.0, 1.0])],
+    q_white=np.array([0.1, 0.1, 0.05]),
+    switch_time=2.0,
+)
+
+
+def _run(angles: bool):
+    cfg = imm.imm_config(angles=angles, **ARGS)
+
+    def seq(z3, z1, zs, h, var, R3, gate, dts, u):
+        st = imm.reseed(imm.imm_start(cfg), z3[0], R3, 0.3)
+
+        def frame(st, inp):  # one frame: predict, then three gated updates (under lax.scan)
+            dt, uk, z3k, z1k, zsk = inp
+            st = imm.predict(st, dt, cfg, uk)
+            st, ok_a, d2_a = imm.update(st, z3k, 0, 3, R3, gate, cfg)
+            st, ok_b, d2_b = imm.update(st, z1k, 2, 3, R3[2:3, 2:3], gate, cfg)
+            st, ok_c, d2_c = imm.update_along(st, zsk, h, var, gate, cfg)
+            return st, (jnp.stack([ok_a, ok_b, ok_c]), jnp.stack([d2_a, d2_b, d2_c]))
+
+        st, (oks, d2s) = jax.lax.scan(frame, st, (dts, u, z3[1:], z1, zs))
+        return st, (oks.reshape(-1), d2s.reshape(-1)), imm.x(st, cfg), imm.value_sigma(st, cfg)
+
+    return jax.jit(jax.vmap(seq))
+
+
+RUN = {a: _run(a) for a in (False, True)}
+
+
+@pytest.mark.parametrize("angles", [False, True])
+def test_sequence_matches_batch_imm(angles: bool) -> None:
+    rng = np.random.default_rng(int(angles))
+    scale = 3.1 if angles else 1.0
+    z3 = rng.uniform(-scale, scale, (N, 5, 3))
+    z1 = rng.uniform(-scale, scale, (N, 4, 1))
+    zs = rng.normal(0, 1, (N, 4))
+    h = rng.normal(0, 1, (N, 3))
+    h /= np.linalg.norm(h, axis=1, keepdims=True)
+    var = rng.uniform(0.01, 0.1, N)
+    A = rng.normal(0, 0.2, (N, 3, 3))
+    R3 = A @ A.transpose(0, 2, 1) + 0.01 * np.eye(3)
+    gate = np.where(rng.random(N) < 0.5, 9.0, np.inf)  # half gated (some measurements rejected)
+    dts = rng.uniform(0.02, 0.1, (N, 4))
+    dts[:4, 1] = 0.0  # no time passes: predict leaves the bank
+    u = rng.normal(0, 1, (N, 4, 3))
+    u[::3, 2] = np.nan  # no input
+    st, (oks, d2s), xc, sig = RUN[angles](z3, z1, zs, h, var, R3, gate, dts, u)
+
+    ref = BatchImm(N, ARGS["sigmas"], ARGS["drifts"], ARGS["q_white"], ARGS["switch_time"], angles)
+    i = np.arange(N)
+    ref.start(i, np.zeros(N))
+    ref.reseed(i, z3[:, 0], R3, 0.3)
+    want_ok, want_d2 = [], []
+    for k in range(4):
+        ref.predict(i, dts[:, k], u[:, k])
+        for ok, d2 in (
+            ref.update(i, z3[:, k + 1], (0, 3), R3, gate),
+            ref.update(i, z1[:, k], (2, 3), R3[:, 2:3, 2:3], gate),
+            ref.update_along(i, zs[:, k], h, var, gate),
+        ):
+            want_ok.append(ok)
+            want_d2.append(d2)
+    got_ok = np.asarray(oks).T  # (updates, N), in the order of the frames' updates
+    assert np.array_equal(got_ok, np.stack(want_ok))
+    assert 0.1 < got_ok.mean() < 0.95  # accepted and rejected measurements both
+    g, w = np.asarray(d2s).T, np.stack(want_d2)
+    assert np.array_equal(np.isinf(g), np.isinf(w))
+    fin = np.isfinite(w)
+    assert rel_err(g[fin], w[fin]) < 1e-9
+    assert rel_err(st.X, ref.X) < 1e-9
+    assert rel_err(st.Ps, ref.Ps) < 1e-9
+    assert rel_err(st.mu, ref.mu) < 1e-9
+    assert rel_err(xc, ref.x(i)) < 1e-9
+    assert rel_err(sig, ref.value_sigma(i)) < 1e-9
