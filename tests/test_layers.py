@@ -64,17 +64,6 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
         "ihrcf_env.cli",
         *_LEARNING,
     ),
-    # the array backend: jax over core, never the simulator or the env front
-    "fast": (
-        "pybullet",
-        "gymnasium",
-        "ihrcf_env.sim",
-        "ihrcf_env.envs",
-        "ihrcf_env.wrappers",
-        "ihrcf_env.experiments",
-        "ihrcf_env.cli",
-        *_LEARNING,
-    ),
     "envs": ("ihrcf_env.wrappers", "ihrcf_env.experiments", "ihrcf_env.cli", *_LEARNING),
     "wrappers": ("ihrcf_env.experiments", "ihrcf_env.cli", *_LEARNING),
     # the vector envs sit at the wrappers' level: envs by id, stepped together
