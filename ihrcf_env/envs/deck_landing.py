@@ -67,6 +67,7 @@ import pybullet as p
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from ihrcf_env import tasks
 from ihrcf_env.core.arrays import clip
 from ihrcf_env.core.checks import check_mapping, check_real, check_reals
 from ihrcf_env.core.frames import euler_from_matrix, quat_from_matrix
@@ -81,7 +82,7 @@ from ihrcf_env.sim.disturbances import Wind
 from ihrcf_env.sim.registry import SENSORS
 from ihrcf_env.sim.sensors import CameraConfig
 from ihrcf_env.sim.sensors.base import TAG_STATUS
-from ihrcf_env.sim.world import CAMERA_SENSORS, Snapshot, Touchdown, World, WorldConfig
+from ihrcf_env.sim.world import CAMERA_SENSORS, Snapshot, Touchdown, World, WorldConfig, touchdown_arrays
 
 RESET_OPTIONS = ("altitude", "offset", "yaw", "deck_time")
 #: Deck profiles drawn at random per episode (a draw the legs cannot follow is drawn again).
@@ -220,15 +221,19 @@ class DeckLandingEnv(gym.Env):
         if touchdown is not None and self._last_touchdown is None:
             self._last_touchdown = touchdown
         snap = self.world.snapshot()
-        outcome, reason = self._outcome(touchdown, snap)
-        terminated = outcome != "flying"
+        state, td = snap.task_state(), touchdown_arrays(touchdown)
+        offset = self._tag_offset(snap)
+        code = self._classify(state, td, offset)
+        terminated = bool(tasks.is_terminal(code))
         self._episode_over = terminated
         obs = self._get_obs()
-        reward, terms = self._get_rew(a, outcome, snap)
+        reward, terms = self._get_rew(a, code, state, td, offset)
         info = self._get_info(snap)
         info.update(terms)
-        info["outcome"] = outcome
-        info["crash_reason"] = reason
+        info["outcome"] = tasks.outcome_name(code)
+        info["crash_reason"] = tasks.describe(
+            code, td, state, self.config.task.thresholds, self._success_radius
+        )
         if touchdown is not None:
             info["touchdown"] = {
                 "body": touchdown.body,
@@ -393,44 +398,35 @@ class DeckLandingEnv(gym.Env):
                 obs[key] = clip(value, out.low, out.high).astype(np.float32).reshape(out.shape)
         return obs
 
-    def _outcome(self, touchdown: Touchdown | None, s: Snapshot) -> tuple[str, str]:
-        """("flying" | "success" | "crash", reason)."""
-        th, arena = self.config.task.thresholds, self.config.task.arena
-        if touchdown is not None:
-            if touchdown.body != "deck":
-                return "crash", f"hit the {touchdown.body}"
-            if not touchdown.on_deck:
-                return "crash", "touched down outside the deck"
-            if abs(touchdown.relative_vertical_speed) >= th.success_speed:
-                return (
-                    "crash",
-                    f"vertical speed {abs(touchdown.relative_vertical_speed):.2f} m/s at touchdown",
-                )
-            if touchdown.relative_tilt >= th.success_tilt:
-                return "crash", f"tilt {math.degrees(touchdown.relative_tilt):.1f} deg at touchdown"
-            return "success", ""
-        pos, R = s.drone_position, s.drone_rotation
-        if math.acos(max(-1.0, min(1.0, R[2, 2]))) > th.crash_tilt:
-            return "crash", f"tilt over {math.degrees(th.crash_tilt):.0f} deg"
-        if abs(pos[0]) > arena.half_width or abs(pos[1]) > arena.half_width or pos[2] > arena.ceiling:
-            return "crash", "left the arena"
-        return "flying", ""
+    #: The landing tasks' success radius (m; None: the hover task has none), read by the rules.
+    _success_radius: float | None = None
+
+    _offset_memo: tuple[Snapshot | None, NDArray[np.float64]] = (None, np.zeros(()))
+
+    def _tag_offset(self, s: Snapshot) -> NDArray[np.float64]:
+        """:func:`ihrcf_env.tasks.tag_offset` of ``s`` (m; memoised on the snapshot, which the
+        world shares until its state changes)."""
+        if self._offset_memo[0] is not s:
+            self._offset_memo = (s, tasks.tag_offset(s.task_state()))
+        return self._offset_memo[1]
+
+    def _classify(self, state: tasks.TaskState, touchdown: tasks.TouchdownState, offset: Any) -> int:
+        """The step's outcome code (:data:`ihrcf_env.tasks.OUTCOME_NAMES`)."""
+        task = self.config.task
+        code = tasks.classify(state, touchdown, task.thresholds, task.arena, self._success_radius, offset)
+        return int(code)
 
     def _get_rew(
-        self, action: NDArray[np.float64], outcome: str, s: Snapshot
+        self,
+        action: NDArray[np.float64],
+        outcome: int,
+        state: tasks.TaskState,
+        touchdown: tasks.TouchdownState,
+        offset: Any,
     ) -> tuple[float, dict[str, float]]:
-        w = self.config.task.reward
-        e = s.drone_position - s.deck_position
-        terms = {
-            "reward_position": -w.position_xy * math.hypot(e[0], e[1]) - w.position_z * max(float(e[2]), 0.0),
-            "reward_velocity": -w.velocity * float(np.linalg.norm(s.relative_velocity)),
-            "reward_attitude": -w.attitude * s.relative_tilt,
-            "reward_action": -w.action * float(action @ action),
-            "reward_terminal": w.success
-            if outcome == "success"
-            else (-w.crash if outcome == "crash" else 0.0),
-        }
-        return float(sum(terms.values())), terms
+        """The step's reward and its terms (``reward_<term>``): :func:`ihrcf_env.tasks.hover_reward`."""
+        terms = tasks.hover_reward(state, action, np.asarray(outcome), self.config.task.reward, offset)
+        return _reward_info(terms)
 
     def _get_info(self, s: Snapshot) -> dict[str, Any]:
         w = self.world
@@ -496,6 +492,12 @@ class DeckLandingEnv(gym.Env):
         self._check_open()
         s = self.world.snapshot()
         return s.deck_position_body.copy(), euler_from_matrix(s.deck_rotation_body)
+
+
+def _reward_info(terms: tuple[Any, ...]) -> tuple[float, dict[str, float]]:
+    """(reward, ``{"reward_<term>": value}``) of one env's reward terms (a NamedTuple of 0-d arrays)."""
+    values = {f"reward_{name}": float(v) for name, v in zip(terms._fields, terms, strict=True)}  # type: ignore[attr-defined]
+    return float(tasks.total(tuple(values.values()))), values
 
 
 def _check_action(action: Any) -> NDArray[np.float64]:

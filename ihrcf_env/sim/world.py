@@ -20,6 +20,7 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
+from ihrcf_env import tasks
 from ihrcf_env.core.checks import check_str
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.frames import matrix_from_quat, quat_from_matrix, relative_pose
@@ -141,13 +142,32 @@ class WorldConfig:
 
 @dataclass
 class Touchdown:
-    """First contact of the drone with something during a control step."""
+    """First contact of the drone with something during a control step (its figures from
+    :func:`ihrcf_env.tasks.touchdown_state`)."""
 
     body: str  # "deck", "ground" or "base"
     time: float  # s
     relative_vertical_speed: float  # m/s, drone minus deck point, along the deck normal (negative = closing)
     relative_tilt: float  # rad, angle between drone z and deck z
     on_deck: bool  # drone centre projects inside the deck's top surface
+
+    def task_state(self) -> tasks.TouchdownState:
+        """This touchdown as the task rules' record (:class:`~ihrcf_env.tasks.TouchdownState`)."""
+        return touchdown_arrays(self)
+
+
+def touchdown_arrays(touchdown: Touchdown | None) -> tasks.TouchdownState:
+    """``touchdown`` as the task rules' record (0-d arrays; no contact when None)."""
+    if touchdown is None:
+        return tasks.TouchdownState(
+            np.asarray(tasks.NO_CONTACT), np.asarray(0.0), np.asarray(0.0), np.asarray(False)
+        )
+    return tasks.TouchdownState(
+        contact=np.asarray(tasks.CONTACT_NAMES.index(touchdown.body)),
+        relative_vertical_speed=np.asarray(touchdown.relative_vertical_speed, dtype=np.float64),
+        relative_tilt=np.asarray(touchdown.relative_tilt, dtype=np.float64),
+        on_deck=np.asarray(touchdown.on_deck),
+    )
 
 
 @dataclass(frozen=True)
@@ -174,8 +194,19 @@ class Snapshot:
     @property
     def relative_tilt(self) -> float:
         """Angle (rad) between the drone's z axis and the deck normal."""
-        c = float(self.drone_rotation[:, 2] @ self.deck_rotation[:, 2])
-        return math.acos(max(-1.0, min(1.0, c)))
+        return float(tasks.relative_tilt(self.drone_rotation, self.deck_rotation))
+
+    def task_state(self) -> tasks.TaskState:
+        """This snapshot as the task rules' state (:class:`~ihrcf_env.tasks.TaskState`; the same
+        read-only arrays)."""
+        return tasks.TaskState(
+            drone_position=self.drone_position,
+            drone_rotation=self.drone_rotation,
+            drone_velocity=self.drone_velocity,
+            deck_position=self.deck_position,
+            deck_rotation=self.deck_rotation,
+            deck_point_velocity=self.deck_point_velocity,
+        )
 
 
 class World:
@@ -580,15 +611,18 @@ class World:
         """The :class:`Touchdown` record of a contact with ``body`` now, the drone having approached
         at ``approach_velocity`` (world, m/s)."""
         s = self.snapshot()
-        local = s.deck_rotation.T @ (s.drone_position - s.deck_position)
-        half = self.deck.top_half_extent
-        v_rel = np.asarray(approach_velocity) - s.deck_point_velocity
+        td = tasks.touchdown_state(
+            s.task_state(),
+            tasks.CONTACT_NAMES.index(body),
+            np.asarray(approach_velocity, dtype=np.float64),
+            self.deck.top_half_extent,
+        )
         return Touchdown(
             body=body,
             time=self.time,
-            relative_vertical_speed=float(v_rel @ s.deck_rotation[:, 2]),
-            relative_tilt=s.relative_tilt,
-            on_deck=bool(abs(local[0]) <= half and abs(local[1]) <= half),
+            relative_vertical_speed=float(td.relative_vertical_speed),
+            relative_tilt=float(td.relative_tilt),
+            on_deck=bool(td.on_deck),
         )
 
     def contact_bodies(self) -> set[int]:
