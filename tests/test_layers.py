@@ -1,10 +1,11 @@
 """The layer contract: what each folder of the package may import.
 
 core/ and control/ are pure (numpy, scipy, OpenCV): usable on real drone logs, so no PyBullet and no
-Gymnasium. sim/ is PyBullet without Gymnasium. Only envs/ and the layers above it (wrappers/,
-experiments/, cli/) know Gymnasium. Checked twice: statically on every import statement of every
-module (lazy imports inside functions included), and dynamically by importing the pure layers in a
-fresh interpreter.
+Gymnasium. tasks/ (the task rules) is arrays only (numpy or jax.numpy through array-api-compat):
+no simulator, no Gymnasium, no controller. sim/ is PyBullet without Gymnasium. Only envs/ and the
+layers above it (wrappers/, experiments/, cli/) know Gymnasium. Checked twice: statically on every
+import statement of every module (lazy imports inside functions included), and dynamically by
+importing the pure layers in a fresh interpreter.
 """
 
 from __future__ import annotations
@@ -42,6 +43,18 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
         "ihrcf_env.wrappers",
         "ihrcf_env.experiments",
         "ihrcf_env.cli",
+        *_LEARNING,
+    ),
+    # the task rules: arrays in, arrays out (numpy or jax.numpy), shared by every backend
+    "tasks": (
+        "pybullet",
+        "gymnasium",
+        "ihrcf_env.sim",
+        "ihrcf_env.envs",
+        "ihrcf_env.wrappers",
+        "ihrcf_env.experiments",
+        "ihrcf_env.cli",
+        "ihrcf_env.control",
         *_LEARNING,
     ),
     "sim": (
@@ -96,7 +109,7 @@ def test_contract_catches_a_violation(tmp_path: Path) -> None:
 def test_pure_layers_do_not_load_pybullet_or_gymnasium_at_run_time() -> None:
     mods = sorted(
         "ihrcf_env." + ".".join(f.relative_to(PKG).with_suffix("").parts).removesuffix(".__init__")
-        for layer in ("core", "control")
+        for layer in ("core", "control", "tasks")
         for f in (PKG / layer).rglob("*.py")
     )
     code = (
