@@ -59,7 +59,7 @@ Misuse raises: a bad option TypeError/ValueError naming it (before any PyBullet 
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar, NoReturn, SupportsIndex
+from typing import Any, NoReturn, SupportsIndex
 
 import gymnasium as gym
 import numpy as np
@@ -76,7 +76,7 @@ from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.core.seeding import SeedStreams
 from ihrcf_env.core.ship import fits
 from ihrcf_env.envs.config import ARENA_MARGIN, MIN_START_ALTITUDE, DeckLandingConfig, make_config
-from ihrcf_env.envs.display import require_gui_display
+from ihrcf_env.envs.render import EnvRenderer
 from ihrcf_env.sim.deck import DeckTrajectory
 from ihrcf_env.sim.disturbances import Wind
 from ihrcf_env.sim.registry import SENSORS
@@ -122,7 +122,6 @@ class DeckLandingEnv(gym.Env):
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
-    _gui_owner: ClassVar[DeckLandingEnv | None] = None
     #: The task whose defaults ``**options`` take (see :data:`~ihrcf_env.envs.config.TASK_DEFAULTS`).
     task_name = "hover"
 
@@ -136,8 +135,8 @@ class DeckLandingEnv(gym.Env):
             raise TypeError(f"config must be a DeckLandingConfig (ihrcf_env.make_config), got {config!r}")
         cfg = config
         gui = cfg.render_mode == "human"
-        if gui:
-            self._claim_gui()
+        #: the chase view and GUI camera (claims the process's one GUI first with "human")
+        self.renderer = EnvRenderer(cfg.render_mode, cfg.chase_size)
         self.config: DeckLandingConfig = cfg
         self.render_mode = cfg.render_mode
         self.metadata = {**self.metadata, "render_fps": cfg.world.control_hz}
@@ -154,7 +153,12 @@ class DeckLandingEnv(gym.Env):
         #: the env's wind (None: calm air); its force is one of the world's disturbances
         self.wind: Wind | None = Wind(cfg.wind) if cfg.wind is not None else None
 
-        self.world = World(cfg.world, gui=gui)  # releases its client itself if it fails
+        try:
+            self.world = World(cfg.world, gui=gui)  # releases its client itself if it fails
+        except BaseException:
+            self.renderer.release()
+            raise
+        self.renderer.attach(self.world)
         self._closed = False
         try:
             self._camera_name = next((n for n in CAMERA_SENSORS if n in self.world.sensors), "")
@@ -206,8 +210,7 @@ class DeckLandingEnv(gym.Env):
         self._last_touchdown = None
         obs = self._get_obs()
         info = self._get_info(self.world.snapshot())
-        if self.render_mode == "human":
-            self._update_gui_camera()
+        self.renderer.follow()
         return obs, info
 
     def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:
@@ -242,8 +245,7 @@ class DeckLandingEnv(gym.Env):
                 "relative_tilt": touchdown.relative_tilt,
                 "on_deck": touchdown.on_deck,
             }
-        if self.render_mode == "human":
-            self._update_gui_camera()
+        self.renderer.follow()
         return obs, reward, terminated, False, info
 
     def apply_action(self, action: Any) -> NDArray[np.float64]:
@@ -258,18 +260,17 @@ class DeckLandingEnv(gym.Env):
         return a
 
     def render(self) -> NDArray[np.uint8] | None:
+        """The chase view (H, W, 3) uint8 with ``render_mode="rgb_array"``, else None
+        (:class:`~ihrcf_env.envs.render.EnvRenderer`)."""
         self._check_open()
-        if self.render_mode == "rgb_array":
-            return self._chase_view()
-        return None
+        return self.renderer.render()
 
     def close(self) -> None:
         """Disconnect the physics client; safe to call twice. The env is unusable afterwards."""
         if getattr(self, "_closed", True):
             return
         self._closed = True
-        if DeckLandingEnv._gui_owner is self:
-            DeckLandingEnv._gui_owner = None
+        self.renderer.release()
         self.world.close()
 
     # -- no copies: one env, one physics client -------------------------------------------
@@ -294,17 +295,6 @@ class DeckLandingEnv(gym.Env):
     def _check_open(self) -> None:
         if self._closed:
             raise RuntimeError("env is closed (close() was called): make a new one with gym.make")
-
-    def _claim_gui(self) -> None:
-        """PyBullet allows one GUI per process, and its GUI needs a display: check both first."""
-        owner = DeckLandingEnv._gui_owner
-        if owner is not None and not owner._closed:
-            raise RuntimeError(
-                'only one render_mode="human" env can be open per process (PyBullet allows one GUI '
-                'connection): close the other one, or use render_mode="rgb_array"'
-            )
-        require_gui_display()
-        DeckLandingEnv._gui_owner = self
 
     def _draw_deck(self, rng: np.random.Generator, deck_time: float) -> tuple[MotionProfile, bool]:
         """This episode's deck motion from ``rng``, started at ``deck_time`` (s), and whether its
@@ -452,31 +442,6 @@ class DeckLandingEnv(gym.Env):
             "wind_velocity": self.wind.velocity(w.time) if self.wind is not None else np.zeros(3),
             "relative_velocity": s.relative_velocity.copy(),
         }
-
-    # -- rendering -----------------------------------------------------------------------
-    def _chase_view(self) -> NDArray[np.uint8]:
-        from ihrcf_env.sim.sensors import render_rgb
-
-        w = self.world
-        w.deck.update_visuals()
-        pos, R = w.drone_pose()
-        deck_pos, _ = w.deck.pose()
-        target = 0.5 * (pos + deck_pos) - np.array([0.0, 0.0, 0.35])
-        yaw = math.atan2(R[1, 0], R[0, 0])
-        back = np.array([-math.cos(yaw), -math.sin(yaw), 0.0])
-        side = np.array([math.sin(yaw), -math.cos(yaw), 0.0])
-        eye = target + 2.5 * back + 0.8 * side + np.array([0.0, 0.0, 1.0])
-        cid = w.client
-        view = p.computeViewMatrix(eye.tolist(), target.tolist(), [0, 0, 1], physicsClientId=cid)
-        width, height = self.config.chase_size
-        proj = p.computeProjectionMatrixFOV(50.0, width / height, 0.05, 30.0, physicsClientId=cid)
-        cfg = CameraConfig(width=width, height=height)
-        return render_rgb(cid, cfg, view, proj)
-
-    def _update_gui_camera(self) -> None:
-        self.world.deck.update_visuals()
-        pos, _ = self.world.drone_pose()
-        p.resetDebugVisualizerCamera(2.5, 30.0, -25.0, pos.tolist(), physicsClientId=self.world.client)
 
     # -- conveniences for tools ---------------------------------------------------------
     @property
