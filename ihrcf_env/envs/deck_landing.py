@@ -80,9 +80,10 @@ from ihrcf_env.envs.render import EnvRenderer
 from ihrcf_env.sim.deck import DeckTrajectory
 from ihrcf_env.sim.disturbances import Wind
 from ihrcf_env.sim.registry import SENSORS
+from ihrcf_env.sim.sensing import CAMERA_SENSORS, Snapshot
 from ihrcf_env.sim.sensors import CameraConfig
 from ihrcf_env.sim.sensors.base import TAG_STATUS
-from ihrcf_env.sim.world import CAMERA_SENSORS, Snapshot, Touchdown, World, WorldConfig, touchdown_arrays
+from ihrcf_env.sim.world import Touchdown, World, WorldConfig, touchdown_arrays
 
 RESET_OPTIONS = ("altitude", "offset", "yaw", "deck_time")
 #: Deck profiles drawn at random per episode (a draw the legs cannot follow is drawn again).
@@ -209,7 +210,7 @@ class DeckLandingEnv(gym.Env):
         self._episode_over = False
         self._last_touchdown = None
         obs = self._get_obs()
-        info = self._get_info(self.world.snapshot())
+        info = self._get_info(self.world.sensing.snapshot())
         self.renderer.follow()
         return obs, info
 
@@ -223,7 +224,7 @@ class DeckLandingEnv(gym.Env):
         touchdown = self.world.step()
         if touchdown is not None and self._last_touchdown is None:
             self._last_touchdown = touchdown
-        snap = self.world.snapshot()
+        snap = self.world.sensing.snapshot()
         state, td = snap.task_state(), touchdown_arrays(touchdown)
         offset = self._tag_offset(snap)
         code = self._classify(state, td, offset)
@@ -355,7 +356,7 @@ class DeckLandingEnv(gym.Env):
 
     def _get_obs(self) -> dict[str, Any]:
         w = self.world
-        r = w.read_sensors()
+        r = w.sensing.read_sensors()
         obs: dict[str, Any] = {}
         if "image" in r:
             obs["image"] = r["image"]
@@ -365,13 +366,13 @@ class DeckLandingEnv(gym.Env):
             obs["tag_detected"] = int(bool(r["tag_detected"]))
             obs["tag_status"] = int(r["tag_status"])
         if self._camera_name:
-            age = w.time - w.sample_times[self._camera_name]
+            age = w.time - w.sensing.sample_times[self._camera_name]
             age = MAX_SENSOR_AGE if math.isnan(age) else age  # no frame yet (camera latency)
             obs["camera_age"] = np.array([min(max(age, 0.0), MAX_SENSOR_AGE)], np.float32)
-            if w.camera_pipeline is not None:
-                obs["camera_frame"] = np.array([w.frame_counts[self._camera_name]], np.int64)
-        for name in w.clocks:  # sensors on their own clock: the age of the sample shown
-            age = min(max(w.time - w.sample_times[name], 0.0), MAX_SENSOR_AGE)
+            if w.sensing.camera_pipeline is not None:
+                obs["camera_frame"] = np.array([w.sensing.frame_counts[self._camera_name]], np.int64)
+        for name in w.sensing.clocks:  # sensors on their own clock: the age of the sample shown
+            age = min(max(w.time - w.sensing.sample_times[name], 0.0), MAX_SENSOR_AGE)
             obs[f"{name}_age"] = np.array([age], np.float32)
         obs["ranges"] = clip(r["ranges"], 0.0, self._max_range).astype(np.float32)
         obs["ranges_valid"] = np.asarray(r["ranges_valid"], dtype=np.int8)
@@ -423,11 +424,11 @@ class DeckLandingEnv(gym.Env):
         contacts = w.contact_bodies()
         info: dict[str, Any] = {"time": w.time}
         if self._camera_name:
-            info["camera_time"] = w.sample_times[self._camera_name]
+            info["camera_time"] = w.sensing.sample_times[self._camera_name]
             info["camera_age"] = w.time - info["camera_time"]
             if self.config.world.camera_output == "corners":
                 info["tag_reason"] = self._tag_reason
-        # copies: the snapshot's arrays are read-only and shared (World.snapshot is memoised)
+        # copies: the snapshot's arrays are read-only and shared (Sensing.snapshot is memoised)
         return info | {
             "deck_position_body": s.deck_position_body.copy(),
             "deck_euler_body": euler_from_matrix(s.deck_rotation_body),
@@ -455,7 +456,7 @@ class DeckLandingEnv(gym.Env):
     def deck_pose_body(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Ground-truth deck (position m, euler rad) in the body frame."""
         self._check_open()
-        s = self.world.snapshot()
+        s = self.world.sensing.snapshot()
         return s.deck_position_body.copy(), euler_from_matrix(s.deck_rotation_body)
 
 

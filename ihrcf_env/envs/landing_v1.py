@@ -58,7 +58,8 @@ from ihrcf_env import tasks
 from ihrcf_env.envs.config import TASK_DEFAULTS
 from ihrcf_env.envs.deck_landing import DeckLandingEnv, _reward_info
 from ihrcf_env.envs.task_config import LandingGoal
-from ihrcf_env.sim.world import Snapshot, Touchdown, touchdown_arrays
+from ihrcf_env.sim.sensing import Snapshot
+from ihrcf_env.sim.world import Touchdown, touchdown_arrays
 
 #: ``gym.make`` defaults of v1 that differ from the hover task's (any of them can still be given).
 V1_DEFAULTS: dict[str, Any] = TASK_DEFAULTS["landing-v1"]
@@ -122,7 +123,7 @@ class DeckLandingV1Env(DeckLandingEnv):
     # -- episode -----------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict, dict]:
         obs, info = super().reset(seed=seed, options=options)
-        self._phi = self.potential(self.world.snapshot())
+        self._phi = self.potential(self.world.sensing.snapshot())
         info["is_success"] = False
         return obs, info
 
