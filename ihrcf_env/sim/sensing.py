@@ -143,7 +143,11 @@ class Sensing:
             fault.reset(rng)
 
     def _check_open(self) -> None:
-        if self.world.closed:
+        try:
+            closed = self.world.closed
+        except ReferenceError:  # the world was dropped: its client is released
+            closed = True
+        if closed:
             raise RuntimeError("this world is closed (its PyBullet client was disconnected)")
 
     def body_state(self, acceleration: NDArray[np.float64] | None = None) -> BodyState:
