@@ -192,7 +192,7 @@ def classify(
     ``state`` if already computed.
     """
     xp = namespace(state.drone_position, touchdown.contact)
-    contact = xp.asarray(touchdown.contact)
+    contact = touchdown.contact
     speed = xp.abs(touchdown.relative_vertical_speed)
     landed = xp.where(
         contact == CONTACT_GROUND,
@@ -201,7 +201,7 @@ def classify(
             contact == CONTACT_BASE,
             CRASH_BASE,
             xp.where(
-                ~xp.asarray(touchdown.on_deck, dtype=xp.bool),
+                xp.logical_not(touchdown.on_deck),
                 CRASH_OFF_DECK,
                 xp.where(
                     speed >= thresholds.success_speed,

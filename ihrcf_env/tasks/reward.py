@@ -167,7 +167,7 @@ def miss(
         ),
         (tag_offset(state) if offset is None else offset) / success_radius,
     )
-    on_top = (touchdown.contact == CONTACT_DECK) & xp.asarray(touchdown.on_deck, dtype=xp.bool)
+    on_top = xp.logical_and(touchdown.contact == CONTACT_DECK, touchdown.on_deck)
     return xp.where(on_top, ratio, xp.inf)
 
 
