@@ -168,7 +168,7 @@ class Sensing:
     def read_sensors(
         self, rng: np.random.Generator | None = None, names: tuple[str, ...] | None = None
     ) -> dict[str, NDArray]:
-        """One reading of the sensors ``names`` (default: all, in :attr:`sensors` order), merged into
+        """One reading of the sensors ``names`` (default: all, in ``World.sensors`` order), merged into
         one mapping of measurement names (``image``, or ``tag_corners``/``tag_detected``/``tag_reason``;
         ``ranges``, ``ranges_valid``, ``quaternion``, ``angular_velocity``, ``linear_acceleration``)
         to arrays. Call once per control step: noise models advance by one control period.
@@ -177,7 +177,7 @@ class Sensing:
         camera's is ``control_hz / camera_hz``), counted from the episode's start; in between its
         last reading is repeated (fresh copies of the same arrays) and :attr:`sample_times` (s)
         still says when it was taken. A sensor on its own clock (:attr:`clocks`) shows its last
-        sample instead (taken by :meth:`step` at its own instants), and a camera with a latency
+        sample instead (taken by ``World.step`` at its own instants), and a camera with a latency
         shows the last frame whose delivery time has come (:attr:`camera_pipeline`;
         :attr:`sample_times` holds its exposure time, :attr:`frame_counts` counts the frames
         delivered). Noise is drawn from each sensor's own stream (see :meth:`reset_random`), or
