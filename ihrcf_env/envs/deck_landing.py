@@ -50,7 +50,8 @@ crash. Termination: touchdown (success if the relative vertical speed < 0.5 m/s,
 < 10 deg and the drone is over the deck; a crash otherwise), a tilt > 60 deg, or leaving the arena.
 Truncation only by ``max_episode_steps`` (TimeLimit). The weights and thresholds are the defaults of
 :class:`~ihrcf_env.envs.task_config.RewardWeights` and
-:class:`~ihrcf_env.envs.task_config.Thresholds`.
+:class:`~ihrcf_env.envs.task_config.Thresholds`; the rules are the pure functions of
+:mod:`ihrcf_env.tasks` (:func:`~ihrcf_env.tasks.classify`, :func:`~ihrcf_env.tasks.hover_reward`).
 
 Misuse raises: a bad option TypeError/ValueError naming it (before any PyBullet client exists),
 ``step`` after a terminated episode or after ``close`` RuntimeError, copying or pickling TypeError.

@@ -40,10 +40,11 @@ from its first soft, off-target touchdowns towards the target (with one flat -10
 failure, a learner must succeed in ~40 % of its attempts before trying beats hovering: PPO settled
 on hovering). The order success > hover > crash still holds with fixed policies (test).
 
-``info`` adds ``tag_offset`` (m, horizontal) and ``is_success`` to the ground truth of the hover
-task's ``info`` (which has ``wind_velocity`` and ``relative_velocity``, world, m/s). The
-observation is the raw env's; ``ihrcf_env/DeckLanding-v1`` wraps it
-(:mod:`ihrcf_env.wrappers.landing_obs`).
+The outcome and the reward are :func:`ihrcf_env.tasks.classify` (with ``success_radius``) and
+:func:`ihrcf_env.tasks.landing_reward`. ``info`` adds ``tag_offset`` (m, horizontal) and
+``is_success`` to the ground truth of the hover task's ``info`` (which has ``wind_velocity`` and
+``relative_velocity``, world, m/s). The observation is the raw env's; ``ihrcf_env/DeckLanding-v1``
+wraps it (:mod:`ihrcf_env.wrappers.landing_obs`).
 """
 
 from __future__ import annotations
