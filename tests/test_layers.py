@@ -56,6 +56,7 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
         "ihrcf_env.cli",
         *_LEARNING,
     ),
+    # the task rules: arrays in, arrays out (numpy or jax.numpy), shared by every backend
     "sim": (
         "gymnasium",
         "ihrcf_env.envs",
@@ -198,7 +199,7 @@ def test_contract_catches_a_violation(tmp_path: Path) -> None:
 def test_pure_layers_do_not_load_pybullet_or_gymnasium_at_run_time() -> None:
     """Importing every module of core/, control/ and config/ in a fresh interpreter loads no
     PyBullet, and no Gymnasium module beyond those the package root loads to register its ids."""
-    mods = _modules("core", "control", "config")
+    mods = _modules("core", "control", "config", "tasks")
     code = (
         "import sys, importlib\n"
         "def loaded(): return {k for k in sys.modules if k.split('.')[0] in ('pybullet', 'gymnasium')}\n"

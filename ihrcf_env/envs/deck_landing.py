@@ -50,7 +50,8 @@ crash. Termination: touchdown (success if the relative vertical speed < 0.5 m/s,
 < 10 deg and the drone is over the deck; a crash otherwise), a tilt > 60 deg, or leaving the arena.
 Truncation only by ``max_episode_steps`` (TimeLimit). The weights and thresholds are the defaults of
 :class:`~ihrcf_env.config.task.RewardWeights` and
-:class:`~ihrcf_env.config.task.Thresholds`.
+:class:`~ihrcf_env.config.task.Thresholds`; the rules are the pure functions of
+:mod:`ihrcf_env.tasks` (:func:`~ihrcf_env.tasks.classify`, :func:`~ihrcf_env.tasks.hover_reward`).
 
 Misuse raises: a bad option TypeError/ValueError naming it (before any PyBullet client exists),
 ``step`` after a terminated episode or after ``close`` RuntimeError, copying or pickling TypeError.
@@ -59,7 +60,7 @@ Misuse raises: a bad option TypeError/ValueError naming it (before any PyBullet 
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar, NoReturn, SupportsIndex
+from typing import Any, NoReturn, SupportsIndex
 
 import gymnasium as gym
 import numpy as np
@@ -67,6 +68,7 @@ import pybullet as p
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from ihrcf_env import tasks
 from ihrcf_env.config.landing import DeckLandingConfig
 from ihrcf_env.config.make import make_config
 from ihrcf_env.config.sensors import CameraConfig
@@ -79,12 +81,13 @@ from ihrcf_env.core.profiles import PAPER_DURATION, MotionProfile, ShiftedProfil
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.core.seeding import SeedStreams
 from ihrcf_env.core.ship import fits
-from ihrcf_env.envs.display import require_gui_display
+from ihrcf_env.envs.render import EnvRenderer
 from ihrcf_env.sim.deck import DeckTrajectory
 from ihrcf_env.sim.disturbances import Wind
 from ihrcf_env.sim.registry import SENSORS
+from ihrcf_env.sim.sensing import CAMERA_SENSORS, Snapshot
 from ihrcf_env.sim.sensors.base import TAG_STATUS
-from ihrcf_env.sim.world import CAMERA_SENSORS, Snapshot, Touchdown, World
+from ihrcf_env.sim.world import Touchdown, World, touchdown_arrays
 
 RESET_OPTIONS = ("altitude", "offset", "yaw", "deck_time")
 #: Deck profiles drawn at random per episode (a draw the legs cannot follow is drawn again).
@@ -124,7 +127,6 @@ class DeckLandingEnv(gym.Env):
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
-    _gui_owner: ClassVar[DeckLandingEnv | None] = None
     #: The task whose defaults ``**options`` take (see :data:`~ihrcf_env.config.make.TASK_DEFAULTS`).
     task_name = "hover"
 
@@ -138,8 +140,8 @@ class DeckLandingEnv(gym.Env):
             raise TypeError(f"config must be a DeckLandingConfig (ihrcf_env.make_config), got {config!r}")
         cfg = config
         gui = cfg.render_mode == "human"
-        if gui:
-            self._claim_gui()
+        #: the chase view and GUI camera (claims the process's one GUI first with "human")
+        self.renderer = EnvRenderer(cfg.render_mode, cfg.chase_size)
         self.config: DeckLandingConfig = cfg
         self.render_mode = cfg.render_mode
         self.metadata = {**self.metadata, "render_fps": cfg.world.control_hz}
@@ -156,7 +158,12 @@ class DeckLandingEnv(gym.Env):
         #: the env's wind (None: calm air); its force is one of the world's disturbances
         self.wind: Wind | None = Wind(cfg.wind) if cfg.wind is not None else None
 
-        self.world = World(cfg.world, gui=gui)  # releases its client itself if it fails
+        try:
+            self.world = World(cfg.world, gui=gui)  # releases its client itself if it fails
+        except BaseException:
+            self.renderer.release()
+            raise
+        self.renderer.attach(self.world)
         self._closed = False
         try:
             self._camera_name = next((n for n in CAMERA_SENSORS if n in self.world.sensors), "")
@@ -207,9 +214,8 @@ class DeckLandingEnv(gym.Env):
         self._episode_over = False
         self._last_touchdown = None
         obs = self._get_obs()
-        info = self._get_info(self.world.snapshot())
-        if self.render_mode == "human":
-            self._update_gui_camera()
+        info = self._get_info(self.world.sensing.snapshot())
+        self.renderer.follow()
         return obs, info
 
     def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:
@@ -236,16 +242,20 @@ class DeckLandingEnv(gym.Env):
         ``touchdown`` the world's first contact in the period (None: none)."""
         if touchdown is not None and self._last_touchdown is None:
             self._last_touchdown = touchdown
-        snap = self.world.snapshot()
-        outcome, reason = self._outcome(touchdown, snap)
-        terminated = outcome != "flying"
+        snap = self.world.sensing.snapshot()
+        state, td = snap.task_state(), touchdown_arrays(touchdown)
+        offset = self._tag_offset(snap)
+        code = self._classify(state, td, offset)
+        terminated = bool(tasks.is_terminal(code))
         self._episode_over = terminated
         obs = self._get_obs()
-        reward, terms = self._get_rew(action, outcome, snap)
+        reward, terms = self._get_rew(action, code, state, td, offset)
         info = self._get_info(snap)
         info.update(terms)
-        info["outcome"] = outcome
-        info["crash_reason"] = reason
+        info["outcome"] = tasks.outcome_name(code)
+        info["crash_reason"] = tasks.describe(
+            code, td, state, self.config.task.thresholds, self._success_radius
+        )
         if touchdown is not None:
             info["touchdown"] = {
                 "body": touchdown.body,
@@ -254,8 +264,7 @@ class DeckLandingEnv(gym.Env):
                 "relative_tilt": touchdown.relative_tilt,
                 "on_deck": touchdown.on_deck,
             }
-        if self.render_mode == "human":
-            self._update_gui_camera()
+        self.renderer.follow()
         return obs, reward, terminated, False, info
 
     def apply_action(self, action: Any) -> NDArray[np.float64]:
@@ -269,18 +278,17 @@ class DeckLandingEnv(gym.Env):
         return a
 
     def render(self) -> NDArray[np.uint8] | None:
+        """The chase view (H, W, 3) uint8 with ``render_mode="rgb_array"``, else None
+        (:class:`~ihrcf_env.envs.render.EnvRenderer`)."""
         self._check_open()
-        if self.render_mode == "rgb_array":
-            return self._chase_view()
-        return None
+        return self.renderer.render()
 
     def close(self) -> None:
         """Disconnect the physics client; safe to call twice. The env is unusable afterwards."""
         if getattr(self, "_closed", True):
             return
         self._closed = True
-        if DeckLandingEnv._gui_owner is self:
-            DeckLandingEnv._gui_owner = None
+        self.renderer.release()
         self.world.close()
 
     # -- no copies: one env, one physics client -------------------------------------------
@@ -305,17 +313,6 @@ class DeckLandingEnv(gym.Env):
     def _check_open(self) -> None:
         if self._closed:
             raise RuntimeError("env is closed (close() was called): make a new one with gym.make")
-
-    def _claim_gui(self) -> None:
-        """PyBullet allows one GUI per process, and its GUI needs a display: check both first."""
-        owner = DeckLandingEnv._gui_owner
-        if owner is not None and not owner._closed:
-            raise RuntimeError(
-                'only one render_mode="human" env can be open per process (PyBullet allows one GUI '
-                'connection): close the other one, or use render_mode="rgb_array"'
-            )
-        require_gui_display()
-        DeckLandingEnv._gui_owner = self
 
     def _draw_deck(self, rng: np.random.Generator, deck_time: float) -> tuple[MotionProfile, bool]:
         """This episode's deck motion from ``rng``, started at ``deck_time`` (s), and whether its
@@ -376,7 +373,7 @@ class DeckLandingEnv(gym.Env):
 
     def _get_obs(self) -> dict[str, Any]:
         w = self.world
-        r = w.read_sensors()
+        r = w.sensing.read_sensors()
         obs: dict[str, Any] = {}
         if "image" in r:
             obs["image"] = r["image"]
@@ -386,13 +383,13 @@ class DeckLandingEnv(gym.Env):
             obs["tag_detected"] = int(bool(r["tag_detected"]))
             obs["tag_status"] = int(r["tag_status"])
         if self._camera_name:
-            age = w.time - w.sample_times[self._camera_name]
+            age = w.time - w.sensing.sample_times[self._camera_name]
             age = MAX_SENSOR_AGE if math.isnan(age) else age  # no frame yet (camera latency)
             obs["camera_age"] = np.array([min(max(age, 0.0), MAX_SENSOR_AGE)], np.float32)
-            if w.camera_pipeline is not None:
-                obs["camera_frame"] = np.array([w.frame_counts[self._camera_name]], np.int64)
-        for name in w.clocks:  # sensors on their own clock: the age of the sample shown
-            age = min(max(w.time - w.sample_times[name], 0.0), MAX_SENSOR_AGE)
+            if w.sensing.camera_pipeline is not None:
+                obs["camera_frame"] = np.array([w.sensing.frame_counts[self._camera_name]], np.int64)
+        for name in w.sensing.clocks:  # sensors on their own clock: the age of the sample shown
+            age = min(max(w.time - w.sensing.sample_times[name], 0.0), MAX_SENSOR_AGE)
             obs[f"{name}_age"] = np.array([age], np.float32)
         obs["ranges"] = clip(r["ranges"], 0.0, self._max_range).astype(np.float32)
         obs["ranges_valid"] = np.asarray(r["ranges_valid"], dtype=np.int8)
@@ -409,55 +406,46 @@ class DeckLandingEnv(gym.Env):
                 obs[key] = clip(value, out.low, out.high).astype(np.float32).reshape(out.shape)
         return obs
 
-    def _outcome(self, touchdown: Touchdown | None, s: Snapshot) -> tuple[str, str]:
-        """("flying" | "success" | "crash", reason)."""
-        th, arena = self.config.task.thresholds, self.config.task.arena
-        if touchdown is not None:
-            if touchdown.body != "deck":
-                return "crash", f"hit the {touchdown.body}"
-            if not touchdown.on_deck:
-                return "crash", "touched down outside the deck"
-            if abs(touchdown.relative_vertical_speed) >= th.success_speed:
-                return (
-                    "crash",
-                    f"vertical speed {abs(touchdown.relative_vertical_speed):.2f} m/s at touchdown",
-                )
-            if touchdown.relative_tilt >= th.success_tilt:
-                return "crash", f"tilt {math.degrees(touchdown.relative_tilt):.1f} deg at touchdown"
-            return "success", ""
-        pos, R = s.drone_position, s.drone_rotation
-        if math.acos(max(-1.0, min(1.0, R[2, 2]))) > th.crash_tilt:
-            return "crash", f"tilt over {math.degrees(th.crash_tilt):.0f} deg"
-        if abs(pos[0]) > arena.half_width or abs(pos[1]) > arena.half_width or pos[2] > arena.ceiling:
-            return "crash", "left the arena"
-        return "flying", ""
+    #: The landing tasks' success radius (m; None: the hover task has none), read by the rules.
+    _success_radius: float | None = None
+
+    _offset_memo: tuple[Snapshot | None, NDArray[np.float64]] = (None, np.zeros(()))
+
+    def _tag_offset(self, s: Snapshot) -> NDArray[np.float64]:
+        """:func:`ihrcf_env.tasks.tag_offset` of ``s`` (m; memoised on the snapshot, which the
+        world shares until its state changes)."""
+        if self._offset_memo[0] is not s:
+            self._offset_memo = (s, tasks.tag_offset(s.task_state()))
+        return self._offset_memo[1]
+
+    def _classify(self, state: tasks.TaskState, touchdown: tasks.TouchdownState, offset: Any) -> int:
+        """The step's outcome code (:data:`ihrcf_env.tasks.OUTCOME_NAMES`)."""
+        task = self.config.task
+        code = tasks.classify(state, touchdown, task.thresholds, task.arena, self._success_radius, offset)
+        return int(code)
 
     def _get_rew(
-        self, action: NDArray[np.float64], outcome: str, s: Snapshot
+        self,
+        action: NDArray[np.float64],
+        outcome: int,
+        state: tasks.TaskState,
+        touchdown: tasks.TouchdownState,
+        offset: Any,
     ) -> tuple[float, dict[str, float]]:
-        w = self.config.task.reward
-        e = s.drone_position - s.deck_position
-        terms = {
-            "reward_position": -w.position_xy * math.hypot(e[0], e[1]) - w.position_z * max(float(e[2]), 0.0),
-            "reward_velocity": -w.velocity * float(np.linalg.norm(s.relative_velocity)),
-            "reward_attitude": -w.attitude * s.relative_tilt,
-            "reward_action": -w.action * float(action @ action),
-            "reward_terminal": w.success
-            if outcome == "success"
-            else (-w.crash if outcome == "crash" else 0.0),
-        }
-        return float(sum(terms.values())), terms
+        """The step's reward and its terms (``reward_<term>``): :func:`ihrcf_env.tasks.hover_reward`."""
+        terms = tasks.hover_reward(state, action, np.asarray(outcome), self.config.task.reward, offset)
+        return _reward_info(terms)
 
     def _get_info(self, s: Snapshot) -> dict[str, Any]:
         w = self.world
         contacts = w.contact_bodies()
         info: dict[str, Any] = {"time": w.time}
         if self._camera_name:
-            info["camera_time"] = w.sample_times[self._camera_name]
+            info["camera_time"] = w.sensing.sample_times[self._camera_name]
             info["camera_age"] = w.time - info["camera_time"]
             if self.config.world.camera_output == "corners":
                 info["tag_reason"] = self._tag_reason
-        # copies: the snapshot's arrays are read-only and shared (World.snapshot is memoised)
+        # copies: the snapshot's arrays are read-only and shared (Sensing.snapshot is memoised)
         return info | {
             "deck_position_body": s.deck_position_body.copy(),
             "deck_euler_body": euler_from_matrix(s.deck_rotation_body),
@@ -473,31 +461,6 @@ class DeckLandingEnv(gym.Env):
             "relative_velocity": s.relative_velocity.copy(),
         }
 
-    # -- rendering -----------------------------------------------------------------------
-    def _chase_view(self) -> NDArray[np.uint8]:
-        from ihrcf_env.sim.sensors import render_rgb
-
-        w = self.world
-        w.deck.update_visuals()
-        pos, R = w.drone_pose()
-        deck_pos, _ = w.deck.pose()
-        target = 0.5 * (pos + deck_pos) - np.array([0.0, 0.0, 0.35])
-        yaw = math.atan2(R[1, 0], R[0, 0])
-        back = np.array([-math.cos(yaw), -math.sin(yaw), 0.0])
-        side = np.array([math.sin(yaw), -math.cos(yaw), 0.0])
-        eye = target + 2.5 * back + 0.8 * side + np.array([0.0, 0.0, 1.0])
-        cid = w.client
-        view = p.computeViewMatrix(eye.tolist(), target.tolist(), [0, 0, 1], physicsClientId=cid)
-        width, height = self.config.chase_size
-        proj = p.computeProjectionMatrixFOV(50.0, width / height, 0.05, 30.0, physicsClientId=cid)
-        cfg = CameraConfig(width=width, height=height)
-        return render_rgb(cid, cfg, view, proj)
-
-    def _update_gui_camera(self) -> None:
-        self.world.deck.update_visuals()
-        pos, _ = self.world.drone_pose()
-        p.resetDebugVisualizerCamera(2.5, 30.0, -25.0, pos.tolist(), physicsClientId=self.world.client)
-
     # -- conveniences for tools ---------------------------------------------------------
     @property
     def rig(self) -> SensorRig:
@@ -510,8 +473,14 @@ class DeckLandingEnv(gym.Env):
     def deck_pose_body(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Ground-truth deck (position m, euler rad) in the body frame."""
         self._check_open()
-        s = self.world.snapshot()
+        s = self.world.sensing.snapshot()
         return s.deck_position_body.copy(), euler_from_matrix(s.deck_rotation_body)
+
+
+def _reward_info(terms: tuple[Any, ...]) -> tuple[float, dict[str, float]]:
+    """(reward, ``{"reward_<term>": value}``) of one env's reward terms (a NamedTuple of 0-d arrays)."""
+    values = {f"reward_{name}": float(v) for name, v in zip(terms._fields, terms, strict=True)}  # type: ignore[attr-defined]
+    return float(tasks.total(tuple(values.values()))), values
 
 
 def _check_action(action: Any) -> NDArray[np.float64]:

@@ -40,10 +40,11 @@ from its first soft, off-target touchdowns towards the target (with one flat -10
 failure, a learner must succeed in ~40 % of its attempts before trying beats hovering: PPO settled
 on hovering). The order success > hover > crash still holds with fixed policies (test).
 
-``info`` adds ``tag_offset`` (m, horizontal) and ``is_success`` to the ground truth of the hover
-task's ``info`` (which has ``wind_velocity`` and ``relative_velocity``, world, m/s). The
-observation is the raw env's; ``ihrcf_env/DeckLanding-v1`` wraps it
-(:mod:`ihrcf_env.wrappers.landing_obs`).
+The outcome and the reward are :func:`ihrcf_env.tasks.classify` (with ``success_radius``) and
+:func:`ihrcf_env.tasks.landing_reward`. ``info`` adds ``tag_offset`` (m, horizontal) and
+``is_success`` to the ground truth of the hover task's ``info`` (which has ``wind_velocity`` and
+``relative_velocity``, world, m/s). The observation is the raw env's; ``ihrcf_env/DeckLanding-v1``
+wraps it (:mod:`ihrcf_env.wrappers.landing_obs`).
 """
 
 from __future__ import annotations
@@ -54,15 +55,17 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ihrcf_env import tasks
 from ihrcf_env.config.make import TASK_DEFAULTS
 from ihrcf_env.config.task import LandingGoal
-from ihrcf_env.envs.deck_landing import DeckLandingEnv
-from ihrcf_env.sim.world import Snapshot, Touchdown
+from ihrcf_env.envs.deck_landing import DeckLandingEnv, _reward_info
+from ihrcf_env.sim.sensing import Snapshot
+from ihrcf_env.sim.world import Touchdown, touchdown_arrays
 
 #: ``gym.make`` defaults of v1 that differ from the hover task's (any of them can still be given).
 V1_DEFAULTS: dict[str, Any] = TASK_DEFAULTS["landing-v1"]
 #: Legs below the drone's centre (m): the height of the centre above the deck when landed.
-LEG_LENGTH = 0.10
+LEG_LENGTH = tasks.LEG_LENGTH
 #: Half of the tag's printed extent around its centre (m) per metre of ``tag_size``: the black
 #: square (8 cells) plus the one-cell white border the detector needs, i.e. 10/8 / 2.
 TAG_EXTENT = 10.0 / 8.0 / 2.0
@@ -85,6 +88,7 @@ class DeckLandingV1Env(DeckLandingEnv):
             self.close()
             raise ValueError('DeckLandingV1Env needs a landing-task config (make_config(task="landing-v1"))')
         self.goal: LandingGoal = goal
+        self._success_radius = goal.success_radius
         self._phi = 0.0
 
     # -- start -------------------------------------------------------------------------------
@@ -120,7 +124,7 @@ class DeckLandingV1Env(DeckLandingEnv):
     # -- episode -----------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict, dict]:
         obs, info = super().reset(seed=seed, options=options)
-        self._phi = self.potential(self.world.snapshot())
+        self._phi = self.potential(self.world.sensing.snapshot())
         info["is_success"] = False
         return obs, info
 
@@ -133,66 +137,56 @@ class DeckLandingV1Env(DeckLandingEnv):
 
     @staticmethod
     def tag_offset(s: Snapshot) -> float:
-        """Horizontal distance (m) of the drone's centre from the tag centre (the deck origin)."""
-        return math.hypot(*(s.drone_position[:2] - s.deck_position[:2]))
+        """Horizontal distance (m) of the drone's centre from the tag centre (the deck origin):
+        :func:`ihrcf_env.tasks.tag_offset`."""
+        return float(tasks.tag_offset(s.task_state()))
 
     def potential(self, s: Snapshot, touchdown: Touchdown | None = None) -> float:
         """Shaping potential Phi (module docstring) of the state ``s``; after a ``touchdown`` its
-        approach speed stands for the speed (the contact has already changed the velocity)."""
-        w = self.goal.reward
-        height = max(float(s.drone_position[2] - s.deck_position[2]) - LEG_LENGTH, 0.0)
-        speed = (
-            abs(touchdown.relative_vertical_speed)
-            if touchdown is not None
-            else float(np.linalg.norm(s.relative_velocity))
-        )
-        return -(w.distance * self.tag_offset(s) + w.height * height + w.speed * speed)
-
-    def _outcome(self, touchdown: Touchdown | None, s: Snapshot) -> tuple[str, str]:
-        outcome, reason = super()._outcome(touchdown, s)
-        radius = self.goal.success_radius
-        if outcome == "success" and self.tag_offset(s) > radius:
-            return "crash", f"touched down {self.tag_offset(s):.2f} m from the tag centre (> {radius:g} m)"
-        return outcome, reason
+        approach speed stands for the speed (the contact has already changed the velocity):
+        :func:`ihrcf_env.tasks.landing_potential`."""
+        td = touchdown_arrays(touchdown) if touchdown is not None else None
+        return float(tasks.landing_potential(s.task_state(), self.goal.reward, td))
 
     def _get_rew(
-        self, action: NDArray[np.float64], outcome: str, s: Snapshot
+        self,
+        action: NDArray[np.float64],
+        outcome: int,
+        state: tasks.TaskState,
+        touchdown: tasks.TouchdownState,
+        offset: Any,
     ) -> tuple[float, dict[str, float]]:
-        w, dt = self.goal.reward, 1.0 / self.config.world.control_hz
-        phi = self.potential(s, self._last_touchdown if outcome != "flying" else None)
-        terms = {
-            "reward_progress": phi - self._phi,
-            "reward_time": -w.time * dt,
-            "reward_action": -w.action * float(action @ action) * dt,
-            "reward_terminal": w.success
-            if outcome == "success"
-            else (-self.failure_penalty(s) if outcome == "crash" else 0.0),
-        }
-        self._phi = phi
-        return float(sum(terms.values())), terms
+        """The step's reward and its terms: :func:`ihrcf_env.tasks.landing_reward`."""
+        terms, phi = tasks.landing_reward(
+            state,
+            action,
+            np.asarray(outcome),
+            touchdown,
+            np.asarray(self._phi),
+            self.goal.reward,
+            self.config.task.thresholds,
+            self.goal.success_radius,
+            1.0 / self.config.world.control_hz,
+            offset,
+        )
+        self._phi = float(phi)
+        return _reward_info(terms)
 
     def miss(self, s: Snapshot) -> float:
         """How far the touchdown missed the success limits: max of speed, tilt and offset each over
-        its limit (< 1: success); inf without a touchdown on the deck."""
-        td = self._last_touchdown
-        if td is None or td.body != "deck" or not td.on_deck:
-            return math.inf
+        its limit (< 1: success); inf without a touchdown on the deck (:func:`ihrcf_env.tasks.miss`)."""
+        td = touchdown_arrays(self._last_touchdown)
         th = self.config.task.thresholds
-        return max(
-            abs(td.relative_vertical_speed) / th.success_speed,
-            td.relative_tilt / th.success_tilt,
-            self.tag_offset(s) / self.goal.success_radius,
-        )
+        return float(tasks.miss(s.task_state(), td, th, self.goal.success_radius))
 
     def failure_penalty(self, s: Snapshot) -> float:
         """The penalty (> 0) of a failed episode: graded by :meth:`miss` for a touchdown on the deck,
-        the full ``crash`` weight otherwise (module docstring)."""
-        w = self.goal.reward
-        return w.near_miss + (w.crash - w.near_miss) * min(1.0, max(0.0, self.miss(s) - 1.0))
+        the full ``crash`` weight otherwise (module docstring; :func:`ihrcf_env.tasks.failure_penalty`)."""
+        return float(tasks.failure_penalty(np.asarray(self.miss(s)), self.goal.reward))
 
     def _get_info(self, s: Snapshot) -> dict[str, Any]:
         info = super()._get_info(s)
-        info["tag_offset"] = self.tag_offset(s)
+        info["tag_offset"] = float(self._tag_offset(s))
         return info
 
 

@@ -74,7 +74,7 @@ def realism_cost_ms(frames: int = 60, width: int = 512, height: int = 512, seed:
         for k in range(frames + 3):
             world.step()
             world.deck.update_visuals()
-            state = world.body_state()
+            state = world.sensing.body_state()
             order = (ideal, real) if k % 2 == 0 else (real, ideal)
             for cam in order:
                 t0 = time.perf_counter()
@@ -115,7 +115,7 @@ def save_realistic_example(
         world.reset_random(rng)
         for _ in range(steps):
             world.step()
-        image = world.read_sensors(rng, ("camera",))["image"]
+        image = world.sensing.read_sensors(rng, ("camera",))["image"]
     finally:
         world.close()
     if size != image.shape[1]:

@@ -321,7 +321,7 @@ def validate_preset(
             for k in range(frames):
                 scored = k >= warmup  # warm-up frames reach the estimators but are not scored
                 world.step()
-                state = world.body_state()
+                state = world.sensing.body_state()
                 tof = world.tof.read(state, dt, rng)
                 imu_r = world.imu_sensor.read(state, dt, rng)
                 imu = ImuSample(imu_r["quaternion"], imu_r["angular_velocity"], imu_r["linear_acceleration"])
@@ -335,7 +335,7 @@ def validate_preset(
                     corners[f"projected{i}"] = reading["tag_corners"] if seen else None
                     reasons[f"projected{i}"] = str(reading["tag_reason"])
                 truth = projs[0].last_features
-                p_bd, R_bd = world.deck_in_body()
+                p_bd, R_bd = world.sensing.deck_in_body()
                 gt_euler = euler_from_matrix(R_bd)
                 ranges = np.asarray(tof["ranges"], dtype=np.float64)
                 ranges_valid = np.asarray(tof["ranges_valid"]).astype(bool)

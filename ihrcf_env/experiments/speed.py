@@ -243,7 +243,7 @@ def component_costs(frames: int = 100, sensor_preset: str = "ideal") -> dict[str
             return out
 
         dt = 1.0 / 20
-        state = main.body_state
+        state = main.sensing.body_state
         for _ in range(frames + 3):
             timed("physics", main.step)
             proj.step()
@@ -253,8 +253,8 @@ def component_costs(frames: int = 100, sensor_preset: str = "ideal") -> dict[str
             main.deck.update_visuals()
             image = timed("render", lambda: main.sensors["camera"].read(state(), dt, rng))["image"]
             corners = timed("detect", lambda img=image: est.detector.detect(img))  # type: ignore[misc]
-            timed("window", lambda: win.sensors[TAG_CAMERA].read(win.body_state(), dt, rngs[2]))
-            timed("projected", lambda: proj.sensors[TAG_CAMERA].read(proj.body_state(), dt, rngs[1]))
+            timed("window", lambda: win.sensors[TAG_CAMERA].read(win.sensing.body_state(), dt, rngs[2]))
+            timed("projected", lambda: proj.sensors[TAG_CAMERA].read(proj.sensing.body_state(), dt, rngs[1]))
             frame = SensorFrame(
                 time=main.time,
                 corners=corners,

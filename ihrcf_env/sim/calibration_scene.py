@@ -12,7 +12,7 @@
 
 The deck's AprilTag quad is parked out of sight (:meth:`CalibrationScene.hide_tag`) for every
 frame taken with :meth:`CalibrationScene.render`; the world's own ``update_visuals`` (called by
-``World.render_camera``/``World.reset``) puts it back, as does :meth:`CalibrationScene.restore_tag`.
+``World.sensing.render_camera``/``World.reset``) puts it back, as does :meth:`CalibrationScene.restore_tag`.
 """
 
 from __future__ import annotations
@@ -176,7 +176,7 @@ class CalibrationScene:
     def render(self) -> NDArray[np.uint8]:
         """The drone camera's RGB image (H, W, 3) uint8 with the tag hidden and the props as placed.
 
-        Deck visuals (legs) are synchronised first, then the tag is parked; ``World.render_camera``
+        Deck visuals (legs) are synchronised first, then the tag is parked; ``World.sensing.render_camera``
         is not used because it puts the tag back.
         """
         cam = self.world.camera

@@ -8,40 +8,31 @@ independent.
 from __future__ import annotations
 
 import math
-import struct
 import tempfile
 import weakref
-from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
+from ihrcf_env import tasks
 from ihrcf_env.config.sensors import CameraConfig
 from ihrcf_env.config.wind import Disturbance
 from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.constants import GRAVITY
-from ihrcf_env.core.frames import matrix_from_quat, quat_from_matrix, relative_pose
+from ihrcf_env.core.frames import matrix_from_quat, quat_from_matrix
 from ihrcf_env.core.profiles import MotionProfile
 from ihrcf_env.core.seeding import SeedStreams
-from ihrcf_env.sim.deck import Deck, DeckTrajectory, rigid_point_velocity
+from ihrcf_env.sim.deck import Deck, DeckTrajectory
 from ihrcf_env.sim.disturbances import disturbance_force
 from ihrcf_env.sim.drone import Quadrotor, VelocityController
 from ihrcf_env.sim.ground_effect import GroundEffect, deck_surface, rotor_positions
 from ihrcf_env.sim.navigation import Navigation, make_navigation
-from ihrcf_env.sim.registry import apply_faults, finite_reading
-from ihrcf_env.sim.sensors import IMU, BodyState, DownCamera, Sensor, ToFArray
+from ihrcf_env.sim.sensing import CAMERA_SENSORS, Sensing
+from ihrcf_env.sim.sensors import IMU, DownCamera, Sensor, ToFArray
 from ihrcf_env.sim.sensors.base import TAG_CAMERA
-from ihrcf_env.sim.sensors.timing import DelayLine, SampleClock, no_frame_reading
-
-if TYPE_CHECKING:
-    from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
-
-#: Names of the camera sensors in ``World.sensors`` (read at ``camera_hz``, held in between).
-CAMERA_SENSORS: tuple[str, ...] = ("camera", TAG_CAMERA)
 
 
 def _release(client: int, tmp: tempfile.TemporaryDirectory[str]) -> None:
@@ -56,7 +47,8 @@ def _release(client: int, tmp: tempfile.TemporaryDirectory[str]) -> None:
 
 @dataclass
 class Touchdown:
-    """First contact of the drone with something during a control step."""
+    """First contact of the drone with something during a control step (its figures from
+    :func:`ihrcf_env.tasks.touchdown_state`)."""
 
     body: str  # "deck", "ground" or "base"
     time: float  # s
@@ -64,42 +56,33 @@ class Touchdown:
     relative_tilt: float  # rad, angle between drone z and deck z
     on_deck: bool  # drone centre projects inside the deck's top surface
 
+    def task_state(self) -> tasks.TouchdownState:
+        """This touchdown as the task rules' record (:class:`~ihrcf_env.tasks.TouchdownState`)."""
+        return touchdown_arrays(self)
 
-@dataclass(frozen=True)
-class Snapshot:
-    """Ground truth at one instant. World frame unless the name says body (drone FLU frame).
 
-    :meth:`World.snapshot` shares one Snapshot between its callers until the state changes: its
-    arrays are read-only."""
-
-    drone_position: NDArray[np.float64]
-    drone_rotation: NDArray[np.float64]
-    drone_quaternion: NDArray[np.float64]  # x, y, z, w
-    drone_velocity: NDArray[np.float64]
-    deck_position: NDArray[np.float64]  # deck frame origin (tag centre on the top surface)
-    deck_rotation: NDArray[np.float64]
-    deck_point_velocity: NDArray[np.float64]  # velocity of the deck's material point at the drone
-    deck_position_body: NDArray[np.float64]
-    deck_rotation_body: NDArray[np.float64]
-
-    @property
-    def relative_velocity(self) -> NDArray[np.float64]:
-        return self.drone_velocity - self.deck_point_velocity
-
-    @property
-    def relative_tilt(self) -> float:
-        """Angle (rad) between the drone's z axis and the deck normal."""
-        c = float(self.drone_rotation[:, 2] @ self.deck_rotation[:, 2])
-        return math.acos(max(-1.0, min(1.0, c)))
+def touchdown_arrays(touchdown: Touchdown | None) -> tasks.TouchdownState:
+    """``touchdown`` as the task rules' record (0-d arrays; no contact when None)."""
+    if touchdown is None:
+        return tasks.TouchdownState(
+            np.asarray(tasks.NO_CONTACT), np.asarray(0.0), np.asarray(0.0), np.asarray(False)
+        )
+    return tasks.TouchdownState(
+        contact=np.asarray(tasks.CONTACT_NAMES.index(touchdown.body)),
+        relative_vertical_speed=np.asarray(touchdown.relative_vertical_speed, dtype=np.float64),
+        relative_tilt=np.asarray(touchdown.relative_tilt, dtype=np.float64),
+        on_deck=np.asarray(touchdown.on_deck),
+    )
 
 
 class World:
     """Ground + Stewart deck + quadrotor with its sensors in one explicit PyBullet client.
 
-    Sensors (:class:`~ihrcf_env.sim.sensors.Sensor`) are in :attr:`sensors`, by name, in reading
-    order; :meth:`read_sensors` reads them all. Disturbances
-    (:class:`~ihrcf_env.config.wind.Disturbance`) added with :meth:`add_disturbance` push
-    the drone at every physics step.
+    The world builds, resets and steps the scene (contacts and touchdowns included). Sensors
+    (:class:`~ihrcf_env.sim.sensors.Sensor`) are in :attr:`sensors`, by name, in reading order;
+    :attr:`sensing` (:class:`~ihrcf_env.sim.sensing.Sensing`) reads them and the ground truth.
+    Disturbances (:class:`~ihrcf_env.config.wind.Disturbance`) added with
+    :meth:`add_disturbance` push the drone at every physics step.
 
     In velocity mode the autopilot closes its position and velocity loops on :attr:`navigation`'s
     estimate (:mod:`ihrcf_env.sim.navigation`: the truth, or a GNSS/INS estimate with drifting
@@ -156,15 +139,10 @@ class World:
             self.sensors.update(self._camera_sensor(cfg.camera))
         self.sensors["tof"] = self.tof
         self.sensors["imu"] = self.imu_sensor
-        from ihrcf_env.sim.registry import NOISE_MODELS, SENSORS, build_faults, measurement_sizes
+        from ihrcf_env.sim.registry import SENSORS
 
         for name in cfg.extra_sensors:
             self.sensors[name] = SENSORS[name].factory(self)
-        sizes = measurement_sizes(cfg.extra_sensors)
-        #: measurement -> the noise model corrupting it (``measurement_noise``)
-        self.corruptors = {key: NOISE_MODELS[model](sizes[key]) for key, model in cfg.measurement_noise}
-        #: fault name -> the fault (``faults``), applied in this order after the corruptors
-        self.faults = build_faults(cfg.faults)
         for name in CAMERA_SENSORS:
             if name in self.sensors:
                 self.sensors[name].update_interval = cfg.camera_every  # type: ignore[attr-defined]
@@ -172,32 +150,13 @@ class World:
         self._motor_xy = cfg.quad.motor_xy.tolist()
         self.disturbances: list[Disturbance] = []
         self.tick = 0
-        self._held: dict[str, dict[str, NDArray]] = {}  # sensor -> its last reading
-        #: sensor name -> simulated time (s) of the reading shown (NaN: none yet this episode); for
-        #: a camera, the exposure time of the frame shown
-        self.sample_times: dict[str, float] = dict.fromkeys(self.sensors, math.nan)
-        #: sensors on their own clock (``ToFConfig.rate_hz``, ``IMUConfig.rate_hz``): name -> clock
-        self.clocks: dict[str, SampleClock] = {
-            name: SampleClock(rate, cfg.physics_hz)
-            for name, rate in (("tof", cfg.tof.rate_hz), ("imu", cfg.imu.rate_hz))
-            if rate is not None
-        }
-        latency = cfg.camera.latency if cfg.camera is not None else 0.0
-        #: the camera's frames in flight (``CameraConfig.latency`` > 0), or None
-        self.camera_pipeline = DelayLine(latency, cfg.physics_hz) if latency > 0 else None
-        #: camera sensor -> frames delivered this episode
-        self.frame_counts: dict[str, int] = {n: 0 for n in CAMERA_SENSORS if n in self.sensors}
-        self._rngs: dict[str, np.random.Generator] = {}  # stream name -> this episode's generator
         self._motor_cmd = [0.0] * 4
         self._acc_world = np.zeros(3)
         self._setpoint = (0.0, 0.0, 0.0, 0.0)
         self._mode_velocity = cfg.action_mode == "velocity"
-        if self.config.physics == "numpy":
-            pass
-        self._snapshot: Snapshot | None = None  # memo of snapshot(), valid for _snapshot_key
-        self._snapshot_key = b""
-        self._rotation = np.eye(3)  # memo of _drone_rotation(), valid for _rotation_key
-        self._rotation_key = b""
+        #: reading the sensors (noise models, faults, sample clocks, the camera's delay line) and
+        #: the ground truth (:class:`~ihrcf_env.sim.sensing.Sensing`)
+        self.sensing = Sensing(self)
 
     def _camera_sensor(self, camera: CameraConfig) -> dict[str, Sensor]:
         """The camera as configured: the image (``"camera"``), or the tag corners (:data:`TAG_CAMERA`)
@@ -246,13 +205,7 @@ class World:
             stroke_checked=stroke_checked,
         )
         self.tick = 0
-        self._held = {}
-        self.sample_times = dict.fromkeys(self.sensors, math.nan)
-        for clock in self.clocks.values():
-            clock.reset()
-        if self.camera_pipeline is not None:
-            self.camera_pipeline.reset()
-        self.frame_counts = dict.fromkeys(self.frame_counts, 0)
+        self.sensing.reset()
         self.deck.set_trajectory(traj)
         deck_pos, _ = self.deck.pose()
         start = np.array([deck_pos[0] + offset_xy[0], deck_pos[1] + offset_xy[1], deck_pos[2] + altitude])
@@ -272,16 +225,7 @@ class World:
         position hold then engages on the estimate (as an autopilot's does), not on the truth."""
         if isinstance(streams, np.random.Generator):
             streams = SeedStreams.from_generator(streams)
-        self._rngs = {}
-        for name, sensor in self.sensors.items():
-            rng = self._rngs[name] = streams.generator(f"sensor.{name}")
-            sensor.reset(rng)
-        for key, model in self.corruptors.items():
-            rng = self._rngs[f"noise.{key}"] = streams.generator(f"noise.{key}")
-            model.reset(rng)
-        for key, fault in self.faults.items():
-            rng = self._rngs[f"fault.{key}"] = streams.generator(f"fault.{key}")
-            fault.reset(rng)
+        self.sensing.reset_random(streams)
         names = self.disturbance_streams
         for i, d in enumerate(self.disturbances):
             d.reset(streams.generator(names[i] if i < len(names) else f"disturbance.{i}"))
@@ -421,7 +365,7 @@ class World:
         body = quad.body
         get_pose, get_velocity = p.getBasePositionAndOrientation, p.getBaseVelocity
         half_thickness = self.config.deck.thickness / 2
-        due = self._due_samples() if self.clocks else None
+        due = self.sensing.due_samples() if self.sensing.clocks else None
         for _ in range(self.config.substeps):
             deck.drive(self.tick)
             pos, quat = get_pose(body, physicsClientId=cid)  # quad.state(), inlined
@@ -451,15 +395,12 @@ class World:
             p.stepSimulation(physicsClientId=cid)
             self.tick += 1
             if due and self.tick in due:
-                self._sample_clocked(due[self.tick], vel)
+                self.sensing.sample_clocked(due[self.tick], vel)
             if first is None:
                 first = self._check_contact(approach_velocity=vel)
         v_now = p.getBaseVelocity(quad.body, physicsClientId=cid)[0]
         self._acc_world = (np.asarray(v_now) - np.asarray(prev_vel)) / dt
         return first
-
-        if self.config.physics == "numpy":
-            from ihrcf_env.sim.batched.loop import advance
 
     def _check_contact(self, approach_velocity: tuple[float, ...]) -> Touchdown | None:
         """Touchdown record if the drone touches anything after this physics step.
@@ -477,16 +418,19 @@ class World:
     def touchdown(self, body: str, approach_velocity: tuple[float, ...]) -> Touchdown:
         """The :class:`Touchdown` record of a contact with ``body`` now, the drone having approached
         at ``approach_velocity`` (world, m/s)."""
-        s = self.snapshot()
-        local = s.deck_rotation.T @ (s.drone_position - s.deck_position)
-        half = self.deck.top_half_extent
-        v_rel = np.asarray(approach_velocity) - s.deck_point_velocity
+        s = self.sensing.snapshot()
+        td = tasks.touchdown_state(
+            s.task_state(),
+            tasks.CONTACT_NAMES.index(body),
+            np.asarray(approach_velocity, dtype=np.float64),
+            self.deck.top_half_extent,
+        )
         return Touchdown(
             body=body,
             time=self.time,
-            relative_vertical_speed=float(v_rel @ s.deck_rotation[:, 2]),
-            relative_tilt=s.relative_tilt,
-            on_deck=bool(abs(local[0]) <= half and abs(local[1]) <= half),
+            relative_vertical_speed=float(td.relative_vertical_speed),
+            relative_tilt=float(td.relative_tilt),
+            on_deck=bool(td.on_deck),
         )
 
     def contact_bodies(self) -> set[int]:
@@ -512,290 +456,3 @@ class World:
         pos, _, vel, _ = self.quad.state()
         _, est = self.navigation.estimate(self.time, pos, vel)
         return np.asarray(est, dtype=np.float64)
-
-    def body_state(self, acceleration: NDArray[np.float64] | None = None) -> BodyState:
-        """The drone's true state now, as sensors see it (``acceleration``, world m/s^2: over the
-        last physics step; default the one of the last control step's end)."""
-        self._check_open()
-        pos, quat, vel, omega = self.quad.state()
-        return BodyState(
-            time=self.time,
-            position=np.asarray(pos),
-            rotation=self._drone_rotation(quat).copy(),
-            quaternion=np.asarray(quat),
-            velocity=np.asarray(vel),
-            angular_velocity=np.asarray(omega),
-            acceleration=(self._acc_world if acceleration is None else acceleration).copy(),
-        )
-
-    def read_sensors(
-        self, rng: np.random.Generator | None = None, names: tuple[str, ...] | None = None
-    ) -> dict[str, NDArray]:
-        """One reading of the sensors ``names`` (default: all, in :attr:`sensors` order), merged into
-        one mapping of measurement names (``image``, or ``tag_corners``/``tag_detected``/``tag_reason``;
-        ``ranges``, ``ranges_valid``, ``quaternion``, ``angular_velocity``, ``linear_acceleration``)
-        to arrays. Call once per control step: noise models advance by one control period.
-
-        Each sensor samples every ``update_interval`` control steps (its attribute, default 1; the
-        camera's is ``control_hz / camera_hz``), counted from the episode's start; in between its
-        last reading is repeated (fresh copies of the same arrays) and :attr:`sample_times` (s)
-        still says when it was taken. A sensor on its own clock (:attr:`clocks`) shows its last
-        sample instead (taken by :meth:`step` at its own instants), and a camera with a latency
-        shows the last frame whose delivery time has come (:attr:`camera_pipeline`;
-        :attr:`sample_times` holds its exposure time, :attr:`frame_counts` counts the frames
-        delivered). Noise is drawn from each sensor's own stream (see :meth:`reset_random`), or
-        from ``rng`` when given. Named explicitly, a sensor is always read now."""
-        state = self.body_state()
-        control_dt = self.config.substeps * self.dt
-        out: dict[str, NDArray] = {}
-        held = names is None
-        for name in names if names is not None else tuple(self.sensors):
-            sensor = self.sensors[name]
-            every = int(getattr(sensor, "update_interval", 1))
-            if held and name in self.clocks:
-                out.update(self._read_clocked(name, state, rng))
-                continue
-            if held and self.camera_pipeline is not None and name in self.frame_counts:
-                out.update(self._read_delayed(name, state, self.takes_fresh(name), control_dt * every, rng))
-                continue
-            last = self._held.get(name)
-            if held and not self.takes_fresh(name):
-                assert last is not None
-                out.update({k: v.copy() for k, v in last.items()})
-                continue
-            reading = self._take(name, state, control_dt * every, rng)
-            out.update(reading)
-            if held:
-                self._held[name] = dict(reading)
-                self.sample_times[name] = state.time
-                if name in self.frame_counts:
-                    self.frame_counts[name] += 1
-        return out
-
-    def takes_fresh(self, name: str) -> bool:
-        """True when the next :meth:`read_sensors` (of all sensors) takes a new reading of sensor
-        ``name`` at this tick (False: it shows a held one, or the sensor runs on its own clock)."""
-        if name in self.clocks:
-            return False
-        step = self.tick // self.config.substeps
-        every = int(getattr(self.sensors[name], "update_interval", 1))
-        line = self.camera_pipeline
-        if line is not None and name in self.frame_counts:
-            return step % every == 0 and line.exposed_at != self.tick
-        return step % every == 0 or self._held.get(name) is None
-
-    def camera_ahead(self) -> tuple[ProjectedTagCamera, BodyState, np.random.Generator] | None:
-        """The projected tag camera with closed-form rays, the state and the generator of the
-        reading the next :meth:`read_sensors` takes of it, or None when it takes none (or the
-        camera is another kind): a reading cast ahead for many worlds at once
-        (:func:`~ihrcf_env.sim.batched.loop.advance`) is taken by that read."""
-        from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera as Projected
-
-        cam = self.sensors.get(TAG_CAMERA)
-        gen = self._rngs.get(TAG_CAMERA)
-        if not isinstance(cam, Projected) or cam.batched is None or gen is None:
-            return None
-        if cam.quality == "realistic" and cam.episode is None:  # its own read draws the episode
-            return None
-        if not self.takes_fresh(TAG_CAMERA):
-            return None
-        return cam, self.body_state(), gen
-
-    def _take(
-        self, name: str, state: BodyState, dt: float, rng: np.random.Generator | None
-    ) -> Mapping[str, NDArray]:
-        """One reading of sensor ``name`` at ``state``, ``dt`` s after its previous one, with the
-        configured noise models applied."""
-        if name == "camera":
-            self.deck.update_visuals()
-        gen = rng if rng is not None else self._rngs.get(name)
-        if gen is None:  # before the first reset_random: a fixed stream
-            gen = self._rngs[name] = SeedStreams(0).generator(f"sensor.{name}")
-        reading = self.sensors[name].read(state, dt, gen)
-        if self.corruptors:
-            reading = self._corrupt(reading, dt, rng)
-        if self.faults:
-            reading = apply_faults(self.faults, reading, state.time, dt, self._fault_rng(rng))
-        return finite_reading(reading, self.config.tof.max_range, self.corruptors, self.faults)
-
-    def _read_delayed(
-        self, name: str, state: BodyState, exposing: bool, dt: float, rng: np.random.Generator | None
-    ) -> dict[str, NDArray]:
-        """The camera through its delay line: expose a frame now (``exposing``: a camera step, not
-        yet exposed at this tick), then show the last frame due."""
-        line = self.camera_pipeline
-        assert line is not None
-        if exposing:
-            line.push(self.tick, self._take(name, state, dt, rng))
-        for tick, reading in line.deliver(self.tick):
-            self._held[name] = reading
-            self.sample_times[name] = tick * self.dt
-            self.frame_counts[name] += 1
-        last = self._held.get(name)
-        if last is None:
-            cam = self.config.camera
-            assert cam is not None
-            return no_frame_reading(name, cam.width, cam.height)
-        return {k: v.copy() for k, v in last.items()}
-
-    def _read_clocked(
-        self, name: str, state: BodyState, rng: np.random.Generator | None
-    ) -> dict[str, NDArray]:
-        """A sensor on its own clock: sampled now if a sample falls on this tick (or none was taken
-        yet this episode), else its last sample."""
-        clock = self.clocks[name]
-        if name not in self._held or clock.last_index(self.tick) >= clock.next:
-            self._store_clocked(name, state, rng)
-        return {k: v.copy() for k, v in self._held[name].items()}
-
-    def _store_clocked(self, name: str, state: BodyState, rng: np.random.Generator | None = None) -> None:
-        clock = self.clocks[name]
-        self._held[name] = dict(self._take(name, state, clock.period, rng))
-        self.sample_times[name] = state.time
-        clock.taken(self.tick)
-
-    def _due_samples(self) -> dict[int, list[str]]:
-        """Physics tick -> the sensors on their own clock that sample there, over the next control
-        period (after the current tick)."""
-        due: dict[int, list[str]] = {}
-        first, last = self.tick + 1, self.tick + self.config.substeps
-        for name, clock in self.clocks.items():
-            for tick in clock.pending(first, last):
-                due.setdefault(tick, []).append(name)
-        return due
-
-    def _sample_clocked(self, names: list[str], previous_velocity: tuple[float, ...]) -> None:
-        """Sample ``names`` now, mid control step (acceleration over the last physics step)."""
-        v_now = p.getBaseVelocity(self.quad.body, physicsClientId=self.client)[0]
-        acc = (np.asarray(v_now) - np.asarray(previous_velocity)) / self.dt
-        state = self.body_state(acc)
-        for name in names:
-            self._store_clocked(name, state)
-
-    def _corrupt(
-        self, reading: Mapping[str, NDArray], dt: float, rng: np.random.Generator | None
-    ) -> dict[str, NDArray]:
-        """``reading`` with the configured noise models applied (a ``<name>_valid`` mask, when the
-        reading has one, travels with the values)."""
-        out = dict(reading)
-        for key, model in self.corruptors.items():
-            if key not in out:
-                continue
-            value = np.asarray(out[key], dtype=np.float64)
-            mask_key = f"{key}_valid"
-            valid = (
-                np.asarray(out[mask_key]).astype(bool).ravel()
-                if mask_key in out
-                else np.ones(value.size, bool)
-            )
-            gen = rng if rng is not None else self._rngs.get(f"noise.{key}")
-            if gen is None:  # before the first reset_random: a fixed stream
-                gen = self._rngs[f"noise.{key}"] = SeedStreams(0).generator(f"noise.{key}")
-            noisy, ok = model.apply(value.ravel(), valid, dt, gen)
-            out[key] = np.asarray(noisy, dtype=np.float64).reshape(value.shape)
-            if mask_key in out:
-                out[mask_key] = np.asarray(ok).astype(np.asarray(out[mask_key]).dtype)
-        return out
-
-    def _fault_rng(self, rng: np.random.Generator | None) -> Callable[[str], np.random.Generator]:
-        """Fault name -> its stream (``rng`` when given; before the first reset_random a fixed one)."""
-
-        def gen(name: str) -> np.random.Generator:
-            if rng is not None:
-                return rng
-            key = f"fault.{name}"
-            if key not in self._rngs:
-                self._rngs[key] = SeedStreams(0).generator(key)
-            return self._rngs[key]
-
-        return gen
-
-    @property
-    def camera_time(self) -> float:
-        """Simulated exposure time (s) of the camera frame last delivered (NaN: none yet this
-        episode)."""
-        for name in CAMERA_SENSORS:
-            if name in self.sample_times:
-                return self.sample_times[name]
-        return math.nan
-
-    def render_camera(self) -> NDArray[np.uint8]:
-        """The downward camera's RGB image (H, W, 3) uint8."""
-        if self.camera is None:
-            raise RuntimeError("this world has no camera (camera=None in WorldConfig)")
-        image: NDArray[np.uint8] = self.read_sensors(np.random.default_rng(0), ("camera",))["image"]
-        return image
-
-    def read_tof(self, rng: np.random.Generator) -> tuple[NDArray[np.float32], NDArray[np.int8]]:
-        """ToF ``(ranges, ranges_valid)``, see :class:`~ihrcf_env.sim.sensors.ToFArray`."""
-        r = self.read_sensors(rng, ("tof",))
-        return r["ranges"], r["ranges_valid"]
-
-    def imu(self, rng: np.random.Generator | None = None) -> dict[str, NDArray[np.float64]]:
-        """IMU reading: attitude ``quaternion`` (x, y, z, w, world from body), body rates
-        ``angular_velocity`` (rad/s, body frame) and specific force ``acceleration`` (m/s^2, body
-        frame; reads +9.81 on z when hovering); see :class:`~ihrcf_env.sim.sensors.IMU`."""
-        r = self.read_sensors(rng if rng is not None else np.random.default_rng(0), ("imu",))
-        return {
-            "quaternion": r["quaternion"],
-            "angular_velocity": r["angular_velocity"],
-            "acceleration": r["linear_acceleration"],
-        }
-
-    def deck_in_body(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Ground-truth deck pose in the drone body frame: (position (3,) m, rotation R_body_deck)."""
-        s = self.snapshot()
-        return s.deck_position_body.copy(), s.deck_rotation_body.copy()
-
-    def _drone_rotation(self, quat: tuple[float, ...]) -> NDArray[np.float64]:
-        """``matrix_from_quat(quat)`` (read-only), memoised on the last quaternion (bit-exact): the
-        snapshot and the sensors' body state of one instant share it."""
-        key = _QUAT_KEY.pack(*quat)
-        if key != self._rotation_key:
-            self._rotation, self._rotation_key = _frozen(matrix_from_quat(quat)), key
-        return self._rotation
-
-    def snapshot(self) -> Snapshot:
-        """Ground-truth state of drone and deck now (one read of the simulator).
-
-        Memoised on the raw simulator state it is computed from (drone and deck poses and
-        velocities, bit for bit): until that state changes -- a physics step, a reset, a teleport --
-        every call returns the same Snapshot, whose arrays are read-only (copy to modify)."""
-        self._check_open()
-        cid, drone, plate = self.client, self.quad.body, self.deck.body
-        pos, quat = p.getBasePositionAndOrientation(drone, physicsClientId=cid)
-        vel = p.getBaseVelocity(drone, physicsClientId=cid)[0]
-        deck_body_pos, deck_quat = p.getBasePositionAndOrientation(plate, physicsClientId=cid)
-        deck_v, deck_w = p.getBaseVelocity(plate, physicsClientId=cid)
-        key = _SNAPSHOT_KEY.pack(*pos, *quat, *vel, *deck_body_pos, *deck_quat, *deck_v, *deck_w)
-        if key == self._snapshot_key and self._snapshot is not None:
-            return self._snapshot
-        R = self._drone_rotation(quat)
-        pos_a = np.array(pos)
-        deck_pos, R_wd = self.deck.pose_from_body(deck_body_pos, deck_quat)
-        R_bd, p_bd = relative_pose(R, pos_a, R_wd, deck_pos)
-        snap = Snapshot(
-            drone_position=_frozen(pos_a),
-            drone_rotation=R,
-            drone_quaternion=_frozen(np.array(quat)),
-            drone_velocity=_frozen(np.array(vel)),
-            deck_position=_frozen(deck_pos),
-            deck_rotation=_frozen(R_wd),
-            deck_point_velocity=_frozen(rigid_point_velocity(deck_body_pos, deck_v, deck_w, pos)),
-            deck_position_body=_frozen(p_bd),
-            deck_rotation_body=_frozen(R_bd),
-        )
-        self._snapshot, self._snapshot_key = snap, key
-        return snap
-
-
-#: Packs the raw simulator state a :class:`Snapshot` is computed from into a bytes key (bit-exact:
-#: tells -0.0 from 0.0 and NaN payloads apart, as float comparison would not).
-_SNAPSHOT_KEY = struct.Struct("<23d")
-_QUAT_KEY = struct.Struct("<4d")
-
-
-def _frozen(a: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``a`` made read-only (the memoised snapshot's arrays are shared by its callers)."""
-    a.flags.writeable = False
-    return a

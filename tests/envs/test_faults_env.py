@@ -1,4 +1,4 @@
-"""The ``faults=`` option end to end (World.read_sensors applies the faults after the noise models).
+"""The ``faults=`` option end to end (World.sensing.read_sensors applies the faults after the noise models).
 
 Skipped until :func:`ihrcf_env.config.make.make_config` takes ``faults``.
 """

@@ -16,6 +16,7 @@ import pytest
 from fast_helpers import rel_err
 from scipy.spatial.transform import Rotation
 
+from ihrcf_env.config.vehicle import QuadParams, VelocityGains
 from ihrcf_env.fast.autopilot import controller_reset, gains_of, velocity_control
 from ihrcf_env.fast.dynamics import (
     DroneState,
@@ -27,7 +28,6 @@ from ihrcf_env.fast.dynamics import (
 )
 from ihrcf_env.sim.batched.autopilot import BatchedVelocityController
 from ihrcf_env.sim.batched.dynamics import BatchedQuadrotor
-from ihrcf_env.sim.drone import QuadParams, VelocityGains
 
 QP = QuadParams()
 P = drone_params(QP)

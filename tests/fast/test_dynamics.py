@@ -9,6 +9,7 @@ import numpy as np
 from fast_helpers import Counted, rel_err, rotations
 from scipy.spatial.transform import Rotation
 
+from ihrcf_env.config.vehicle import QuadParams
 from ihrcf_env.fast.dynamics import (
     DroneState,
     GroundEffectParams,
@@ -24,7 +25,6 @@ from ihrcf_env.sim.batched.dynamics import BatchedQuadrotor
 from ihrcf_env.sim.batched.floatmath import quaternions_from_matrices
 from ihrcf_env.sim.batched.mixer import BatchedMixer
 from ihrcf_env.sim.batched.surface import rotor_positions_batch, thrust_scale_batch
-from ihrcf_env.sim.drone import QuadParams
 from ihrcf_env.sim.ground_effect import GroundEffect
 
 QP = QuadParams()

@@ -19,7 +19,7 @@ def env():
 
 def _start(e: StartCurriculum, seed: int) -> tuple[float, float]:
     e.reset(seed=seed)
-    s = e.unwrapped.world.snapshot()
+    s = e.unwrapped.world.sensing.snapshot()
     return float(s.drone_position[2] - s.deck_position[2]), e.unwrapped.tag_offset(s)
 
 

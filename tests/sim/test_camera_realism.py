@@ -74,7 +74,7 @@ def read_frames(
     out = []
     for _ in range(n):
         w.step()
-        out.append(w.read_sensors(rng, ("camera",))["image"])
+        out.append(w.sensing.read_sensors(rng, ("camera",))["image"])
     return out
 
 
@@ -117,7 +117,7 @@ def test_ideal_images_are_unchanged_bit_for_bit(make_world):
             w.step()
         w.reset_random(SeedStreams(5))  # the world draws the episode's streams; the sensor none
         rng = np.random.default_rng(5)
-        img = w.read_sensors(rng, ("camera",))["image"]
+        img = w.sensing.read_sensors(rng, ("camera",))["image"]
         assert rng.bit_generator.state == np.random.default_rng(5).bit_generator.state
         cam = w.camera
         assert cam is not None and cam.imager is None and cam.episode is None
@@ -392,11 +392,11 @@ def hover_run():
     try:
         for _ in range(frames):
             w.step()
-            obs = w.read_sensors(rng)
+            obs = w.sensing.read_sensors(rng)
             frame = est.frame(obs["image"], obs["ranges"], np.asarray(obs["ranges_valid"]).astype(bool))
             detected += frame.corners is not None
             out = est.update(frame)
-            gt_pos, gt_R = w.deck_in_body()
+            gt_pos, gt_R = w.sensing.deck_in_body()
             for name, e in out.items():
                 if e.valid:
                     d_eul = np.degrees(np.asarray(e.euler) - euler_from_matrix(gt_R))
@@ -426,7 +426,7 @@ def test_static_deck_frames_differ_only_by_noise(make_world):
     w.reset(StaticProfile(), horizon_s=1.0, altitude=1.0)
     rng = np.random.default_rng(4)
     w.reset_random(rng)
-    a = w.read_sensors(rng, ("camera",))["image"].astype(float)
-    b = w.read_sensors(rng, ("camera",))["image"].astype(float)
+    a = w.sensing.read_sensors(rng, ("camera",))["image"].astype(float)
+    b = w.sensing.read_sensors(rng, ("camera",))["image"].astype(float)
     d = a - b
     assert abs(d.mean()) < 0.5 and 0.5 < d.std() < 12

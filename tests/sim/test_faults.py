@@ -317,7 +317,7 @@ def test_each_fault_draws_only_from_its_own_stream() -> None:
 
 # -- the estimators through a dead ToF -------------------------------------------------------------
 class FaultyReadings(gym.ObservationWrapper):  # type: ignore[type-arg]
-    """Applies faults to a raw deck env's observation (what World.read_sensors will do)."""
+    """Applies faults to a raw deck env's observation (what World.sensing.read_sensors does)."""
 
     def __init__(self, env: gym.Env, option: dict[str, Any]) -> None:
         super().__init__(env)

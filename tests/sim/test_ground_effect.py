@@ -168,7 +168,7 @@ def test_the_world_applies_ground_effect_when_asked() -> None:
             w.reset(StaticProfile(), 10.0, altitude=0.13)
             for _ in range(20):
                 w.step()
-            heights.append(w.snapshot().drone_position[2])
+            heights.append(w.sensing.snapshot().drone_position[2])
         finally:
             w.close()
     assert WorldConfig().ground_effect is False

@@ -34,7 +34,7 @@ def _fly(w: World, steps: int) -> list[Any]:
     for k in range(steps):
         w.set_velocity_setpoint(np.array([0.1 * math.sin(0.1 * k), 0.02, -0.15, 0.1]))
         td = w.step()
-        s = w.snapshot()
+        s = w.sensing.snapshot()
         out.append((td, s.drone_position.copy(), s.drone_rotation.copy(), s.drone_velocity.copy()))
         if td is not None:
             break
@@ -99,7 +99,7 @@ def test_worlds_advanced_together_read_the_ranges_of_a_world_alone(make_world: A
         for w in alone:
             w.step()
         for a, b in zip(together, alone, strict=True):
-            ra, rb = a.read_sensors(), b.read_sensors()
+            ra, rb = a.sensing.read_sensors(), b.sensing.read_sensors()
             assert a.tof.prefetched is None  # taken by the reading
             np.testing.assert_array_equal(ra["ranges"], rb["ranges"])
             np.testing.assert_array_equal(ra["ranges_valid"], rb["ranges_valid"])

@@ -113,7 +113,7 @@ def _run_world(**config: Any) -> None:
         w.reset_random(rng)
         for _ in range(5):
             w.step()
-            _finite(w.read_sensors(rng))
+            _finite(w.sensing.read_sensors(rng))
             _finite(tuple(w.drone_pose()[0]))
             _finite(tuple(w.deck.pose()[0]))
     finally:

@@ -184,7 +184,7 @@ def test_realistic_window_with_a_long_blur_streak_is_within_one_dn(world: World)
 def test_window_is_validated(world: World):
     cam = world.camera
     assert cam is not None
-    s = world.body_state()
+    s = world.sensing.body_state()
     with pytest.raises(ValueError, match="window"):
         cam.render_window(s.position, s.rotation, (500, 0, 20, 10))
     with pytest.raises(ValueError, match="window"):
@@ -208,7 +208,7 @@ def hover_state(world: World, cam: DownCamera, rng: np.random.Generator, altitud
     p.resetBasePositionAndOrientation(
         world.quad.body, pos.tolist(), quat.tolist(), physicsClientId=world.client
     )
-    return replace(world.body_state(), position=pos, rotation=rot.as_matrix(), quaternion=quat)
+    return replace(world.sensing.body_state(), position=pos, rotation=rot.as_matrix(), quaternion=quat)
 
 
 @pytest.mark.parametrize("quality", ["ideal", "realistic"])
@@ -409,7 +409,7 @@ def test_tag_outside_the_image_is_not_rendered(world: World, monkeypatch):
     tags = WindowedTagCamera(cam, world.deck, 0.4, 0)
     assert tags.name == TAG_CAMERA
     deck_pos, _ = world.deck.pose()
-    state = replace(world.body_state(), position=deck_pos + np.array([3.0, 0.0, 1.0]))
+    state = replace(world.sensing.body_state(), position=deck_pos + np.array([3.0, 0.0, 1.0]))
 
     def no_render(*args, **kwargs):
         raise AssertionError("rendered a frame with the tag out of view")

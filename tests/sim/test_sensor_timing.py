@@ -100,7 +100,7 @@ def test_default_config_has_no_timing() -> None:
     env = _env()
     try:
         assert not {"camera_frame", "tof_age", "imu_age"} & set(env.observation_space.spaces)
-        assert env.world.camera_pipeline is None and env.world.clocks == {}
+        assert env.world.sensing.camera_pipeline is None and env.world.sensing.clocks == {}
     finally:
         env.close()
 
@@ -227,12 +227,12 @@ def test_tof_samples_at_its_own_instants() -> None:
             fine_ranges[4 * k] = fine.step(np.zeros(4))[0]["ranges"]
         for _ in range(4):
             obs, *_, info = own.step(np.zeros(4))
-            sample = own.world.sample_times["tof"]
+            sample = own.world.sensing.sample_times["tof"]
             tick = round(sample * 240)
             assert tick % 8 == 0 and 0 <= info["time"] - sample < 1 / 30
             assert obs["tof_age"][0] == pytest.approx(info["time"] - sample, abs=1e-6)
             np.testing.assert_array_equal(obs["ranges"], fine_ranges[tick])
-        assert {round(own.world.sample_times["tof"] * 240)} <= {8 * k for k in range(10)}
+        assert {round(own.world.sensing.sample_times["tof"] * 240)} <= {8 * k for k in range(10)}
     finally:
         own.close()
         fine.close()

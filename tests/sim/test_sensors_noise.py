@@ -82,7 +82,7 @@ def test_sensors_share_one_interface_and_read_named_arrays(world: World) -> None
     assert list(world.sensors) == ["tof", "imu"]
     assert all(isinstance(s, Sensor) for s in world.sensors.values())
     assert isinstance(GaussianNoise(0.1), NoiseModel) and isinstance(Chain(()), NoiseModel)
-    out = world.read_sensors(np.random.default_rng(0))
+    out = world.sensing.read_sensors(np.random.default_rng(0))
     assert set(out) == {"ranges", "ranges_valid", "quaternion", "angular_velocity", "linear_acceleration"}
     assert out["linear_acceleration"][2] == pytest.approx(GRAVITY, abs=1e-6)  # hovering at rest
     assert out["ranges"] == pytest.approx(np.full(4, 0.97), abs=1e-3)  # 1 m less the camera 3 cm below
@@ -92,7 +92,7 @@ def test_camera_is_a_sensor_too(make_world) -> None:
     w = make_world(WorldConfig())
     w.reset(StaticProfile(), 10.0, altitude=1.0)
     assert list(w.sensors) == ["camera", "tof", "imu"]
-    img = w.read_sensors(np.random.default_rng(0), ("camera",))["image"]
+    img = w.sensing.read_sensors(np.random.default_rng(0), ("camera",))["image"]
     assert img.shape == (512, 512, 3) and img.dtype == np.uint8 and img.min() < 50  # the tag is seen
 
 
@@ -100,8 +100,8 @@ def test_imu_noise_is_pluggable(world: World) -> None:
     world.imu_sensor.gyro_noise = GaussianNoise(0.01)
     world.imu_sensor.accel_noise = GaussianNoise(0.1)
     rng = np.random.default_rng(4)
-    g = np.array([world.read_sensors(rng, ("imu",))["angular_velocity"] for _ in range(N // 3)])
-    a = np.array([world.read_sensors(rng, ("imu",))["linear_acceleration"] for _ in range(N // 3)])
+    g = np.array([world.sensing.read_sensors(rng, ("imu",))["angular_velocity"] for _ in range(N // 3)])
+    a = np.array([world.sensing.read_sensors(rng, ("imu",))["linear_acceleration"] for _ in range(N // 3)])
     assert g.std(axis=0) == pytest.approx(np.full(3, 0.01), rel=0.1)
     assert a.std(axis=0) == pytest.approx(np.full(3, 0.1), rel=0.1)
     assert isinstance(IMU(), Sensor)
@@ -111,7 +111,7 @@ def test_tof_noise_is_pluggable(make_world) -> None:
     w = make_world(WorldConfig(camera=None, tof=ToFConfig(noise="ideal")))
     w.reset(StaticProfile(), 10.0, altitude=1.0)
     w.tof.noise = Dropout(1.0)
-    _, valid = w.read_tof(np.random.default_rng(0))
+    _, valid = w.sensing.read_tof(np.random.default_rng(0))
     assert not valid.any()
 
 
@@ -147,7 +147,7 @@ def test_closed_world_says_so() -> None:
     w.close()
     w.close()  # idempotent
     assert w.closed
-    for call in (w.step, w.snapshot, w.body_state):
+    for call in (w.step, w.sensing.snapshot, w.sensing.body_state):
         with pytest.raises(RuntimeError, match="closed"):
             call()
 
@@ -157,8 +157,8 @@ def test_imu_attitude_noise_is_pluggable(world: World) -> None:
 
     world.imu_sensor.attitude_noise = AttitudeError(0.01, 1.0, 0.0)
     world.imu_sensor.reset(np.random.default_rng(5))
-    q = world.read_sensors(np.random.default_rng(6), ("imu",))["quaternion"]
-    q_true = world.body_state().quaternion
+    q = world.sensing.read_sensors(np.random.default_rng(6), ("imu",))["quaternion"]
+    q_true = world.sensing.body_state().quaternion
     assert np.linalg.norm(q) == pytest.approx(1.0)
     assert 0 < 2 * np.arccos(min(1.0, abs(float(q @ q_true)))) < 0.1
 
@@ -168,5 +168,5 @@ def test_realistic_tof_takes_extra_noise_too(make_world) -> None:
     w.reset(StaticProfile(), 10.0, altitude=1.0)
     assert isinstance(w.tof.noise, NoNoise)
     w.tof.noise = Dropout(1.0)
-    _, valid = w.read_tof(np.random.default_rng(0))
+    _, valid = w.sensing.read_tof(np.random.default_rng(0))
     assert not valid.any()

@@ -167,7 +167,7 @@ def test_bitwise_determinism_per_seed(make_world, quality: str) -> None:
         out = []
         for _ in range(15):
             w.step()
-            r = cam.read(w.body_state(), 0.05, rng)
+            r = cam.read(w.sensing.body_state(), 0.05, rng)
             out.append(np.concatenate([r["tag_corners"].ravel(), [float(r["tag_detected"])]]))
         return out
 

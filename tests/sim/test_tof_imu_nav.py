@@ -167,9 +167,9 @@ def test_ideal_imu_and_tof_draw_nothing_and_pass_the_truth(make_world) -> None:
     w.reset_random(SeedStreams(8))  # the world draws the episode's streams; ideal sensors none
     rng = np.random.default_rng(8)
     state = rng.bit_generator.state
-    out = w.read_sensors(rng)
+    out = w.sensing.read_sensors(rng)
     assert rng.bit_generator.state == state
-    s = w.body_state()
+    s = w.sensing.body_state()
     np.testing.assert_array_equal(out["quaternion"], s.quaternion)
     assert isinstance(w.navigation, TruthNavigation)
     true = ((1.0, 2.0, 3.0), (0.1, 0.2, 0.3))
@@ -236,7 +236,7 @@ def test_cone_noise_grows_with_range_as_the_model_says(tof_world: World) -> None
         _place(w, 3.0, 0.0, h - w.config.rig.sensor_positions_body[0, 2])
         pos, R = w.drone_pose()
         mean, signal = w.tof.cone_ranges(pos, R)
-        reads = np.array([w.read_tof(rng)[0] for _ in range(300)])  # 1200 samples
+        reads = np.array([w.sensing.read_tof(rng)[0] for _ in range(300)])  # 1200 samples
         assert np.all(reads < w.config.tof.max_range)
         err = reads - reads.mean(axis=0)  # the per-sensor offset is constant within an episode
         assert err.std() == pytest.approx(float(m.sigma(signal).mean()), rel=REL)
@@ -277,21 +277,21 @@ def test_no_target_out_of_range_and_too_close_are_invalid(make_world, tof_world:
     }
     for name, (x, y, z, q) in cases.items():
         _place(w, x, y, z, q)
-        ranges, valid = w.read_tof(rng)
+        ranges, valid = w.sensing.read_tof(rng)
         assert not valid.any(), name
         assert np.all(ranges == max_range), name
     # strong ambient light: 1 m is beyond reach for a grey target
     sunny = make_world(WorldConfig(camera=None, tof=ToFConfig(noise=VL53L1X(ambient=1.0, dropout=0.0))))
     sunny.reset(StaticProfile(), 10.0, altitude=1.0)
-    assert not sunny.read_tof(rng)[1].any()
+    assert not sunny.sensing.read_tof(rng)[1].any()
     sunny.reset(StaticProfile(), 10.0, altitude=0.4)
-    assert sunny.read_tof(rng)[1].all()
+    assert sunny.sensing.read_tof(rng)[1].all()
 
 
 def test_realistic_tof_is_seeded_and_offsets_are_per_episode(tof_world: World) -> None:
     w = tof_world
-    a = w.read_tof(np.random.default_rng(5))
-    b = w.read_tof(np.random.default_rng(5))
+    a = w.sensing.read_tof(np.random.default_rng(5))
+    b = w.sensing.read_tof(np.random.default_rng(5))
     np.testing.assert_array_equal(a[0], b[0])
     offsets = []
     for k in range(400):
@@ -376,6 +376,6 @@ def test_zero_command_drifts_with_the_estimate_under_estimated_feedback(make_wor
     # the drone holds its *estimated* position: it moves by minus the change of the estimate's error
     np.testing.assert_allclose(moved, -(e1 - e0), atol=0.03)
     assert np.linalg.norm(moved) > 0.02
-    assert not np.array_equal(w.nav_velocity(), w.snapshot().drone_velocity)
+    assert not np.array_equal(w.nav_velocity(), w.sensing.snapshot().drone_velocity)
     p0, _, w = _hold(make_world, "truth", seed, seconds=5.0)
     assert np.linalg.norm(w.drone_pose()[0] - p0) < 1e-3

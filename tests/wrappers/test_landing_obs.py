@@ -249,7 +249,7 @@ def test_deck_motion_block_tracks_the_deck(make_v1) -> None:
     for k in range(120):
         obs, _, terminated, truncated, _ = env.step(np.zeros(4, np.float32))
         assert not (terminated or truncated)
-        s = world.snapshot()
+        s = world.sensing.snapshot()
         _, R_lw = heading_rotation(s.drone_quaternion)
         if prev is not None and k >= 40:
             assert obs[sl["fused.valid"]][0] == 1.0

@@ -196,7 +196,7 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
     deck_body, deck_quat = _deck_poses(worlds, steps)
     deck_rot = matrices_from_quaternions(deck_quat)  # (N, steps + 1, 3, 3)
     deck_top = deck_body + deck_rot[..., :, 2] * half_thickness
-    due = [w._due_samples() if w.clocks else {} for w in worlds]
+    due = [w.sensing.due_samples() if w.sensing.clocks else {} for w in worlds]
     ticks0 = np.array([w.tick for w in worlds], dtype=np.int64)
     touchdowns: list[Touchdown | None] = [None] * n
     latched = np.zeros(n, dtype=bool)
@@ -244,7 +244,7 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
             _write_back(worlds[i], quad, i, _deck_state(deck_body, deck_quat, i, j + 1, dt))
         _prefetch_ranges([worlds[i] for i, names in due_now if "tof" in names])
         for i, names in due_now:
-            worlds[i]._sample_clocked(names, tuple(prev_vel[i].tolist()))
+            worlds[i].sensing.sample_clocked(names, tuple(prev_vel[i].tolist()))
         # contacts: only drones whose bounding sphere reaches the deck's plane or the ground
         near = ~latched & (
             (quad.position[:, 2] < reach + base_height)
@@ -286,7 +286,7 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
         w._acc_world = (quad.velocity[i] - prev_vel[i]) / dt
         w.quad.rotor_speed = quad.rotor_speed[i].tolist()
     _scatter_autopilots(autopilot, [w.controller for w in worlds])
-    _prefetch_ranges([w for w in worlds if "tof" not in w.clocks])  # read at the control step
+    _prefetch_ranges([w for w in worlds if "tof" not in w.sensing.clocks])  # read at the control step
     _prefetch_camera(worlds)
     return touchdowns
 
@@ -294,7 +294,7 @@ def advance(worlds: Sequence[World]) -> list[Touchdown | None]:
 def _prefetch_camera(worlds: Sequence[World]) -> None:
     """Read the projected tag cameras (closed-form rays) that the worlds' next sensor reads take,
     in one batched read per camera set-up (each from its world's generator and corner track)."""
-    ahead = [a for a in (w.camera_ahead() for w in worlds) if a is not None]
+    ahead = [a for a in (w.sensing.camera_ahead() for w in worlds) if a is not None]
     groups: list[list[int]] = []
     for k, (cam, _, _) in enumerate(ahead):
         assert cam.batched is not None
@@ -336,7 +336,7 @@ def _prefetch_ranges(worlds: Sequence[World]) -> None:
     their readings that follow (one world alone casts its own when it reads)."""
     ranged = [w for w in worlds if w.tof.closed_form is not None]
     if len(ranged) > 1:
-        prefetch([w.tof for w in ranged], [w.body_state() for w in ranged])
+        prefetch([w.tof for w in ranged], [w.sensing.body_state() for w in ranged])
 
 
 def _plane_distance(
