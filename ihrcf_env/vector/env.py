@@ -115,8 +115,13 @@ class DeckLandingVectorEnv(VectorEnv):
         check_options(options)
         self._closed_envs = False
         try:
-            for _ in range(n):
-                self._subs.append(build_env(env_id, {**options, "batch_estimators": batch}))
+            self._subs.append(build_env(env_id, {**options, "batch_estimators": batch}))
+            # the others share the first one's resolved config: validated and loaded once
+            shared = {"config": self._subs[0].task.config}
+            if "calibration" in options:
+                shared["calibration"] = options["calibration"]
+            for _ in range(n - 1):
+                self._subs.append(build_env(env_id, shared))
         except BaseException:
             self.close_extras()
             raise

@@ -56,6 +56,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from ihrcf_env.config.landing import DeckLandingConfig
 from ihrcf_env.config.make import make_config
 from ihrcf_env.config.observation import ObservationConfig, resolve_observation
 from ihrcf_env.core.batch.pipeline import BatchDeckPoseEstimator
@@ -416,13 +417,17 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return np.concatenate([p, R_ld[:, 2], [math.cos(yaw), math.sin(yaw)]])
 
 
-def make_landing(task: str, **options: Any) -> gym.Env:
+def make_landing(task: str, config: DeckLandingConfig | None = None, **options: Any) -> gym.Env:
     """A landing task's env from validated options (:func:`~ihrcf_env.config.make.make_config`
-    with ``task``) wrapped with :class:`LandingObservation` (``raw=True``: the raw env). No image is
-    observed, so the rendered camera renders only the tag's window (``camera_output="corners"``
-    unless given). Everything is checked before any physics client exists; a failed wrapper closes
-    the env."""
-    config = make_config(task=task, **options)
+    with ``task``) wrapped with :class:`LandingObservation` (``raw=True``: the raw env), or from an
+    already resolved ``config`` of that task (then only ``calibration`` may be given beside it, as
+    the spec records it; nothing is validated or loaded again). No image is observed, so the
+    rendered camera renders only the tag's window (``camera_output="corners"`` unless given).
+    Everything is checked before any physics client exists; a failed wrapper closes the env."""
+    if config is None:
+        config = make_config(task=task, **options)
+    else:
+        _check_resolved(task, config, options)
     from ihrcf_env.envs.landing_v1 import DeckLandingV1Env, DeckLandingV2Env
 
     env = (DeckLandingV2Env if task == "landing-v2" else DeckLandingV1Env)(config)
@@ -437,6 +442,19 @@ def make_landing(task: str, **options: Any) -> gym.Env:
     except BaseException:
         env.close()
         raise
+
+
+def _check_resolved(task: str, config: object, options: dict[str, Any]) -> None:
+    """Refuse a ``config`` that is not a resolved config of ``task``, or options beside it."""
+    if not isinstance(config, DeckLandingConfig):
+        raise TypeError(
+            f"config must be a DeckLandingConfig (ihrcf_env.make_config), got {type(config).__name__}"
+        )
+    if config.task_name != task:
+        raise ValueError(f"config: a config of task {config.task_name!r} given to the {task!r} env")
+    extra = sorted(set(options) - {"calibration"})
+    if extra:
+        raise ValueError(f"config: give either a resolved config or options, not both (got {extra})")
 
 
 def make_deck_landing_v1(**options: Any) -> gym.Env:

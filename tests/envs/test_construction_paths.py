@@ -149,3 +149,48 @@ def test_a_given_calibration_is_not_read_from_a_file(monkeypatch: pytest.MonkeyP
         assert _observation(env).calibration is cal
     finally:
         env.close()
+
+
+LANDING_OPTIONS = [(i, o) for i, o in OPTIONS if i in ihrcf_env.VECTOR_IDS]
+
+
+@pytest.mark.parametrize(
+    ("env_id", "options"), LANDING_OPTIONS, ids=[f"{i}-{sorted(o)}" for i, o in LANDING_OPTIONS]
+)
+def test_gym_make_with_a_resolved_config_gives_the_same_env(env_id: str, options: dict[str, Any]) -> None:
+    task = TASKS[env_id][0]
+    by_options = gym.make(env_id, **options)
+    by_config = gym.make(env_id, config=ihrcf_env.make_config(task=task, **options))
+    try:
+        assert _resolved(by_config) == _resolved(by_options)
+        _same(by_config.reset(seed=SEED)[0], by_options.reset(seed=SEED)[0])
+    finally:
+        by_options.close()
+        by_config.close()
+
+
+def test_a_resolved_config_is_checked() -> None:
+    with pytest.raises(ValueError, match="task 'landing-v1'"):
+        gym.make(ihrcf_env.LANDING_V2_ID, config=ihrcf_env.make_config(task="landing-v1"))
+    with pytest.raises(ValueError, match="not both"):
+        gym.make(ihrcf_env.LANDING_V2_ID, config=ihrcf_env.make_config(task="landing-v2"), level="calm")
+    with pytest.raises(TypeError, match="DeckLandingConfig"):
+        gym.make(ihrcf_env.LANDING_V2_ID, config={"level": "calm"})
+
+
+def test_a_vector_env_resolves_its_config_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    calls: list[object] = []
+    load = Calibration.load.__func__  # type: ignore[attr-defined]
+
+    def counting(cls: type[Calibration], path: Any) -> Calibration:
+        calls.append(path)
+        return load(cls, path)  # type: ignore[no-any-return]
+
+    monkeypatch.setattr(Calibration, "load", classmethod(counting))
+    venv = gym.make_vec(ihrcf_env.LANDING_V2_ID, num_envs=3, camera_model="projected")
+    try:
+        assert len(calls) == 1, calls
+        configs = [env.unwrapped.config for env in venv.unwrapped.envs]  # type: ignore[attr-defined]
+        assert all(c is configs[0] for c in configs)
+    finally:
+        venv.close()
