@@ -55,6 +55,8 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
     "envs": ("ihrcf_env.wrappers", "ihrcf_env.experiments", "ihrcf_env.cli", *_LEARNING),
     "wrappers": ("ihrcf_env.experiments", "ihrcf_env.cli", *_LEARNING),
     "experiments": ("ihrcf_env.cli", *_LEARNING),
+    # recordings sit on the Gymnasium API and the wrappers' public accessors, never the simulator
+    "record": ("pybullet", "ihrcf_env.sim", *_LEARNING),
     # learning glue (SB3 / RLlib) sits on the Gymnasium API: envs by id, never the simulator
     "rl": ("pybullet", "ihrcf_env.sim", "ihrcf_env.experiments", "ihrcf_env.cli"),
 }
