@@ -123,7 +123,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--record",
         metavar="DIR",
         default=None,
-        help="write a Rerun recording (.rrd) of each failed episode into DIR (needs the [viewer] extra)",
+        help="write a Rerun recording (.rrd) of each failed episode into DIR (needs the [viewer] extra; "
+        "default: none)",
     )
     ap.add_argument("--record-all", action="store_true", help="with --record: record every episode")
     ap.add_argument("--quiet", action="store_true", help="only the summary")

@@ -49,7 +49,12 @@ def build_parser() -> argparse.ArgumentParser:
     ap = make_parser("record", DESCRIPTION)
     add_episode_arguments(ap)
     out = ap.add_mutually_exclusive_group(required=True)
-    out.add_argument("--out", metavar="FILE.rrd", default=None, help="the recording file to write")
+    out.add_argument(
+        "--out",
+        metavar="FILE.rrd",
+        default=None,
+        help="the recording file to write (default: none; give --out or --spawn)",
+    )
     out.add_argument("--spawn", action="store_true", help="send the recording to a Rerun viewer (started)")
     ap.set_defaults(episodes=1)
     return ap

@@ -7,6 +7,8 @@ asking for a recording without it raises :class:`RerunMissingError` saying how t
 What a recording holds: :mod:`ihrcf_env.record.episode_log`.
 """
 
+from typing import Any
+
 from ihrcf_env.record._rerun import INSTALL_HINT, RerunMissingError
 from ihrcf_env.record.episode_log import ENTITIES, TIMELINE, EpisodeLog, SceneGeometry
 from ihrcf_env.record.wrapper import RecordEpisode, RecordingPathError, check_recording_path, scene_geometry
@@ -23,3 +25,11 @@ __all__ = [
     "check_recording_path",
     "scene_geometry",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    if name == "main":  # the command (``python -m ihrcf_env.record``), imported only when asked for
+        from ihrcf_env.cli.record import main
+
+        return main
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

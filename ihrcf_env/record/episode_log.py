@@ -26,7 +26,7 @@ path                                   what it shows
 ``reward/<term>``, ``reward/total``    the reward terms of ``info`` and the step reward
 ``wind``                               wind velocity (world frame, m/s)
 ``faults/frame_lost``, ``dead_beams``  1 when the camera frame was lost; invalid ToF beams
-``events``                             tag status changes, the outcome, touchdown figures
+``events/tag``, ``events/outcome``    tag status changes; the outcome, touchdown figures
 =====================================  ========================================================
 """
 
@@ -70,7 +70,8 @@ ENTITIES: tuple[str, ...] = (
     "wind",
     "faults/frame_lost",
     "faults/dead_beams",
-    "events",
+    "events/tag",
+    "events/outcome",
 )
 
 _GREEN = (40, 200, 80)
@@ -215,23 +216,28 @@ class EpisodeLog:
                 if truth_p is not None and truth_e is not None:
                     self._add(f"estimates/{name}/position_error", t, float(np.linalg.norm(pos - truth_p)))
                     self._add(f"estimates/{name}/angle_error", t, _angle_error(eul, truth_e))
-        outcome = info.get("outcome")
-        if isinstance(outcome, str) and outcome != "flying":
-            text = f"outcome: {outcome}"
-            if info.get("crash_reason"):
-                text += f" ({info['crash_reason']})"
-            td = info.get("touchdown")
-            if isinstance(td, Mapping):
-                figures = []
-                if "relative_vertical_speed" in td:
-                    figures.append(f"speed {abs(float(td['relative_vertical_speed'])):.3f} m/s")
-                if "relative_tilt" in td:
-                    figures.append(f"tilt {math.degrees(float(td['relative_tilt'])):.2f} deg")
-                if "tag_offset" in info:
-                    figures.append(f"offset {float(info['tag_offset']):.3f} m")
-                text += "; touchdown " + ", ".join(figures)
-            level = "INFO" if outcome == "success" else "WARN"
-            self._text_on_change("events/outcome", t, text, level)
+
+    def end(self, info: Mapping[str, Any], ended: bool = True) -> None:
+        """The outcome and touchdown figures of the episode's last ``info`` as an event;
+        ``ended`` False: the episode was cut short (reset or closed while flying)."""
+        t = self.end_time
+        outcome = info.get("outcome", "flying")
+        if outcome == "flying":
+            outcome = "timeout" if ended else "stopped"
+        text = f"outcome: {outcome}"
+        if info.get("crash_reason"):
+            text += f" ({info['crash_reason']})"
+        td = info.get("touchdown")
+        if isinstance(td, Mapping):
+            figures = []
+            if "relative_vertical_speed" in td:
+                figures.append(f"speed {abs(float(td['relative_vertical_speed'])):.3f} m/s")
+            if "relative_tilt" in td:
+                figures.append(f"tilt {math.degrees(float(td['relative_tilt'])):.2f} deg")
+            if "tag_offset" in info:
+                figures.append(f"offset {float(info['tag_offset']):.3f} m")
+            text += "; touchdown " + ", ".join(figures)
+        self._text_on_change("events/outcome", t, text, "INFO" if outcome == "success" else "WARN")
 
     def _add_frame(self, t: float, frame: Any) -> None:
         ranges = np.asarray(frame.ranges, dtype=np.float64).reshape(-1)

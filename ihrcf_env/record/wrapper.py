@@ -182,7 +182,7 @@ class RecordEpisode(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if self._log is not None:
             self._observe(info, action, float(reward))
             if terminated or truncated:
-                self._finish()
+                self._finish(ended=True)
         return obs, reward, terminated, truncated, info
 
     def close(self) -> None:
@@ -192,11 +192,13 @@ class RecordEpisode(gym.Wrapper, gym.utils.RecordConstructorArgs):
         finally:
             super().close()
 
-    def _finish(self) -> None:
-        """Write the episode gathered so far (if any, and if ``keep`` wants it)."""
+    def _finish(self, ended: bool = False) -> None:
+        """Write the episode gathered so far (if any, and if ``keep`` wants it); ``ended``: it
+        terminated or was truncated."""
         log, self._log = self._log, None
         if log is None or (self.keep is not None and not self.keep(self._info)):
             return
+        log.end(self._info, ended)
         rr = self._rr
         name = f"episode {self._episode}" + ("" if self._seed is None else f", seed {self._seed}")
         rec = rr.RecordingStream(self.application_id)
