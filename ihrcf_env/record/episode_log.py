@@ -298,6 +298,8 @@ class EpisodeLog:
                 rr.LineStrips2D([[[0, 0], [w, 0], [w, h], [0, h], [0, 0]]], colors=[(120, 120, 120)]),
                 static=True,
             )
+        rec.log("camera/corners", rr.Points2D.from_fields(radii=3.0, colors=[_GREEN]), static=True)
+        rec.log("camera/tag", rr.LineStrips2D.from_fields(colors=[_GREEN]), static=True)
         for i, name in enumerate(self.estimator_names):
             color = _ESTIMATE_COLORS[i % len(_ESTIMATE_COLORS)]
             rec.log(
@@ -333,7 +335,7 @@ class EpisodeLog:
         elif path == "world/drone/tof":
             self._send_beams(rec, rr, index, s)
         elif path == "camera/corners":
-            self._send_corners(rec, rr, s)
+            self._send_corners(rec, rr, index, s)
         else:
             values = np.array(s.rows, dtype=np.float64)
             rec.send_columns(path, indexes=index, columns=rr.Scalars.columns(scalars=values))
@@ -355,15 +357,22 @@ class EpisodeLog:
             columns=rr.LineStrips3D.columns(strips=strips, colors=colors).partition([n] * len(s.rows)),
         )
 
-    def _send_corners(self, rec: Any, rr: ModuleType, s: _Series) -> None:
-        for t, corners in zip(s.times, s.rows, strict=True):
-            rec.set_time(TIMELINE, duration=t)
-            if corners is None:
-                rec.log("camera/corners", rr.Clear(recursive=False))
-                rec.log("camera/tag", rr.Clear(recursive=False))
-                continue
-            rec.log("camera/corners", rr.Points2D(corners, radii=3.0, colors=[_GREEN]))
-            rec.log("camera/tag", rr.LineStrips2D([np.vstack([corners, corners[:1]])], colors=[_GREEN]))
+    def _send_corners(self, rec: Any, rr: ModuleType, index: list[Any], s: _Series) -> None:
+        """The detected corners and their outline, as columns (an empty row: not detected)."""
+        points = [c for c in s.rows if c is not None]
+        counts = [0 if c is None else len(c) for c in s.rows]
+        flat = np.vstack(points) if points else np.zeros((0, 2))
+        rec.send_columns(
+            "camera/corners",
+            indexes=index,
+            columns=rr.Points2D.columns(positions=flat).partition(counts),
+        )
+        outlines = [np.vstack([c, c[:1]]) for c in points]
+        rec.send_columns(
+            "camera/tag",
+            indexes=index,
+            columns=rr.LineStrips2D.columns(strips=outlines).partition([int(n > 0) for n in counts]),
+        )
 
 
 def blueprint(rr: ModuleType, estimator_names: Sequence[str]) -> Any:

@@ -184,6 +184,10 @@ def test_record_cli_writes_one_episode(tmp_path: Path, capsys: Any) -> None:
     data = _read(out)
     assert len(data["world/drone"]["sim_time"]) == 7  # reset + 6 steps
     assert "estimates/fused/valid" in data and "action" in data
+    corners = [c for c in data["camera/corners"].get("Points2D:positions", []) if c]
+    assert corners and all(len(c) == 4 for c in corners)  # the scripted approach sees the tag
+    outlines = [s for s in data["camera/tag"].get("LineStrips2D:strips", []) if s]
+    assert len(outlines) == len(corners) and outlines[0][0][0] == outlines[0][0][-1]
 
 
 def test_evaluate_records_failures(tmp_path: Path, capsys: Any) -> None:
