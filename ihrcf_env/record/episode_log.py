@@ -15,7 +15,7 @@ path                                   what it shows
 ``world/drone/camera``                 the camera frustum (static pinhole, body frame)
 ``world/drone/estimates/<name>``       each estimator's deck pose (body frame) while valid
 ``world/trajectory``                   the drone's whole path (world frame)
-``camera/image``                       the rendered camera image (rendered camera model)
+``camera/image``                       the camera image (JPEG) when the frame carries it
 ``camera/corners``, ``camera/tag``     the detected tag corners and their outline (px)
 ``truth/position``, ``truth/euler``    true deck pose in the body frame (m, rad)
 ``estimates/<name>/position``, ...     each estimate (m, rad), ``valid`` (0/1), ``residual``,
@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 
 from ihrcf_env.core.frames import R_BODY_CAM
 
-__all__ = ["ENTITIES", "TIMELINE", "EpisodeLog", "SceneGeometry", "blueprint"]
+__all__ = ["ENTITIES", "INVALID_BEAM", "JPEG_QUALITY", "TIMELINE", "EpisodeLog", "SceneGeometry", "blueprint"]
 
 #: The timeline of every time-varying entity: simulated time since reset (s).
 TIMELINE = "sim_time"
@@ -74,6 +74,12 @@ ENTITIES: tuple[str, ...] = (
     "events/outcome",
 )
 
+#: JPEG quality of the recorded camera images (rendered camera model).
+JPEG_QUALITY = 85
+
+#: Length (m) of the stub drawn for an invalid ToF beam.
+INVALID_BEAM = 0.25
+
 _GREEN = (40, 200, 80)
 _RED = (230, 40, 40)
 _ESTIMATE_COLORS = ((240, 160, 30), (60, 140, 255), (200, 60, 220), (0, 200, 200), (150, 150, 150))
@@ -89,7 +95,8 @@ class SceneGeometry:
         camera_position: (3,) optical centre in the body frame (m).
         K: (3, 3) camera intrinsics, or None (no camera drawn).
         image_size: (width, height) px, or None.
-        max_range: the ToF's maximum range (m): the length of an invalid beam.
+        max_range: the ToF's maximum range (m); an invalid beam is drawn as a short red stub of at
+            most :data:`INVALID_BEAM` m.
     """
 
     deck_size: float
@@ -316,7 +323,7 @@ class EpisodeLog:
             )
         for t, image in self.images:
             rec.set_time(TIMELINE, duration=t)
-            rec.log("camera/image", rr.Image(image))
+            rec.log("camera/image", rr.Image(image).compress(jpeg_quality=JPEG_QUALITY))
         for t, path, text, level in self.texts:
             rec.set_time(TIMELINE, duration=t)
             rec.log(path, rr.TextLog(text, level=level))
@@ -346,7 +353,7 @@ class EpisodeLog:
         strips, colors = [], []
         for ranges, valid in s.rows:
             for k in range(len(ranges)):
-                length = ranges[k] if valid[k] else g.max_range
+                length = ranges[k] if valid[k] else min(g.max_range, INVALID_BEAM)
                 start = g.tof_positions[k]
                 strips.append([start, start + length * axis])
                 colors.append(_GREEN if valid[k] else _RED)
@@ -377,7 +384,7 @@ class EpisodeLog:
 
 def blueprint(rr: ModuleType, estimator_names: Sequence[str]) -> Any:
     """The default layout: the 3D scene, the camera, the estimate errors and the truth beside each
-    estimate's position."""
+    estimate's position; it opens at the episode's end (the outcome), to be scrubbed back."""
     rrb = rr.blueprint
     errors = [f"/estimates/{n}/position_error" for n in estimator_names]
     angles = [f"/estimates/{n}/angle_error" for n in estimator_names]
@@ -394,5 +401,6 @@ def blueprint(rr: ModuleType, estimator_names: Sequence[str]) -> Any:
             ),
             column_shares=[3, 2],
         ),
+        rrb.TimePanel(timeline=TIMELINE, play_state="following", state="collapsed"),
         collapse_panels=True,
     )

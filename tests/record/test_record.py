@@ -205,3 +205,32 @@ def test_evaluate_records_failures(tmp_path: Path, capsys: Any) -> None:
         main([*argv, "--record", str(tmp_path / "file")])
     assert e.value.code == 2
     assert "--record" in capsys.readouterr().err
+
+
+def test_episode_log_images_and_estimates(tmp_path: Path) -> None:
+    """The log alone (no env): a frame with an image, an estimate, the outcome; read back."""
+    from ihrcf_env.core.estimators import PoseEstimate, SensorFrame
+    from ihrcf_env.record import EpisodeLog, SceneGeometry
+
+    geometry = SceneGeometry(0.8, 0.04, 0.4, np.zeros((4, 3)), np.zeros(3), np.eye(3) * 100, (64, 48), 4.0)
+    log = EpisodeLog(geometry, ["mine"])
+    image = np.full((48, 64, 3), 128, np.uint8)
+    frame = SensorFrame(
+        0.0, None, np.array([1.0, 1.0, np.nan, 1.0]), np.array([1, 1, 0, 1], bool), image=image
+    )
+    est = PoseEstimate(np.array([0.1, 0.2, -1.0]), np.zeros(3), np.eye(3), True, 0.001)
+    truth = {"deck_position_body": np.array([0.1, 0.2, -1.5]), "deck_euler_body": np.zeros(3)}
+    log.add_step({"time": 0.0, **truth}, frame=frame, estimates={"mine": est})
+    log.add_step({"time": 0.05, "outcome": "crash", "crash_reason": "tilt", **truth}, action=[0, 0, 0, 0])
+    log.end({"outcome": "crash", "crash_reason": "tilt"})
+    rec = rr.RecordingStream("test")
+    rec.save(tmp_path / "log.rrd")
+    log.send(rec, rr)
+    rec.flush()
+    rec.disconnect()
+    data = _read(tmp_path / "log.rrd")
+    assert "camera/image" in data and "EncodedImage:blob" in data["camera/image"]
+    assert _at(data["estimates/mine/position_error"], "Scalars:scalars", 0.0) == pytest.approx([0.5])
+    assert _at(data["tof/valid"], "Scalars:scalars", 0.0) == [1.0, 1.0, 0.0, 1.0]
+    assert _at(data["tof/ranges"], "Scalars:scalars", 0.0)[2] == 0.0  # NaN range: finite in the log
+    assert data["events/outcome"]["TextLog:text"] == [["outcome: crash (tilt)"]]
