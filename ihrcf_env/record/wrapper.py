@@ -7,6 +7,7 @@ import os
 import tempfile
 from collections.abc import Callable, Mapping
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import gymnasium as gym
@@ -61,6 +62,20 @@ def _stage(env: gym.Env) -> Any:
         return None
 
 
+def _raw_frame(obs: Any) -> SimpleNamespace | None:
+    """The sensor readings of a raw deck env's observation (no estimator stage): ranges, valid
+    flags, the tag corners when detected and the image when present; None for another observation."""
+    if not isinstance(obs, Mapping) or "ranges" not in obs or "ranges_valid" not in obs:
+        return None
+    detected = bool(obs.get("tag_detected", False)) and "tag_corners" in obs
+    return SimpleNamespace(
+        ranges=obs["ranges"],
+        ranges_valid=obs["ranges_valid"],
+        corners=np.asarray(obs["tag_corners"], dtype=np.float64) if detected else None,
+        image=obs.get("image"),
+    )
+
+
 def scene_geometry(env: gym.Env) -> SceneGeometry:
     """The fixed geometry of a (wrapped) deck env: deck, tag, ToF rig and camera."""
     world = base_config(env).world
@@ -85,8 +100,9 @@ class RecordEpisode(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     The values are gathered as the episode runs (ground truth, reward terms, wind and outcome from
     ``info``; the camera frame, ToF ranges and each estimator's pose from the landing wrapper's
-    public ``stage``) and written when the episode ends (terminated or truncated), when the env is
-    reset before that, or on :meth:`close`; see :mod:`ihrcf_env.record.episode_log` for the
+    public ``stage``, or the readings of a raw env's Dict observation) and written when the
+    episode ends (terminated or truncated), when the env is reset before that, or on
+    :meth:`close`; see :mod:`ihrcf_env.record.episode_log` for the
     entities. A file is written whole or not at all.
 
     Args:
@@ -152,14 +168,17 @@ class RecordEpisode(gym.Wrapper, gym.utils.RecordConstructorArgs):
             ) from None
         return Path(text)
 
-    def _observe(self, info: Mapping[str, Any], action: Any = None, reward: float | None = None) -> None:
+    def _observe(
+        self, obs: Any, info: Mapping[str, Any], action: Any = None, reward: float | None = None
+    ) -> None:
         assert self._log is not None
         stage = _stage(self.env)
+        frame = getattr(stage, "last_frame", None) if stage is not None else _raw_frame(obs)
         self._log.add_step(
             info,
             action=action,
             reward=reward,
-            frame=getattr(stage, "last_frame", None),
+            frame=frame,
             estimates=getattr(stage, "last_estimates", None),
         )
         self._info = info
@@ -172,7 +191,7 @@ class RecordEpisode(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._episode += 1
         self._seed = seed
         self._log = EpisodeLog(self._geometry, self._names)
-        self._observe(info)
+        self._observe(obs, info)
         return obs, info
 
     def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict]:
@@ -180,7 +199,7 @@ class RecordEpisode(gym.Wrapper, gym.utils.RecordConstructorArgs):
             return self.env.step(action)
         obs, reward, terminated, truncated, info = self.env.step(action)
         if self._log is not None:
-            self._observe(info, action, float(reward))
+            self._observe(obs, info, action, float(reward))
             if terminated or truncated:
                 self._finish(ended=True)
         return obs, reward, terminated, truncated, info

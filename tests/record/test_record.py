@@ -234,3 +234,22 @@ def test_episode_log_images_and_estimates(tmp_path: Path) -> None:
     assert _at(data["tof/valid"], "Scalars:scalars", 0.0) == [1.0, 1.0, 0.0, 1.0]
     assert _at(data["tof/ranges"], "Scalars:scalars", 0.0)[2] == 0.0  # NaN range: finite in the log
     assert data["events/outcome"]["TextLog:text"] == [["outcome: crash (tilt)"]]
+
+
+def test_raw_env_readings_are_recorded(tmp_path: Path) -> None:
+    """A raw env (Dict observation, no estimators): its ToF readings and corners are recorded."""
+    env = RecordEpisode(
+        gym.make("ihrcf_env/DeckHoverRaw-v0", camera_model="projected", max_episode_steps=4),
+        tmp_path / "raw.rrd",
+    )
+    obs, _ = env.reset(seed=1)
+    readings = [np.asarray(obs["ranges"], dtype=np.float64)]
+    for _ in range(4):
+        obs, *_ = env.step(env.action_space.sample() * 0)
+        readings.append(np.asarray(obs["ranges"], dtype=np.float64))
+    env.close()
+    data = _read(tmp_path / "raw.rrd")
+    got = np.array(data["tof/ranges"]["Scalars:scalars"])
+    want = np.where(np.isfinite(readings), readings, 0.0)
+    np.testing.assert_allclose(got, want)
+    assert not any(k.startswith("estimates/") for k in data)
