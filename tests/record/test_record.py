@@ -150,6 +150,12 @@ def test_rerun_missing(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: 
         main(["--policy", "blind:0.3", "--out", str(tmp_path / "x.rrd")])
     assert e.value.code == 2
     assert "ihrcf-env[viewer]" in capsys.readouterr().err
+    from ihrcf_env.cli.evaluate import main as evaluate
+
+    with pytest.raises(SystemExit) as e:
+        evaluate(["--policy", "blind:0.3", "--episodes", "1", "--record", str(tmp_path / "rec")])
+    assert e.value.code == 2
+    assert "ihrcf-env[viewer]" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
 
 
