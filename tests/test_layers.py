@@ -70,6 +70,8 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
     # the vector envs sit at the wrappers' level: envs by id, stepped together
     "vector": ("ihrcf_env.experiments", "ihrcf_env.cli", *_LEARNING),
     "experiments": ("ihrcf_env.cli", *_LEARNING),
+    # recordings sit on the Gymnasium API and the wrappers' public accessors, never the simulator
+    "record": ("pybullet", "ihrcf_env.sim", *_LEARNING),
     # learning glue (SB3 / RLlib) sits on the Gymnasium API: envs by id, never the simulator
     "rl": ("pybullet", "ihrcf_env.sim", "ihrcf_env.experiments", "ihrcf_env.cli"),
     # the array layers (checked when their folders exist): pure rules, and the compiled backend

@@ -3,7 +3,8 @@
 * ``ihrcf-benchmark`` / ``python -m ihrcf_env.benchmark``: :mod:`ihrcf_env.cli.benchmark`;
 * ``ihrcf-calibrate`` / ``python -m ihrcf_env.calibrate``: :mod:`ihrcf_env.cli.calibrate`;
 * ``ihrcf-evaluate`` / ``python -m ihrcf_env.evaluate``: :mod:`ihrcf_env.cli.evaluate`;
-* ``ihrcf-fit-detector`` / ``python -m ihrcf_env.fit_detector``: :mod:`ihrcf_env.cli.fit_detector`.
+* ``ihrcf-fit-detector`` / ``python -m ihrcf_env.fit_detector``: :mod:`ihrcf_env.cli.fit_detector`;
+* ``ihrcf-record`` / ``python -m ihrcf_env.record``: :mod:`ihrcf_env.cli.record`.
 
 What they share (parser, argument types, output checks): :mod:`ihrcf_env.cli.common`.
 """
@@ -14,6 +15,7 @@ COMMANDS = {
     "calibrate": "calibrate",
     "evaluate": "evaluate",
     "fit-detector": "fit_detector",
+    "record": "record",
 }
 
 __all__ = [

@@ -145,6 +145,23 @@ def _check_baseline_options(ap: argparse.ArgumentParser, policy: str, options: d
 def build_parser() -> argparse.ArgumentParser:
     """The command's argument parser."""
     ap = make_parser("evaluate", DESCRIPTION)
+    add_episode_arguments(ap)
+    ap.add_argument("--episodes", type=int_in(1), default=10, help="episodes, one seed each (>= 1)")
+    ap.add_argument(
+        "--record",
+        metavar="DIR",
+        default=None,
+        help="write a Rerun recording (.rrd) of each failed episode into DIR (needs the [viewer] extra; "
+        "default: none)",
+    )
+    ap.add_argument("--record-all", action="store_true", help="with --record: record every episode")
+    ap.add_argument("--quiet", action="store_true", help="only the summary")
+    return ap
+
+
+def add_episode_arguments(ap: argparse.ArgumentParser) -> None:
+    """The arguments that choose the env and the policy (shared with ``ihrcf-record``); checked by
+    :func:`_check_args`, turned into an env and a policy by :func:`make_env_and_policy`."""
     ap.add_argument(
         "--env-id",
         default=None,
@@ -165,7 +182,6 @@ def build_parser() -> argparse.ArgumentParser:
         required=True,
         help="scripted | blind:VZ | a recurrent .npz | a stable-baselines3 .zip (required)",
     )
-    ap.add_argument("--episodes", type=int_in(1), default=10, help="episodes, one seed each (>= 1)")
     ap.add_argument(
         "--seed",
         type=seed_type,
@@ -196,8 +212,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="v1 observation with the fused filter's deck motion (deck_motion=True); a saved policy "
         "trained so is detected without it",
     )
-    ap.add_argument("--quiet", action="store_true", help="only the summary")
-    return ap
 
 
 def _check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
@@ -245,12 +259,10 @@ def _check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
             ap.error(f"argument --policy: {e}")
 
 
-@command_main("evaluate")
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``ihrcf-evaluate``; returns the process exit code."""
-    ap = build_parser()
-    args = ap.parse_args(argv)
-    _check_args(ap, args)
+def make_env_and_policy(ap: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[gym.Env, Any, dict]:
+    """The env and the policy of checked arguments (:func:`add_episode_arguments`) and the env
+    options used; ``ap.error`` (exit status 2) if the env cannot be made or the policy not loaded.
+    The caller closes the env."""
     spec = args.policy
     kwargs: dict[str, Any] = dict(args.options)
     if args.level is not None:
@@ -282,6 +294,31 @@ def main(argv: Sequence[str] | None = None) -> int:
             env, policy = retry
             kwargs["deck_motion"] = True
             print(f"{spec}: trained with deck_motion=True, evaluated so (as with --deck-motion)", flush=True)
+    except BaseException:
+        env.close()
+        raise
+    return env, policy, kwargs
+
+
+@command_main("evaluate")
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``ihrcf-evaluate``; returns the process exit code."""
+    ap = build_parser()
+    args = ap.parse_args(argv)
+    _check_args(ap, args)
+    spec = args.policy
+    if args.record_all and args.record is None:
+        ap.error("argument --record-all: needs --record DIR")
+    if args.record is not None:
+        from ihrcf_env.cli.record import check_record_dir
+
+        check_record_dir(ap, args.record)
+    env, policy, kwargs = make_env_and_policy(ap, args)
+    try:
+        if args.record is not None:
+            from ihrcf_env.cli.record import record_failures
+
+            env = record_failures(ap, env, args.record, args.env_id, args.record_all)
         t0 = time.perf_counter()
         results = run_episodes(
             env,
@@ -307,8 +344,10 @@ if __name__ == "__main__":
 
 __all__ = [
     "DESCRIPTION",
+    "add_episode_arguments",
     "build_parser",
     "format_episode",
     "main",
+    "make_env_and_policy",
     "summary",
 ]
