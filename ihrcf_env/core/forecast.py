@@ -65,8 +65,9 @@ QUIET_POINTS = 5
 _SG_LENGTH = 7  # Savitzky-Golay window (cells) and polynomial order of the fit's smoothing
 _SG_ORDER = 3
 _MIN_FILL = 0.5  # fraction of the window's cells holding samples before a fit
-_MAX_RADIUS = 0.995  # largest modulus of a pole of the fitted AR model
+_MAX_RADIUS = 0.999  # largest modulus of a pole of the fitted AR model
 _NOISE_FLOOR = 1e-12
+_RIDGE = 1e-4  # ridge of the least squares, relative to the mean energy of a lag
 
 
 @dataclass(frozen=True)
@@ -153,7 +154,7 @@ class DeckForecaster:
         self.max_gap_cells = (1 << self.n_bits) - 1
         self.horizons = np.asarray(o.horizons, dtype=np.float64)
         reach = max(float(self.horizons.max()), o.quiet_lead + 10.0 * self.dt)
-        self.n_steps = int(math.ceil(reach / self.dt)) + 4
+        self.n_steps = int(math.ceil(reach / self.dt)) + 8
         self.reset()
 
     def reset(self) -> None:
@@ -161,11 +162,13 @@ class DeckForecaster:
         p, n = self.p, self.n_cells
         self.sums = np.zeros((n, 3))
         self.counts = np.zeros((n, 3))
+        self.offsets = np.zeros((n, 3))  # sums of (sample time - cell centre), s
         self.ids = np.full(n, -(1 << 40), dtype=np.int64)
         self.cell = -(1 << 40)  # current grid cell
         self.started = False
         self.acc = np.zeros(3)
         self.acc_n = np.zeros(3)
+        self.acc_dt = np.zeros(3)
         self.t_last = -math.inf
         self.last = np.zeros(3)
         self.seen = np.zeros(3)
@@ -205,6 +208,7 @@ class DeckForecaster:
         ym = np.where(mask, y, 0.0)
         self.acc += ym
         self.acc_n += mask
+        self.acc_dt += mask * (tt - (cell + 0.5) * self.dt)
         self.last = np.where(mask, ym, self.last)
         self.seen += mask
         self.t_last = max(self.t_last, tt)
@@ -215,25 +219,33 @@ class DeckForecaster:
         P: NDArray[np.float64],
         total: NDArray[np.float64],
         n: NDArray[np.float64],
+        offset: NDArray[np.float64],
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Kalman update of the (3, p) state with the cell means (skipped where n == 0)."""
+        """Kalman update of the (3, p) state with the cell means (skipped where n == 0), taken at
+        their samples' mean time ``offset / n`` from the cell centre (to first order, with the
+        rate of the state's last two cells)."""
         has = n > 0
-        mean = total / np.maximum(n, 1.0)
-        r = self.r_cell * self.mean_count / np.maximum(n, 1.0)
-        s = P[:, 0, 0] + r
-        k = P[:, :, 0] / s[:, None]
-        innov = np.where(has, mean - self.mu - x[:, 0], 0.0)
-        k = np.where(has[:, None], k, 0.0)
+        nn = np.maximum(n, 1.0)
+        mean = total / nn
+        r = self.r_cell * self.mean_count / nn
+        lead = offset / nn / self.dt
+        h = np.zeros_like(x)
+        h[:, 0], h[:, 1] = 1.0 + lead, -lead
+        ph = np.einsum("cij,cj->ci", P, h)
+        s = np.sum(h * ph, axis=1) + r
+        k = np.where(has[:, None], ph / s[:, None], 0.0)
+        innov = np.where(has, mean - self.mu - np.sum(h * x, axis=1), 0.0)
         x = x + k * innov[:, None]
-        P = P - k[:, :, None] * P[:, None, 0, :]
+        P = P - k[:, :, None] * ph[:, None, :]
         return x, 0.5 * (P + np.swapaxes(P, 1, 2))
 
     def _close(self, cell: int) -> None:
         """Close the current cell (store it, measure it) and step the filter to ``cell``."""
         slot = self.cell % self.n_cells
         self.sums[slot], self.counts[slot], self.ids[slot] = self.acc, self.acc_n, self.cell
+        self.offsets[slot] = self.acc_dt
         if self.fitted:
-            self.x, self.P = self._measure(self.x, self.P, self.acc, self.acc_n)
+            self.x, self.P = self._measure(self.x, self.P, self.acc, self.acc_n, self.acc_dt)
             m = cell - self.cell
             steps = min(m, self.max_gap_cells)
             for b in range(self.n_bits):  # fixed count: the bits of the step count
@@ -243,7 +255,7 @@ class DeckForecaster:
                     self.P = Fb @ self.P @ np.swapaxes(Fb, 1, 2) + self.pow_Q[:, b]
             if m > self.max_gap_cells:
                 self.x, self.P = np.zeros_like(self.x), self.P0.copy()
-        self.acc, self.acc_n = np.zeros(3), np.zeros(3)
+        self.acc, self.acc_n, self.acc_dt = np.zeros(3), np.zeros(3), np.zeros(3)
         self.cell = cell
         if cell % self.refit_cells == 0:
             self._refit()
@@ -258,6 +270,7 @@ class DeckForecaster:
         ok = self.ids[slot] == ids
         cnt = np.where(ok[:, None], self.counts[slot], 0.0)
         tot = np.where(ok[:, None], self.sums[slot], 0.0)
+        lag = np.where(ok[:, None], self.offsets[slot], 0.0) / np.maximum(cnt, 1.0)
         good = cnt > 0
         if np.any(good.mean(axis=0) < _MIN_FILL):
             return None
@@ -266,6 +279,7 @@ class DeckForecaster:
         for c in range(3):
             g = good[:, c]
             z[:, c] = np.interp(grid, grid[g], tot[g, c] / cnt[g, c])
+        z = z - lag * np.gradient(z, self.dt, axis=0)  # each mean moved to its cell's centre
         return z, good, cnt
 
     def _refit(self) -> None:
@@ -292,7 +306,10 @@ class DeckForecaster:
         F[:, 1:, :-1] = np.eye(p - 1)
         q = np.zeros(3)
         for c in range(3):
-            a, *_ = np.linalg.lstsq(lag[:, :, c], target[:, c], rcond=None)
+            A = lag[:, :, c]
+            AtA = A.T @ A
+            ridge = _RIDGE * np.trace(AtA) / p + 1e-30
+            a = np.linalg.solve(AtA + ridge * np.eye(p), A.T @ target[:, c])
             F[c, 0] = a
             radius = float(np.max(np.abs(np.linalg.eigvals(F[c]))))
             if radius > _MAX_RADIUS:
@@ -319,8 +336,14 @@ class DeckForecaster:
             G[:, j] = np.einsum("ci,cij->cj", G[:, j - 1], F)
         g = G[:, :, 0]  # impulse response
         self.pv = np.concatenate([np.zeros((3, 1)), np.cumsum(q[:, None] * g**2, axis=1)[:, :-1]], axis=1)
-        g2 = np.concatenate([np.zeros((3, 2)), g[:, :-2]], axis=1)
-        self.pv_rate = np.cumsum(q[:, None] * (g - g2) ** 2, axis=1)
+
+        # rate: the five-point central difference (1, -8, 8, -1) / (12 dt) at steps j - 2 .. j + 2;
+        # its process part weighs the impulse response by the stencil shifted along it
+        def shift(k: int) -> NDArray[np.float64]:
+            return np.concatenate([np.zeros((3, k)), g[:, : g.shape[1] - k]], axis=1)
+
+        coef = (-g + 8.0 * shift(1) - 8.0 * shift(3) + shift(4)) / (12.0 * self.dt)
+        self.pv_rate = np.cumsum(q[:, None] * coef**2, axis=1)
         if self.fitted:
             self.x = self.x - (mu - self.mu)[:, None]
         else:
@@ -335,12 +358,12 @@ class DeckForecaster:
 
     def _predict(self, offsets: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Mean and std (len, 4) of :data:`OUTPUTS` at ``offsets`` s after the latest sample."""
-        x, P = self._measure(self.x, self.P, self.acc, self.acc_n)
+        x, P = self._measure(self.x, self.P, self.acc, self.acc_n, self.acc_dt)
         t_center = (self.cell + 0.5) * self.dt
-        j = np.clip((self.t_last + offsets - t_center) / self.dt, 1.0, self.n_steps - 3.0)
+        j = np.clip((self.t_last + offsets - t_center) / self.dt, 2.0, self.n_steps - 4.0)
         j0 = np.floor(j).astype(np.int64)
         w = (j - j0)[:, None]
-        G, dt2 = self.G, 2.0 * self.dt
+        G = self.G
 
         def moments(rows: NDArray[np.float64], proc: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
             mean = (rows @ x[:, :, None])[:, :, 0].T
@@ -349,7 +372,8 @@ class DeckForecaster:
         out = []
         for k in (j0, j0 + 1):  # the two grid steps around each offset
             m, v = moments(G[:, k], self.pv[:, k])
-            r, rv = moments((G[:, k + 1] - G[:, k - 1]) / dt2, self.pv_rate[:, k] / dt2**2)
+            stencil = (G[:, k - 2] - 8.0 * G[:, k - 1] + 8.0 * G[:, k + 1] - G[:, k + 2]) / (12.0 * self.dt)
+            r, rv = moments(stencil, self.pv_rate[:, k + 1])
             out.append((m + self.mu, v, r, rv))
         m, v, rm, rv = ((1.0 - w) * a + w * b for a, b in zip(out[0], out[1], strict=True))
         mean = np.column_stack([m[:, 0], rm[:, 0], m[:, 1], m[:, 2]])
