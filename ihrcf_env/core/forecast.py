@@ -64,7 +64,9 @@ QUIET_POINTS = 5
 
 _SG_LENGTH = 7  # Savitzky-Golay window (cells) and polynomial order of the fit's smoothing
 _SG_ORDER = 3
-_MIN_FILL = 0.5  # fraction of the window's cells holding samples before a fit
+_MIN_FILL = 0.5  # fraction of the cells since the first sample of the window holding samples
+_MAX_BRIDGE = 5  # cells of missing samples bridged by interpolation in a fit
+_MIN_SPAN = 10.0  # s of samples before a fit (at most the window, at least 4 orders of cells)
 _MAX_RADIUS = 0.999  # largest modulus of a pole of the fitted AR model
 _NOISE_FLOOR = 1e-12
 _RIDGE = 1e-4  # ridge of the least squares, relative to the mean energy of a lag
@@ -84,7 +86,7 @@ class ForecastOptions:
     """
 
     horizons: tuple[float, ...] = (0.25, 0.5, 1.0, 2.0, 3.0)
-    window: float = 20.0
+    window: float = 40.0
     order: int = 24
     sample_period: float = 0.1
     refit_period: float = 1.0
@@ -262,8 +264,11 @@ class DeckForecaster:
 
     # -- fit (fixed schedule) -----------------------------------------------------------------
 
-    def _window(self) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64]] | None:
-        """The window's cell means (n, 3), gaps filled linearly; which cells hold samples; counts."""
+    def _window(
+        self,
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64], NDArray[np.int64]] | None:
+        """The window's cell means (n, 3), gaps filled linearly; which cells hold samples; counts;
+        the first cell holding a sample per channel (the window's span starts there)."""
         n = self.n_cells
         ids = self.cell - n + np.arange(n)
         slot = ids % n
@@ -272,7 +277,10 @@ class DeckForecaster:
         tot = np.where(ok[:, None], self.sums[slot], 0.0)
         lag = np.where(ok[:, None], self.offsets[slot], 0.0) / np.maximum(cnt, 1.0)
         good = cnt > 0
-        if np.any(good.mean(axis=0) < _MIN_FILL):
+        first = np.where(good.any(axis=0), np.argmax(good, axis=0), n)
+        span = n - first
+        min_cells = max(4 * self.p, min(n, int(round(_MIN_SPAN / self.dt))))
+        if np.any(span < min_cells) or np.any(good.sum(axis=0) < _MIN_FILL * span):
             return None
         z = np.empty((n, 3))
         grid = np.arange(n, dtype=np.float64)
@@ -280,42 +288,57 @@ class DeckForecaster:
             g = good[:, c]
             z[:, c] = np.interp(grid, grid[g], tot[g, c] / cnt[g, c])
         z = z - lag * np.gradient(z, self.dt, axis=0)  # each mean moved to its cell's centre
-        return z, good, cnt
+        return z, good, cnt, first
 
     def _refit(self) -> None:
         w = self._window()
         if w is None:
             return
-        z, good, cnt = w
+        z, good, cnt, first = w
         p, n = self.p, z.shape[0]
-        mu = z.mean(axis=0)
-        z = z - mu
+        cells = np.arange(n)[:, None]
+        span = cells >= first[None, :]  # (n, 3) cells since the first sample
+        mu = np.sum(np.where(span, z, 0.0), axis=0) / (n - first)
+        z = np.where(span, z - mu, 0.0)
         smooth = savgol_filter(z, _SG_LENGTH, _SG_ORDER, axis=0)
         # noise of one cell: the scatter about the smoothed values of the cells holding samples
         c0 = savgol_filter(np.eye(_SG_LENGTH)[_SG_LENGTH // 2], _SG_LENGTH, _SG_ORDER)[_SG_LENGTH // 2]
-        inner = slice(_SG_LENGTH, n - _SG_LENGTH)
-        resid = np.where(good[inner], z[inner] - smooth[inner], 0.0)
-        r_cell = np.sum(resid**2, axis=0) / np.maximum(good[inner].sum(axis=0), 1) / max(1.0 - c0, 1e-3)
+        inner = good & (cells >= first[None, :] + _SG_LENGTH) & (cells < n - _SG_LENGTH)
+        resid = np.where(inner, z - smooth, 0.0)
+        r_cell = np.sum(resid**2, axis=0) / np.maximum(inner.sum(axis=0), 1) / max(1.0 - c0, 1e-3)
         mean_count = cnt.sum(axis=0) / np.maximum(good.sum(axis=0), 1)
         if self.options.noise_std is not None:
             r_cell = np.asarray(self.options.noise_std) ** 2 / mean_count
         r_cell = np.maximum(r_cell, _NOISE_FLOOR)
         lag = np.stack([smooth[p - 1 - i : n - 1 - i] for i in range(p)], axis=1)  # (n - p, p, 3)
         target = smooth[p:]
+        rows = np.arange(n - p)[:, None] >= first[None, :] + _SG_LENGTH  # (n - p, 3) lags in the span
+        # rows reaching into a long gap (more than _MAX_BRIDGE cells without samples) are left out
+        idx = np.broadcast_to(cells, (n, 3))
+        prev = np.maximum.accumulate(np.where(good, idx, -1), axis=0)
+        nxt = np.minimum.accumulate(np.where(good, idx, n)[::-1], axis=0)[::-1]
+        hole = ~good & (nxt - prev - 1 > _MAX_BRIDGE)
+        holes = np.concatenate([np.zeros((1, 3)), np.cumsum(hole, axis=0)])  # (n + 1, 3)
+        lo = np.clip(np.arange(n - p) - _SG_LENGTH, 0, n)
+        hi = np.clip(np.arange(n - p) + p + 1 + _SG_LENGTH, 0, n)
+        rows &= holes[hi] - holes[lo] == 0
         F = np.zeros((3, p, p))
         F[:, 1:, :-1] = np.eye(p - 1)
         q = np.zeros(3)
         for c in range(3):
-            A = lag[:, :, c]
+            A = lag[:, :, c] * rows[:, c, None]
+            b = target[:, c] * rows[:, c]
             AtA = A.T @ A
             ridge = _RIDGE * np.trace(AtA) / p + 1e-30
-            a = np.linalg.solve(AtA + ridge * np.eye(p), A.T @ target[:, c])
+            a = np.linalg.solve(AtA + ridge * np.eye(p), A.T @ b)
             F[c, 0] = a
             radius = float(np.max(np.abs(np.linalg.eigvals(F[c]))))
             if radius > _MAX_RADIUS:
                 F[c, 0] = a * (_MAX_RADIUS / radius) ** np.arange(1, p + 1)
-            resid_var = float(np.var(target[:, c] - lag[:, :, c] @ F[c, 0]))
-            q[c] = max(resid_var, 1e-3 * float(np.var(smooth[:, c])), 1e-14)
+            m = max(int(rows[:, c].sum()), 1)
+            resid_var = float(np.sum((b - A @ F[c, 0]) ** 2)) / m
+            energy = float(np.sum(smooth[:, c] ** 2)) / max(n - int(first[c]), 1)
+            q[c] = max(resid_var, 1e-3 * energy, 1e-14)
         Q = np.zeros((3, p, p))
         Q[:, 0, 0] = q
         # stationary covariance (a fixed number of doublings of the Lyapunov sum)

@@ -101,7 +101,7 @@ def test_a_long_gap_resets_and_recovers() -> None:
     feed(fc, t, sines(t, parts))
     f = fc.forecast()
     assert np.isfinite(f.mean).all()
-    np.testing.assert_allclose(f.mean[:, 0], sines(t[-1] + f.horizons, parts)[:, 0], atol=0.08 * 0.02)
+    np.testing.assert_allclose(f.mean[:, 0], sines(t[-1] + f.horizons, parts)[:, 0], atol=0.1 * 0.02)
 
 
 def test_not_ready_before_the_first_fit() -> None:
@@ -189,7 +189,7 @@ def test_old_samples_ignored_and_bad_input_refused() -> None:
         ({"window": 0.5}, "forecast.window"),
         ({"window": math.inf}, "forecast.window"),
         ({"order": 1}, "forecast.order"),
-        ({"order": 100}, "forecast.order"),
+        ({"order": 1000}, "forecast.order"),
         ({"order": 12.0}, "forecast.order"),
         ({"sample_period": 0.0}, "forecast.sample_period"),
         ({"sample_period": True}, "forecast.sample_period"),
