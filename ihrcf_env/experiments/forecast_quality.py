@@ -13,7 +13,9 @@ the calibration (fraction of the truth inside the forecast's +-1 std; 0.68 for a
 Gaussian forecast). The quiescence indicator (probability >= 0.5) is scored against the true
 record's quiescent runs (:func:`~ihrcf_env.core.quiescence.quiescent_mask`, thresholds at the
 level's scale): a window ``[t + lead, t + lead + min_duration]`` is truly quiet when all of it is
-inside a run; precision and recall over the evaluation times.
+inside a run; precision and recall over the evaluation times, calling a window quiet at each
+probability level of :data:`QUIET_LEVELS`. The update and forecast costs (microseconds, the
+refits included) depend on the machine.
 """
 
 from __future__ import annotations
@@ -33,9 +35,20 @@ from ihrcf_env.core.forecast import DeckForecaster, ForecastOptions
 from ihrcf_env.core.quiescence import QuiescenceThresholds, quiescent_mask
 from ihrcf_env.core.ship import ship_profile
 
-__all__ = ["LEVEL_NAMES", "LevelQuality", "Sampling", "evaluate", "level_sea", "main", "markdown"]
+__all__ = [
+    "LEVEL_NAMES",
+    "QUIET_LEVELS",
+    "LevelQuality",
+    "Sampling",
+    "evaluate",
+    "level_sea",
+    "main",
+    "markdown",
+]
 
 LEVEL_NAMES = ("calm", "moderate", "rough")
+#: Probabilities at or above which the quiescence indicator calls a window quiet, as scored.
+QUIET_LEVELS = (0.5, 0.25)
 
 
 def level_sea(name: str) -> tuple[int, float, float]:
@@ -76,17 +89,18 @@ class Sampling:
 class LevelQuality:
     """Scores of one level over its seeds: per horizon (rows) ``rms`` and ``persist`` (H, 4: heave m,
     heave rate m/s, roll rad, pitch rad; persistence's heave rate column is the truth's std),
-    ``inside`` (H, 4) the calibration; the quiescence indicator's ``precision``, ``recall`` (NaN when
-    undefined), ``quiet_fraction`` of truly quiet windows; ``us_per_sample`` the mean cost of an
-    update (with the refits) and ``us_per_forecast``."""
+    ``inside`` (H, 4) the calibration; the quiescence indicator's ``precision`` and ``recall`` per
+    probability level of :data:`QUIET_LEVELS` (NaN when undefined), ``quiet_fraction`` of truly
+    quiet windows; ``us_per_sample`` the mean cost of an update (with the refits) and
+    ``us_per_forecast``."""
 
     level: str
     horizons: NDArray[np.float64]
     rms: NDArray[np.float64]
     persist: NDArray[np.float64]
     inside: NDArray[np.float64]
-    precision: float
-    recall: float
+    precision: tuple[float, ...]
+    recall: tuple[float, ...]
     quiet_fraction: float
     us_per_sample: float
     us_per_forecast: float
@@ -134,7 +148,7 @@ def evaluate(
     per: list[NDArray[np.float64]] = []
     ins: list[NDArray[np.bool_]] = []
     rate_std: list[float] = []
-    pred_q: list[bool] = []
+    pred_q: list[float] = []
     true_q: list[bool] = []
     t_update = t_forecast = 0.0
     n_update = n_forecast = 0
@@ -181,23 +195,26 @@ def evaluate(
             ins.append(np.abs(f.mean - tr) <= f.std)
             a, b = np.searchsorted(grid, [t[k] + opts.quiet_lead, t[k] + opts.quiet_lead + th.min_duration])
             true_q.append(bool(quiet[a : b + 1].all()))
-            pred_q.append(p_quiet >= 0.5)
+            pred_q.append(p_quiet)
     e, pe, i = np.array(err), np.array(per), np.array(ins)
     rms = np.sqrt(np.mean(e**2, axis=0))
     persist = np.sqrt(np.mean(pe**2, axis=0))
     persist[:, 1] = float(np.mean(rate_std))
-    pq, tq = np.array(pred_q), np.array(true_q)
-    tp = float(np.sum(pq & tq))
-    precision = tp / float(pq.sum()) if pq.any() else math.nan
-    recall = tp / float(tq.sum()) if tq.any() else math.nan
+    prob, tq = np.array(pred_q), np.array(true_q)
+    precision, recall = [], []
+    for level_p in QUIET_LEVELS:
+        pq = prob >= level_p
+        tp = float(np.sum(pq & tq))
+        precision.append(tp / float(pq.sum()) if pq.any() else math.nan)
+        recall.append(tp / float(tq.sum()) if tq.any() else math.nan)
     return LevelQuality(
         level,
         hs,
         rms,
         persist,
         i.mean(axis=0),
-        precision,
-        recall,
+        tuple(precision),
+        tuple(recall),
         float(tq.mean()),
         1e6 * t_update / max(n_update, 1),
         1e6 * t_forecast / max(n_forecast, 1),
@@ -244,15 +261,18 @@ def markdown(results: Sequence[LevelQuality], seeds: Sequence[int], sampling: Sa
             out.append(f"| {r.level} | {h:g} | " + " | ".join(f"{v:.2f}" for v in r.inside[j]) + " |")
     out += [
         "",
-        "Quiescence indicator (probability >= 0.5) against the true quiescent windows.",
+        "Quiescence indicator against the true quiescent windows: precision / recall when a window "
+        "is called quiet at a probability >= " + " and >= ".join(f"{v:g}" for v in QUIET_LEVELS) + ".",
         "",
-        "| level | truly quiet windows | precision | recall | forecasts | update (us) "
-        "| forecast + quiet (us) |",
-        "|---|---|---|---|---|---|---|",
+        "| level | truly quiet windows | "
+        + " | ".join(f"p >= {v:g}" for v in QUIET_LEVELS)
+        + " | forecasts | update (us) | forecast + quiet (us) |",
+        "|---|---|" + "---|" * len(QUIET_LEVELS) + "---|---|---|",
     ]
     for r in results:
+        scores = " | ".join(f"{_pct(a)} / {_pct(b)}" for a, b in zip(r.precision, r.recall, strict=True))
         out.append(
-            f"| {r.level} | {_pct(r.quiet_fraction)} | {_pct(r.precision)} | {_pct(r.recall)} | "
+            f"| {r.level} | {_pct(r.quiet_fraction)} | {scores} | "
             f"{r.n_forecasts} | {r.us_per_sample:.0f} | {r.us_per_forecast:.0f} |"
         )
     return out
