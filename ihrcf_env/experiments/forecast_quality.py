@@ -48,7 +48,7 @@ __all__ = [
 
 LEVEL_NAMES = ("calm", "moderate", "rough")
 #: Probabilities at or above which the quiescence indicator calls a window quiet, as scored.
-QUIET_LEVELS = (0.5, 0.25)
+QUIET_LEVELS = (0.5, 0.25, 0.1)
 
 
 def level_sea(name: str) -> tuple[int, float, float]:
@@ -262,7 +262,7 @@ def markdown(results: Sequence[LevelQuality], seeds: Sequence[int], sampling: Sa
     out += [
         "",
         "Quiescence indicator against the true quiescent windows: precision / recall when a window "
-        "is called quiet at a probability >= " + " and >= ".join(f"{v:g}" for v in QUIET_LEVELS) + ".",
+        "is called quiet at a probability >= " + ", ".join(f"{v:g}" for v in QUIET_LEVELS) + ".",
         "",
         "| level | truly quiet windows | "
         + " | ".join(f"p >= {v:g}" for v in QUIET_LEVELS)
