@@ -34,6 +34,7 @@ depends on the data); the refit, on a fixed schedule of grid cells, solves fixed
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -144,8 +145,8 @@ class DeckForecaster:
     """The online forecaster (see the module docstring). Feed :meth:`update` each sample in time
     order; read :meth:`forecast` and :meth:`quiet_probability` at any time."""
 
-    def __init__(self, options: ForecastOptions | None = None) -> None:
-        self.options = options if options is not None else ForecastOptions()
+    def __init__(self, options: ForecastOptions | Mapping[str, Any] | None = None) -> None:
+        self.options = forecast_options(options)
         o = self.options
         self.dt = o.sample_period
         self.n_cells = o.cells
@@ -445,6 +446,6 @@ class DeckForecaster:
         return {"ar": self.F[:, 0].copy(), "process_var": self.q.copy(), "noise_var_cell": self.r_cell.copy()}
 
 
-def forecast_options(value: ForecastOptions | dict[str, Any] | None) -> ForecastOptions:
+def forecast_options(value: ForecastOptions | Mapping[str, Any] | None) -> ForecastOptions:
     """A :class:`ForecastOptions` from itself, a dict of its fields or None (the defaults)."""
     return from_fields("forecast", ForecastOptions, value if value is not None else {})

@@ -212,6 +212,9 @@ def test_options_from_a_dict() -> None:
     assert forecast_options(None) == ForecastOptions()
     with pytest.raises(ValueError, match="forecast has no parameter 'oder'"):
         forecast_options({"oder": 12})
+    assert DeckForecaster({"order": 8}).p == 8
+    with pytest.raises(TypeError, match="forecast must be a ForecastOptions"):
+        DeckForecaster("fast")  # type: ignore[arg-type]
 
 
 def test_fixed_noise_option() -> None:
