@@ -21,7 +21,6 @@ refits included) depend on the machine.
 from __future__ import annotations
 
 import argparse
-import importlib
 import math
 import time
 from collections.abc import Sequence
@@ -31,6 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ihrcf_env.config.levels import LEVELS
 from ihrcf_env.core.forecast import DeckForecaster, ForecastOptions
 from ihrcf_env.core.quiescence import QuiescenceThresholds, quiescent_mask
 from ihrcf_env.core.ship import ship_profile
@@ -53,14 +53,7 @@ QUIET_LEVELS = (0.5, 0.25, 0.1)
 
 def level_sea(name: str) -> tuple[int, float, float]:
     """(sea state, length scale, camera frame loss rate) of the level ``name``."""
-    for module in ("ihrcf_env.config.levels", "ihrcf_env.envs.levels"):
-        try:
-            levels: Any = importlib.import_module(module).LEVELS
-            break
-        except (ImportError, AttributeError):
-            continue
-    else:  # pragma: no cover
-        raise ImportError("no module defines the levels")
+    levels = LEVELS
     if name not in levels:
         raise ValueError(f"level must be one of {tuple(levels)}, got {name!r}")
     lv = levels[name]
