@@ -13,7 +13,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from fast_helpers import rel_err
 from scipy.spatial.transform import Rotation
 
 from ihrcf_env.config.vehicle import QuadParams, VelocityGains
@@ -28,6 +27,8 @@ from ihrcf_env.fast.dynamics import (
 )
 from ihrcf_env.sim.batched.autopilot import BatchedVelocityController
 from ihrcf_env.sim.batched.dynamics import BatchedQuadrotor
+
+from .fast_helpers import rel_err
 
 QP = QuadParams()
 P = drone_params(QP)

@@ -6,13 +6,14 @@ from __future__ import annotations
 import cv2
 import jax.numpy as jnp
 import numpy as np
-from fast_helpers import Counted, rel_err, rotations
 
 from ihrcf_env.core.detector_model import QUIET_ZONE_SCALE
 from ihrcf_env.core.detector_model.features import project_points
 from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.rig import SensorRig, intrinsics_from_fov, tag_corners_deck
 from ihrcf_env.fast.camera import tag_view
+
+from .fast_helpers import Counted, rel_err, rotations
 
 K = intrinsics_from_fov(640, 480, np.radians(60.0))
 DIST = np.array([-0.05, 0.01])

@@ -4,12 +4,13 @@ contact code for every pose, including boxes just touching and just clear of the
 from __future__ import annotations
 
 import numpy as np
-from fast_helpers import Counted, rotations
 
 from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.fast.contact import box_corners, first_contact
 from ihrcf_env.sim.batched.contact import drone_boxes, drone_corners
 from ihrcf_env.sim.batched.contact import first_contact as np_first_contact
+
+from .fast_helpers import Counted, rotations
 
 CFG = WorldConfig(camera=None)
 C, H = drone_boxes()

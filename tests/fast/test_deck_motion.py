@@ -7,7 +7,6 @@ from __future__ import annotations
 import jax
 import numpy as np
 import pytest
-from fast_helpers import Counted, rel_err
 from scipy.spatial.transform import Rotation
 
 from ihrcf_env.core.profiles import paper_profile
@@ -25,6 +24,8 @@ from ihrcf_env.fast.deck_motion import (
     sines_arrays,
     sum_of_sines,
 )
+
+from .fast_helpers import Counted, rel_err
 
 GEOM = StewartGeometry()
 TIMES = np.linspace(0.0, 30.0, 200)

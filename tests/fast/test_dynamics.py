@@ -6,7 +6,6 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
-from fast_helpers import Counted, rel_err, rotations
 from scipy.spatial.transform import Rotation
 
 from ihrcf_env.config.vehicle import QuadParams
@@ -26,6 +25,8 @@ from ihrcf_env.sim.batched.floatmath import quaternions_from_matrices
 from ihrcf_env.sim.batched.mixer import BatchedMixer
 from ihrcf_env.sim.batched.surface import rotor_positions_batch, thrust_scale_batch
 from ihrcf_env.sim.ground_effect import GroundEffect
+
+from .fast_helpers import Counted, rel_err, rotations
 
 QP = QuadParams()
 P = drone_params(QP)

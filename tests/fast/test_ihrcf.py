@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from fast_helpers import Counted, rel_err, rotations
 
 from ihrcf_env.core.batch import result as rs
 from ihrcf_env.core.batch.geometry import fit_plane_batch, homography4_batch, rigid_fit_batch
@@ -21,6 +20,8 @@ from ihrcf_env.fast.ihrcf import ihrcf, ihrcf_setup
 from ihrcf_env.fast.plane import fit_plane
 from ihrcf_env.fast.rigid import rigid_fit
 from ihrcf_env.fast.table import lookup, touch_table
+
+from .fast_helpers import Counted, rel_err, rotations
 
 RIG = SensorRig()
 TAG = 0.4

@@ -8,10 +8,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from fast_helpers import rel_err
 
 from ihrcf_env.core.batch.imm import BatchImm
 from ihrcf_env.fast import imm
+
+from .fast_helpers import rel_err
 
 N = 128
 ARGS = dict(

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import jax
 import numpy as np
-from fast_helpers import rel_err
 
 from ihrcf_env.config.vehicle import NavigationErrors
 from ihrcf_env.fast.navigation import nav_constants, nav_estimate, nav_start, nav_step
 from ihrcf_env.sim.navigation import GNSSINSNavigation
+
+from .fast_helpers import rel_err
 
 DT = 1.0 / 240.0
 STEPS = 600

@@ -15,7 +15,6 @@ import math
 
 import cv2
 import numpy as np
-from fast_helpers import Counted, rel_err, rotations
 
 from ihrcf_env.core.batch import result as rs
 from ihrcf_env.core.batch.cvlm import refine_cv_lm, rodrigues_vector
@@ -29,6 +28,8 @@ from ihrcf_env.core.rig import SensorRig, intrinsics_from_fov
 from ihrcf_env.fast.ippe import ippe_square, undistort
 from ihrcf_env.fast.lm import refine_lm
 from ihrcf_env.fast.pnp import pnp_candidates, pnp_choose
+
+from .fast_helpers import Counted, rel_err, rotations
 
 POSE_TOL = 1e-4
 ERR_TOL = 1e-3

@@ -6,7 +6,6 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
-from fast_helpers import Counted, rel_err, rotations
 
 from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.rig import SensorRig
@@ -14,6 +13,8 @@ from ihrcf_env.fast.rays import Scene, cast_rays, true_ranges
 from ihrcf_env.sim.batched.ranging import BatchedToF
 from ihrcf_env.sim.batched.rays import RayScene
 from ihrcf_env.sim.batched.rays import cast_rays as np_cast_rays
+
+from .fast_helpers import Counted, rel_err, rotations
 
 CFG = WorldConfig(camera=None)
 RAY_SCENE = RayScene.of(CFG.deck.size, CFG.deck.thickness, CFG.stewart.base_radius, CFG.stewart.base_height)

@@ -7,7 +7,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from fast_helpers import rel_err, rotations
 
 from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.fast.rays import Scene, true_ranges
@@ -15,6 +14,8 @@ from ihrcf_env.fast.tof import cone_model, cone_ranges, cone_rays_of, read_cone,
 from ihrcf_env.sim.sensors.base import BodyState
 from ihrcf_env.sim.sensors.tof import ToFArray, ToFConfig
 from ihrcf_env.sim.world import World
+
+from .fast_helpers import rel_err, rotations
 
 N = 64
 

@@ -6,11 +6,12 @@ from __future__ import annotations
 import jax
 import numpy as np
 import pytest
-from fast_helpers import rel_err
 
 from ihrcf_env.config.wind import WindParams
 from ihrcf_env.fast.wind import wind_constants, wind_episode, wind_force, wind_velocity
 from ihrcf_env.sim.disturbances import Wind
+
+from .fast_helpers import rel_err
 
 TIMES = np.linspace(0.0, 15.0, 301)
 BLOCKS = 2  # gust samples drawn: 2 blocks of Wind.BLOCK

@@ -1,0 +1,1 @@
+"""The JAX kernels' golden tests (a package, so its conftest and modules do not shadow the others)."""
