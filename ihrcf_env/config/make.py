@@ -90,6 +90,7 @@ from ihrcf_env.core.checks import (
 )
 from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedParams
 from ihrcf_env.core.estimators.detector import apriltag_ids
+from ihrcf_env.core.forecast import ForecastOptions
 from ihrcf_env.core.ship import ShipOptions
 
 if TYPE_CHECKING:
@@ -185,6 +186,7 @@ LANDING_OPTIONS: tuple[str, ...] = (
     "privileged",
     "deck_motion",
     "batch_estimators",
+    "deck_forecast",
 )
 #: Options of the hover task only (its observation wrapper's).
 HOVER_OPTIONS: tuple[str, ...] = ("keep_image", "flatten")
@@ -200,6 +202,7 @@ OBSERVATION_OPTIONS: tuple[str, ...] = (
     "privileged",
     "deck_motion",
     "batch_estimators",
+    "deck_forecast",
 )
 #: ``autopilot``: the classic position loop, or the wind-holding one (anti-windup and a
 #: disturbance observer, :class:`~ihrcf_env.sim.drone.VelocityController`).
@@ -490,7 +493,7 @@ def _task_and_level(task: object, level: object) -> tuple[str, str | None, dict[
 def _check_task_options(o: _Options) -> None:
     """Refuses the options of the other task (:data:`LANDING_OPTIONS`, :data:`HOVER_OPTIONS`)."""
     landing = o.given["task"] != "hover"
-    flags = ("privileged", "deck_motion", "batch_estimators", "flatten")
+    flags = ("privileged", "deck_motion", "batch_estimators", "flatten", "deck_forecast")
     given = {n: (o[n] or None) if n in flags else o[n] for n in (*LANDING_OPTIONS, *HOVER_OPTIONS)}
     wrong = [n for n in (HOVER_OPTIONS if landing else LANDING_OPTIONS) if given[n] is not None]
     if wrong:
@@ -563,6 +566,7 @@ def make_config(
     privileged: bool = False,
     deck_motion: bool = False,
     batch_estimators: bool = False,
+    deck_forecast: bool | ForecastOptions | Mapping[str, Any] | None = False,
 ) -> DeckLandingConfig:
     """The resolved configuration of a deck task (module docstring). Options left at None take
     ``task``'s default (:data:`TASK_DEFAULTS`). Raises TypeError / ValueError naming the option.
