@@ -33,6 +33,14 @@ filter's deck motion, the rates a memoryless policy cannot take from one observa
 :meth:`~ihrcf_env.core.estimators.fused.FusedEstimator.motion` (sensor-derived, not ground truth);
 held like an estimate block while the filter is not converged (zeros before it ever was).
 
+``deck_forecast=True`` (or a dict of :class:`~ihrcf_env.core.forecast.ForecastOptions` fields; opt-in,
+needs the ``fused`` estimator) appends the deck-motion forecast fed by the fused estimate
+(:mod:`ihrcf_env.wrappers.forecast_feed`): per horizon the forecast ``forecast.heave`` (0.1 m, about
+the deck's mean height), ``.heave_rate`` (1 m/s), ``.roll`` and ``.pitch`` (0.1 rad, heading frame)
+and their standard deviations (``forecast.heave_std``, ...), then ``forecast.quiet`` (probability that
+the touchdown window ahead is quiet) and ``forecast.valid``; all 0 until the forecaster's first fit.
+``info["forecast"]`` carries the same values unscaled.
+
 While an estimate is invalid its block keeps the last valid values and ``age`` grows (the time
 since the camera frame behind them, also ``info[f"{E}_age"]``); before
 the first valid estimate the block is zeros with age 10. No ground truth is in the observation
@@ -210,6 +218,9 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         privileged: append the ground-truth block (asymmetric actor-critic); default False.
         deck_motion: append the fused filter's deck motion (module docstring; needs the ``fused``
             estimator); default False.
+        deck_forecast: append the deck-motion forecast (module docstring; True, or a
+            :class:`~ihrcf_env.core.forecast.ForecastOptions` or a dict of its fields; needs the
+            ``fused`` estimator); default False.
         batch_estimators: run the estimators through their batched form with one row
             (:class:`~ihrcf_env.core.batch.pipeline.BatchDeckPoseEstimator`): the same numbers as a
             vector env's batched sub-env, bit for bit; default False.
@@ -220,7 +231,8 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     Attributes: ``obs_slices`` (name -> slice), ``obs_scales`` (name -> scale: physical = value *
     scale), ``estimator_names``, ``estimators`` (name -> source), ``stage``, ``privileged``,
-    ``deck_motion``, ``observation_config`` (the resolved options).
+    ``deck_motion``, ``forecast`` (the :class:`~ihrcf_env.wrappers.forecast_feed.ForecastFeed`, or
+    None), ``observation_config`` (the resolved options).
     """
 
     def __init__(

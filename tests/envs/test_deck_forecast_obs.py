@@ -197,3 +197,14 @@ def test_the_spec_rebuilds_the_env(make_env: Any) -> None:
         ForecastOptions(), order=12, horizons=(1.0,)
     )
     assert again.observation_space == env.observation_space
+
+
+def test_the_documented_options_table_is_the_envs_layout(make_env: Any) -> None:
+    from ihrcf_env.wrappers.obs_tables import tables
+
+    env = make_env(V2, camera_model="projected", deck_motion=True, deck_forecast=True, privileged=True)
+    sl = env.get_wrapper_attr("obs_slices")
+    table = tables()["landing-options"]
+    for name in ("forecast.heave", "forecast.pitch_std", "forecast.valid", "ground_truth.wind"):
+        assert f"| `{name}` | {sl[name].start}:{sl[name].stop} |" in table
+    assert env.observation_space.shape == (sl["all"].stop,) == (112,)
