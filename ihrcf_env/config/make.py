@@ -186,7 +186,6 @@ LANDING_OPTIONS: tuple[str, ...] = (
     "privileged",
     "deck_motion",
     "batch_estimators",
-    "deck_forecast",
 )
 #: Options of the hover task only (its observation wrapper's).
 HOVER_OPTIONS: tuple[str, ...] = ("keep_image", "flatten")
@@ -493,7 +492,7 @@ def _task_and_level(task: object, level: object) -> tuple[str, str | None, dict[
 def _check_task_options(o: _Options) -> None:
     """Refuses the options of the other task (:data:`LANDING_OPTIONS`, :data:`HOVER_OPTIONS`)."""
     landing = o.given["task"] != "hover"
-    flags = ("privileged", "deck_motion", "batch_estimators", "flatten", "deck_forecast")
+    flags = ("privileged", "deck_motion", "batch_estimators", "flatten")
     given = {n: (o[n] or None) if n in flags else o[n] for n in (*LANDING_OPTIONS, *HOVER_OPTIONS)}
     wrong = [n for n in (HOVER_OPTIONS if landing else LANDING_OPTIONS) if given[n] is not None]
     if wrong:

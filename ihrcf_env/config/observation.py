@@ -147,6 +147,11 @@ def check_observation_options(
         raise ValueError(
             f"deck_forecast needs the fused estimator (estimators must include 'fused'), got {names}"
         )
+    if forecast is not None and flat:
+        raise ValueError(
+            "deck_forecast: the hover task's flat observation (flatten=True) has no forecast fields; "
+            "use its Dict observation (flatten=False), where the forecast is obs['forecast']"
+        )
     batch = check_bool("batch_estimators", batch_estimators)
     if batch and not batchable_names(names):
         raise ValueError(

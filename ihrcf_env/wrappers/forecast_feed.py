@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from ihrcf_env.core.estimators import PoseEstimate
 from ihrcf_env.core.forecast import DeckForecaster, ForecastOptions
-from ihrcf_env.core.frames import matrix_from_euler
+from ihrcf_env.core.frames import matrix_from_euler, matrix_from_quat
 from ihrcf_env.core.quiescence import QuiescenceThresholds
 from ihrcf_env.wrappers.layout import Field
 
@@ -127,6 +127,17 @@ class ForecastFeed:
                 self.forecaster.update(time, sample, True)
                 self.samples += 1
         return self._output(R_lw)
+
+    def observe_imu(
+        self, time: float, nav_velocity_z: float, frame: object, fused: PoseEstimate, quaternion: Any
+    ) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        """:meth:`observe` with the rotations of the IMU attitude ``quaternion`` (x, y, z, w; world
+        from body): the heading frame is the level frame turned by the drone's yaw."""
+        R_wb = matrix_from_quat(np.asarray(quaternion, dtype=np.float64))
+        yaw = math.atan2(R_wb[1, 0], R_wb[0, 0])
+        c, s = math.cos(yaw), math.sin(yaw)
+        R_lw = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+        return self.observe(time, nav_velocity_z, frame, fused, R_lw @ R_wb, R_lw)
 
     def _sample(
         self, fused: PoseEstimate, R_lb: NDArray[np.float64], R_lw: NDArray[np.float64]

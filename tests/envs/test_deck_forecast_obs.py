@@ -57,12 +57,30 @@ def test_bad_forecast_options_are_named(options: dict[str, Any], error: Any, mat
         make_config(task="landing-v2", **options)
 
 
-@pytest.mark.parametrize("raw", [False, True])
-def test_the_hover_task_refuses_it(raw: bool) -> None:
+@pytest.mark.parametrize("options", [{"raw": True}, {"flatten": True}])
+def test_the_hover_task_refuses_it_without_its_dict_observation(options: dict[str, Any]) -> None:
     with pytest.raises(ValueError, match="deck_forecast"):
-        make_config(task="hover", deck_forecast=True, raw=raw)
+        make_config(task="hover", deck_forecast=True, **options)
     with pytest.raises(ValueError, match="deck_forecast"):
-        gym.make(ihrcf_env.HOVER_ID, deck_forecast={"order": 8}, raw=raw)
+        gym.make(ihrcf_env.HOVER_ID, deck_forecast={"order": 8}, **options)
+
+
+def test_the_hover_task_offers_it_beside_the_estimates(make_env: Any) -> None:
+    env = make_env(ihrcf_env.HOVER_ID, camera_model="projected", deck_forecast={"horizons": (0.5, 1.0)})
+    obs, info = env.reset(seed=4)
+    assert env.observation_space.contains(obs)
+    assert obs[FORECAST]["valid"] == 0 and not np.any(obs[FORECAST]["mean"])
+    assert obs[FORECAST]["mean"].shape == (2, 4)
+    for _ in range(HOLD_STEPS):
+        obs, _, terminated, truncated, info = env.step(np.zeros(4, np.float32))
+        assert env.observation_space.contains(obs)
+        if terminated or truncated:
+            break
+    fc = info[FORECAST]
+    assert fc["samples"] > 100 and obs[FORECAST]["valid"] == 1
+    np.testing.assert_allclose(obs[FORECAST]["mean"], fc["mean"], rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(obs[FORECAST]["std"], fc["std"], rtol=1e-6, atol=1e-7)
+    assert make_env(ihrcf_env.HOVER_ID, camera_model="projected").observation_space.get(FORECAST) is None
 
 
 def test_the_layout_appends_the_forecast_block_only_when_asked() -> None:
