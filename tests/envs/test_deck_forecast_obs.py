@@ -226,3 +226,30 @@ def test_the_documented_options_table_is_the_envs_layout(make_env: Any) -> None:
     for name in ("forecast.heave", "forecast.pitch_std", "forecast.valid", "ground_truth.wind"):
         assert f"| `{name}` | {sl[name].start}:{sl[name].stop} |" in table
     assert env.observation_space.shape == (sl["all"].stop,) == (112,)
+
+
+def test_a_vector_env_reproduces_the_single_envs_forecast(make_env: Any) -> None:
+    from ihrcf_env.vector import DeckLandingVectorEnv
+
+    options: dict[str, Any] = {
+        "camera_model": "projected",
+        "level": "calm",
+        "deck_forecast": {"horizons": (0.5,)},
+    }
+    v = DeckLandingVectorEnv(V2, 2, **options)
+    try:
+        singles = [make_env(V2, **options) for _ in range(2)]
+        sl = singles[0].get_wrapper_attr("obs_slices")
+        assert v.single_observation_space == singles[0].observation_space
+        obs, _ = v.reset(seed=21)
+        s_obs = [e.reset(seed=21 + i)[0] for i, e in enumerate(singles)]
+        zero = np.zeros((2, 4), np.float32)
+        for _ in range(HOLD_STEPS - 40):
+            for i in range(2):
+                np.testing.assert_array_equal(obs[i], s_obs[i])
+            obs, _, terminated, truncated, _ = v.step(zero)
+            assert not (terminated.any() or truncated.any())
+            s_obs = [e.step(zero[i])[0] for i, e in enumerate(singles)]
+        assert np.all(obs[:, sl["forecast.valid"]] == 1.0)
+    finally:
+        v.close()
