@@ -253,3 +253,19 @@ def test_a_vector_env_reproduces_the_single_envs_forecast(make_env: Any) -> None
         assert np.all(obs[:, sl["forecast.valid"]] == 1.0)
     finally:
         v.close()
+
+
+def test_the_rest_of_the_observation_is_unchanged_bit_for_bit(make_env: Any) -> None:
+    """The default observation, and the first values of the observation with the forecast on, are
+    those of the env without the option, step for step (paired seeds)."""
+    plain = make_env(V2, camera_model="projected", level="moderate")
+    off = make_env(V2, camera_model="projected", level="moderate", deck_forecast=False)
+    on = make_env(V2, camera_model="projected", level="moderate", deck_forecast=True)
+    size = plain.observation_space.shape[0]
+    assert off.observation_space == plain.observation_space
+    outs = [e.reset(seed=9)[0] for e in (plain, off, on)]
+    action = np.array([0.1, -0.1, -0.3, 0.0], np.float32)
+    for _ in range(40):
+        np.testing.assert_array_equal(outs[0], outs[1])
+        np.testing.assert_array_equal(outs[0], outs[2][:size])
+        outs = [e.step(action)[0] for e in (plain, off, on)]
