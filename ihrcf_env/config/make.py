@@ -90,6 +90,7 @@ from ihrcf_env.core.checks import (
 )
 from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedParams
 from ihrcf_env.core.estimators.detector import apriltag_ids
+from ihrcf_env.core.forecast import ForecastOptions
 from ihrcf_env.core.ship import ShipOptions
 
 if TYPE_CHECKING:
@@ -200,6 +201,7 @@ OBSERVATION_OPTIONS: tuple[str, ...] = (
     "privileged",
     "deck_motion",
     "batch_estimators",
+    "deck_forecast",
 )
 #: ``autopilot``: the classic position loop, or the wind-holding one (anti-windup and a
 #: disturbance observer, :class:`~ihrcf_env.sim.drone.VelocityController`).
@@ -563,6 +565,7 @@ def make_config(
     privileged: bool = False,
     deck_motion: bool = False,
     batch_estimators: bool = False,
+    deck_forecast: bool | ForecastOptions | Mapping[str, Any] | None = False,
 ) -> DeckLandingConfig:
     """The resolved configuration of a deck task (module docstring). Options left at None take
     ``task``'s default (:data:`TASK_DEFAULTS`). Raises TypeError / ValueError naming the option.

@@ -15,11 +15,13 @@ from ihrcf_env.core.batch.pipeline import BATCHED, batchable_names
 from ihrcf_env.core.calibration import Calibration, default_calibration_path
 from ihrcf_env.core.checks import check_bool, check_positive, describe
 from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedParams, check_estimator_names
+from ihrcf_env.core.forecast import ForecastOptions, forecast_options
 
 __all__ = [
     "MAX_RESIDUAL",
     "ObservationConfig",
     "fused_params_for_tof",
+    "check_deck_forecast",
     "check_observation_options",
     "load_calibration",
     "resolve_checked",
@@ -49,9 +51,10 @@ class ObservationConfig:
     options; ``max_residual`` (m): IHRCF's rigid-fit threshold; ``estimators``: registered names, in
     order; ``fused_params``: the fused filter's parameters (given, or :func:`fused_params_for_tof`
     of the ToF model and the task; None when raw); ``privileged`` / ``deck_motion``: the landing
-    task's flat observation options; ``batch_estimators``: run the estimators through their batched
-    form (:mod:`ihrcf_env.core.batch.pipeline`) with one row, the arithmetic of a vector env's
-    batched sub-envs."""
+    task's flat observation options; ``deck_forecast``: the options of the deck-motion forecast the
+    landing task's flat observation appends (None: off); ``batch_estimators``: run the estimators
+    through their batched form (:mod:`ihrcf_env.core.batch.pipeline`) with one row, the arithmetic
+    of a vector env's batched sub-envs."""
 
     raw: bool = False
     calibration: Calibration | None = None
@@ -63,6 +66,27 @@ class ObservationConfig:
     privileged: bool = False
     deck_motion: bool = False
     batch_estimators: bool = False
+    deck_forecast: ForecastOptions | None = None
+
+
+def check_deck_forecast(value: object) -> ForecastOptions | None:
+    """``deck_forecast``: False or None (off), True (the default :class:`ForecastOptions`), a
+    ForecastOptions or a dict of some of its fields (errors name ``deck_forecast`` and the field)."""
+    if value is None or value is False:
+        return None
+    if value is True:
+        return ForecastOptions()
+    if isinstance(value, ForecastOptions):
+        return value
+    if not isinstance(value, dict):
+        raise TypeError(
+            "deck_forecast must be a bool, an ihrcf_env.core.forecast.ForecastOptions or a dict of its "
+            f"fields, got {describe(value)}"
+        )
+    try:
+        return forecast_options(value)
+    except (TypeError, ValueError) as e:
+        raise type(e)(f"deck_forecast: {e}") from None
 
 
 def _check_calibration_kind(calibration: object) -> None:
@@ -97,6 +121,7 @@ def check_observation_options(
     privileged: object = False,
     deck_motion: object = False,
     batch_estimators: object = False,
+    deck_forecast: object = None,
 ) -> ObservationConfig:
     """The wrapper options' type and range checks (no file read): an :class:`ObservationConfig`
     without its calibration, ``fused_params`` None when not given."""
@@ -117,6 +142,16 @@ def check_observation_options(
         raise ValueError(
             f"deck_motion needs the fused estimator (estimators must include 'fused'), got {names}"
         )
+    forecast = check_deck_forecast(deck_forecast)
+    if forecast is not None and "fused" not in names:
+        raise ValueError(
+            f"deck_forecast needs the fused estimator (estimators must include 'fused'), got {names}"
+        )
+    if forecast is not None and flat:
+        raise ValueError(
+            "deck_forecast: the hover task's flat observation (flatten=True) has no forecast fields; "
+            "use its Dict observation (flatten=False), where the forecast is obs['forecast']"
+        )
     batch = check_bool("batch_estimators", batch_estimators)
     if batch and not batchable_names(names):
         raise ValueError(
@@ -132,6 +167,7 @@ def check_observation_options(
                 ("privileged", priv, False),
                 ("deck_motion", motion, False),
                 ("batch_estimators", batch, False),
+                ("deck_forecast", forecast, None),
                 ("calibration", calibration, None),
                 ("fused_params", fused_params, None),
             )
@@ -149,6 +185,7 @@ def check_observation_options(
         privileged=priv,
         deck_motion=motion,
         batch_estimators=batch,
+        deck_forecast=forecast,
     )
 
 

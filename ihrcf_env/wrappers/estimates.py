@@ -40,6 +40,7 @@ rather than numbers::
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Iterable, Mapping
@@ -63,10 +64,14 @@ from ihrcf_env.core.estimators import (
     SensorFrame,
     check_estimator_names,
 )
+from ihrcf_env.core.forecast import ForecastOptions
+from ihrcf_env.core.ship import DEFAULT_LENGTH_SCALE
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
+from ihrcf_env.wrappers.forecast_feed import FORECAST, ForecastFeed
 from ihrcf_env.wrappers.layout import Block, Field, Layout, build_layout
 
 POSITION_BOUND = 10.0  # m
+FORECAST_BOUND = 20.0  # m, m/s, rad: bound of the hover observation's forecast values
 #: The key of the ground-truth pose block; always after the estimators.
 GROUND_TRUTH = "ground_truth"
 #: The pose keys of ``ihrcf_env/DeckHover-v0``, in observation order.
@@ -170,6 +175,12 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         estimators: registered estimator names, in observation order (default ihrcf, atda, fused).
         fused_params: :class:`~ihrcf_env.core.estimators.FusedParams` of the fused estimator, or
             None for the defaults matching the env's ToF model and task.
+        deck_forecast: add ``obs["forecast"]``, the deck-motion forecast fed by the fused estimate
+            (True, or a :class:`~ihrcf_env.core.forecast.ForecastOptions` or a dict of its fields;
+            the Dict observation only, with the ``fused`` estimator): ``mean`` and ``std``
+            (horizons x 4: heave m about its mean, heave rate m/s, roll and pitch rad in the drone's
+            heading frame), ``quiet`` and ``valid``, as :mod:`ihrcf_env.wrappers.forecast_feed`
+            describes; ``info["forecast"]`` carries the same. Default False.
         observation: the resolved :class:`~ihrcf_env.config.observation.ObservationConfig` (as
             :func:`~ihrcf_env.config.make.make_config` makes it); given, the options above are not
             read again (``calibration`` only for the spec). Otherwise the options are resolved once
@@ -185,6 +196,8 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         pose_keys: the estimator names then ``"ground_truth"``: the pose blocks, in order.
         flat_slices: name -> slice of the flat observation (see :func:`flat_slices`).
         last_estimates / last_frame / last_ages: of the last observation (None / {} before reset).
+        forecast: the :class:`~ihrcf_env.wrappers.forecast_feed.ForecastFeed` (``deck_forecast``),
+            or None.
     """
 
     def __init__(
@@ -196,6 +209,7 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         max_residual: float = 0.01,
         estimators: Iterable[str] = DEFAULT_ESTIMATORS,
         fused_params: FusedParams | None = None,
+        deck_forecast: bool | ForecastOptions | Mapping[str, Any] | None = False,
         *,
         observation: ObservationConfig | None = None,
     ) -> None:
@@ -211,7 +225,10 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
                 max_residual=max_residual,
                 estimators=estimators,
                 fused_params=fused_params,
+                deck_forecast=deck_forecast,
             )
+        fc_opts = opts.deck_forecast
+        recorded: dict[str, Any] = {} if fc_opts is None else {"deck_forecast": dataclasses.asdict(fc_opts)}
         gym.utils.RecordConstructorArgs.__init__(
             self,
             calibration=calibration,
@@ -220,6 +237,7 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
             max_residual=opts.max_residual,
             estimators=opts.estimators,
             fused_params=fused_params if observation is None else opts.fused_params,
+            **recorded,
         )
         gym.ObservationWrapper.__init__(self, env)
         world = config.world
@@ -248,6 +266,13 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         d = {k: v for k, v in inner.spaces.items() if k != "image" or self.keep_image}
         for key in self.pose_keys:
             d[key] = _pose_space()
+        #: the deck-motion forecast (``deck_forecast``, Dict observation only), else None
+        self.forecast: ForecastFeed | None = None
+        if fc_opts is not None:
+            ship = config.task.deck.ship
+            scale = ship.length_scale if ship is not None else DEFAULT_LENGTH_SCALE
+            self.forecast = ForecastFeed(fc_opts, scale)
+            d[FORECAST] = _forecast_space(len(fc_opts.horizons))
         self._dict_space = spaces.Dict(d)
         sl = self.flat_slices
         self._flat_sensors = tuple((path, sl[name]) for name, path in SENSOR_PATHS.items())
@@ -275,6 +300,8 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
         self.stage.reset()
+        if self.forecast is not None:
+            self.forecast.reset()
         obs, info = self.env.reset(seed=seed, options=options)
         out = self._observe(obs, info)
         return out, info
@@ -304,6 +331,8 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
             poses[GROUND_TRUTH] = _pose_obs(gt_pos, gt_euler, gt_valid)
             out = {k: v for k, v in observation.items() if k != "image" or self.keep_image}
             out.update(poses)
+            if self.forecast is not None:
+                out[FORECAST] = self._forecast(observation, estimates, info)
             return out
         flat = np.empty(self.layout.size, np.float32)
         for path, sl in self._flat_sensors:
@@ -319,6 +348,45 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
             flat[euler_sl] = clip(euler, -math.pi, math.pi)
             flat[valid_i] = int(bool(valid))
         return flat
+
+    def _forecast(
+        self,
+        observation: Mapping[str, Any],
+        estimates: Mapping[str, PoseEstimate],
+        info: Mapping[str, Any] | None,
+    ) -> dict[str, Any]:
+        """The ``forecast`` entry (:func:`_forecast_space`); ``info["forecast"]`` gets the same."""
+        assert self.forecast is not None
+        _, fc = self.forecast.observe_imu(
+            self.stage.time,
+            float(np.asarray(observation["nav_velocity"], np.float64)[2]),
+            self.stage.last_frame,
+            estimates["fused"],
+            observation["imu"]["quaternion"],
+        )
+        if isinstance(info, dict):
+            info[FORECAST] = fc
+        return {
+            "mean": clip(fc["mean"], -FORECAST_BOUND, FORECAST_BOUND).astype(np.float32),
+            "std": clip(fc["std"], 0.0, FORECAST_BOUND).astype(np.float32),
+            "quiet": np.array([fc["quiet_probability"]], np.float32),
+            "valid": int(fc["valid"]),
+        }
+
+
+def _forecast_space(horizons: int) -> spaces.Dict:
+    """The hover observation's ``forecast`` (``deck_forecast``): ``mean`` and ``std`` (horizons, 4)
+    of heave about its mean (m), heave rate (m/s), roll and pitch (rad, heading frame), ``quiet``
+    (probability that the touchdown window ahead is quiet) and ``valid`` (see
+    :mod:`ihrcf_env.wrappers.forecast_feed`)."""
+    return spaces.Dict(
+        {
+            "mean": spaces.Box(-FORECAST_BOUND, FORECAST_BOUND, (horizons, 4), np.float32),
+            "std": spaces.Box(0.0, FORECAST_BOUND, (horizons, 4), np.float32),
+            "quiet": spaces.Box(0.0, 1.0, (1,), np.float32),
+            "valid": spaces.Discrete(2),
+        }
+    )
 
 
 def make_deck_hover(**options: Any) -> gym.Env:

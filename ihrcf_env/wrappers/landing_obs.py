@@ -33,6 +33,14 @@ filter's deck motion, the rates a memoryless policy cannot take from one observa
 :meth:`~ihrcf_env.core.estimators.fused.FusedEstimator.motion` (sensor-derived, not ground truth);
 held like an estimate block while the filter is not converged (zeros before it ever was).
 
+``deck_forecast=True`` (or a dict of :class:`~ihrcf_env.core.forecast.ForecastOptions` fields; opt-in,
+needs the ``fused`` estimator) appends the deck-motion forecast fed by the fused estimate
+(:mod:`ihrcf_env.wrappers.forecast_feed`): per horizon the forecast ``forecast.heave`` (0.1 m, about
+the deck's mean height), ``.heave_rate`` (1 m/s), ``.roll`` and ``.pitch`` (0.1 rad, heading frame)
+and their standard deviations (``forecast.heave_std``, ...), then ``forecast.quiet`` (probability that
+the touchdown window ahead is quiet) and ``forecast.valid``; all 0 until the forecaster's first fit.
+``info["forecast"]`` carries the same values unscaled.
+
 While an estimate is invalid its block keeps the last valid values and ``age`` grows (the time
 since the camera frame behind them, also ``info[f"{E}_age"]``); before
 the first valid estimate the block is zeros with age 10. No ground truth is in the observation
@@ -46,6 +54,7 @@ must not), which appends ``ground_truth.position`` (3, 2 m), ``.normal`` (3), ``
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Iterable, Mapping
@@ -63,9 +72,12 @@ from ihrcf_env.core.batch.pipeline import BatchDeckPoseEstimator
 from ihrcf_env.core.calibration import Calibration
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedEstimator, FusedParams, PoseEstimate
+from ihrcf_env.core.forecast import ForecastOptions
 from ihrcf_env.core.frames import matrix_from_euler, matrix_from_quat
+from ihrcf_env.core.ship import DEFAULT_LENGTH_SCALE
 from ihrcf_env.wrappers.estimates import GROUND_TRUTH, base_config
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
+from ihrcf_env.wrappers.forecast_feed import FORECAST, ForecastFeed, forecast_fields
 from ihrcf_env.wrappers.layout import Block, Field, build_layout
 
 #: Largest age (s) shown for an estimate; also the age of one never seen.
@@ -157,12 +169,13 @@ def landing_obs_fields(
     max_range: float = 4.0,
     privileged: bool = False,
     deck_motion: bool = False,
+    forecast_horizons: int = 0,
 ) -> tuple[dict[str, slice], dict[str, float], NDArray[np.float32], NDArray[np.float32]]:
     """(slices, scales, low, high) of the observation (module docstring) for these estimators,
-    ToF ``max_range`` (m), ``privileged`` and ``deck_motion``. ``slices`` also has each estimator's
-    whole block under its name and ``"all"``; ``scales[name]`` turns a slice back into physical
-    units."""
-    lay = build_layout(landing_blocks(estimators, max_range, privileged, deck_motion))
+    ToF ``max_range`` (m), ``privileged``, ``deck_motion`` and the number of ``forecast_horizons``
+    (0: no forecast block). ``slices`` also has each estimator's whole block under its name and
+    ``"all"``; ``scales[name]`` turns a slice back into physical units."""
+    lay = build_layout(landing_blocks(estimators, max_range, privileged, deck_motion, forecast_horizons))
     return lay.slices, lay.scales, lay.low, lay.high
 
 
@@ -171,12 +184,15 @@ def landing_blocks(
     max_range: float = 4.0,
     privileged: bool = False,
     deck_motion: bool = False,
+    forecast_horizons: int = 0,
 ) -> list[Block]:
     """The blocks of the landing observation (:func:`landing_obs_fields`), in order."""
     blocks: list[Block] = [("", sensor_fields(max_range))]
     blocks += [(name, ESTIMATE_FIELDS) for name in estimators]
     if deck_motion:
         blocks.append((MOTION, MOTION_FIELDS))
+    if forecast_horizons > 0:
+        blocks.append((FORECAST, forecast_fields(forecast_horizons)))
     if privileged:
         blocks.append((GROUND_TRUTH, TRUTH_FIELDS))
     return blocks
@@ -202,6 +218,9 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         privileged: append the ground-truth block (asymmetric actor-critic); default False.
         deck_motion: append the fused filter's deck motion (module docstring; needs the ``fused``
             estimator); default False.
+        deck_forecast: append the deck-motion forecast (module docstring; True, or a
+            :class:`~ihrcf_env.core.forecast.ForecastOptions` or a dict of its fields; needs the
+            ``fused`` estimator); default False.
         batch_estimators: run the estimators through their batched form with one row
             (:class:`~ihrcf_env.core.batch.pipeline.BatchDeckPoseEstimator`): the same numbers as a
             vector env's batched sub-env, bit for bit; default False.
@@ -212,7 +231,8 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     Attributes: ``obs_slices`` (name -> slice), ``obs_scales`` (name -> scale: physical = value *
     scale), ``estimator_names``, ``estimators`` (name -> source), ``stage``, ``privileged``,
-    ``deck_motion``, ``observation_config`` (the resolved options).
+    ``deck_motion``, ``forecast`` (the :class:`~ihrcf_env.wrappers.forecast_feed.ForecastFeed`, or
+    None), ``observation_config`` (the resolved options).
     """
 
     def __init__(
@@ -225,6 +245,7 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         privileged: bool = False,
         deck_motion: bool = False,
         batch_estimators: bool = False,
+        deck_forecast: bool | ForecastOptions | Mapping[str, Any] | None = False,
         *,
         observation: ObservationConfig | None = None,
     ) -> None:
@@ -241,7 +262,10 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
                 privileged=privileged,
                 deck_motion=deck_motion,
                 batch_estimators=batch_estimators,
+                deck_forecast=deck_forecast,
             )
+        fc_opts = opts.deck_forecast
+        recorded: dict[str, Any] = {} if fc_opts is None else {"deck_forecast": dataclasses.asdict(fc_opts)}
         gym.utils.RecordConstructorArgs.__init__(
             self,
             calibration=calibration,
@@ -251,6 +275,7 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             privileged=opts.privileged,
             deck_motion=opts.deck_motion,
             batch_estimators=opts.batch_estimators,
+            **recorded,
         )
         gym.Wrapper.__init__(self, env)
         world = config.world
@@ -269,9 +294,16 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.batch: BatchDeckPoseEstimator | None = None
         if opts.batch_estimators:
             self.batch = BatchDeckPoseEstimator(1, self.stage.estimator.config, names)
+        #: the deck-motion forecast (``deck_forecast``), else None
+        self.forecast: ForecastFeed | None = None
+        if opts.deck_forecast is not None:
+            ship = config.task.deck.ship
+            scale = ship.length_scale if ship is not None else DEFAULT_LENGTH_SCALE
+            self.forecast = ForecastFeed(opts.deck_forecast, scale)
         self._max_range = float(world.tof.max_range)
+        horizons = 0 if self.forecast is None else self.forecast.horizons.size
         self.obs_slices, self.obs_scales, low, high = landing_obs_fields(
-            self.estimator_names, self._max_range, self.privileged, self.deck_motion
+            self.estimator_names, self._max_range, self.privileged, self.deck_motion, horizons
         )
         self.observation_space = spaces.Box(low, high, low.shape, np.float32)
         self._low, self._high = low, high
@@ -306,6 +338,8 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         half of :meth:`reset`: :meth:`complete` makes the observation)."""
         self._held, self._held_time = {}, {}
         self._motion = np.zeros(6)
+        if self.forecast is not None:
+            self.forecast.reset()
         self.stage.reset()
         if self.batch is not None:
             self.batch.reset()
@@ -390,6 +424,18 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             if motion is not None:
                 self._motion = np.concatenate([R_lw @ motion[0], R_lw @ motion[1]])
             out[sl[MOTION]] = self._motion
+        if self.forecast is not None:
+            block, fc_info = self.forecast.observe(
+                now,
+                float(np.asarray(obs["nav_velocity"], np.float64)[2]),
+                self.stage.last_frame,
+                estimates["fused"],
+                R_lb,
+                R_lw,
+            )
+            out[sl[FORECAST]] = block
+            if isinstance(info, dict):
+                info[FORECAST] = fc_info
         if self.privileged:
             R_lb_true, R_lw_true = heading_rotation(info["drone_quaternion_world"])
             pose = self._pose_block(R_lb_true, info["deck_position_body"], None, info["deck_rotation_body"])

@@ -17,7 +17,9 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS
+from ihrcf_env.core.forecast import ForecastOptions
 from ihrcf_env.wrappers.estimates import GROUND_TRUTH, hover_blocks
+from ihrcf_env.wrappers.forecast_feed import FORECAST, forecast_fields
 from ihrcf_env.wrappers.landing_obs import MOTION, MOTION_FIELDS, TRUTH_FIELDS, landing_blocks
 from ihrcf_env.wrappers.layout import Block, build_layout, layout_table
 
@@ -39,9 +41,16 @@ def _landing() -> str:
 
 
 def _landing_options() -> str:
-    """The optional blocks, appended in this order after the estimators' (here with both on)."""
+    """The optional blocks, appended in this order after the estimators' (here all on, the
+    forecast with its default horizons)."""
     base = landing_blocks(DEFAULT_ESTIMATORS)
-    blocks: list[Block] = [*base, (MOTION, MOTION_FIELDS), (GROUND_TRUTH, TRUTH_FIELDS)]
+    horizons = len(ForecastOptions().horizons)
+    blocks: list[Block] = [
+        *base,
+        (MOTION, MOTION_FIELDS),
+        (FORECAST, forecast_fields(horizons)),
+        (GROUND_TRUTH, TRUTH_FIELDS),
+    ]
     rows = layout_table(blocks).splitlines()
     fields = sum(len(f) for _, f in base)
     return "\n".join([*rows[:2], *rows[2 + fields :]])

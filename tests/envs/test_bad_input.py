@@ -455,6 +455,9 @@ BAD_OPTIONS = [
     ({"deck_motion": 1}, TypeError, "deck_motion"),
     ({"batch_estimators": "yes"}, TypeError, "batch_estimators"),
     ({"batch_estimators": True}, ValueError, "batch_estimators"),  # a landing-task option
+    ({"deck_forecast": "yes"}, TypeError, "deck_forecast"),
+    ({"deck_forecast": True}, ValueError, "deck_forecast"),  # no observation wrapper: raw
+    ({"deck_forecast": {"order": 1}}, ValueError, "deck_forecast"),
     ({"success_radius": 0.1}, ValueError, "success_radius"),
     ({"start_in_view": True}, ValueError, "start_in_view"),
     ({"view_margin": 0.1}, ValueError, "view_margin"),
