@@ -14,12 +14,13 @@ from ihrcf_env.config.sensors import CameraConfig
 from ihrcf_env.core.detector_model import DetectorModel
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.fast.rays import Scene
-from ihrcf_env.fast.tag_camera import STATUS_OCCLUDED, tag_camera_setup, tag_read
+from ihrcf_env.fast.tag_camera import STATUS_OCCLUDED, Imaging, imaging_of, tag_camera_setup, tag_read
 from ihrcf_env.sim.batched.contact import drone_boxes
 from ihrcf_env.sim.batched.detector import BatchedCornerTrack
 from ihrcf_env.sim.batched.rays import RayScene
 from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
 from ihrcf_env.sim.sensors.base import tag_status_code
+from ihrcf_env.sim.sensors.imaging import draw_episode
 from ihrcf_env.sim.sensors.tag_camera import RAY_MARGIN_M, REASON_OCCLUDED
 from ihrcf_env.sim.world import WorldConfig
 
@@ -42,9 +43,9 @@ def test_constants_are_the_simulators() -> None:
 TALL = RayScene(RAY_SCENE.deck_half_extents, 0.5, 0.9)
 
 
-@pytest.mark.parametrize("tall", [False, True])
-def test_tag_read_matches_batched_camera(tall: bool) -> None:
-    camera = CameraConfig(distortion=(-0.05, 0.01))
+@pytest.mark.parametrize(("tall", "quality"), [(False, "ideal"), (True, "ideal"), (False, "realistic")])
+def test_tag_read_matches_batched_camera(tall: bool, quality: str) -> None:
+    camera = CameraConfig(distortion=(-0.05, 0.01), quality=quality)
     rig = SensorRig()
     ray_scene = TALL if tall else RAY_SCENE
     scene = Scene(
@@ -66,14 +67,25 @@ def test_tag_read_matches_batched_camera(tall: bool) -> None:
     ahead = copy.deepcopy(gens)
     normals = np.stack([g.standard_normal((4, 2)) for g in ahead])
     uniforms = np.array([g.random() for g in ahead])
-    want = ref.read(p, R, dp, dR, track, gens)
-    fn = Counted(lambda *a: tag_read(setup, *a))
-    got = fn(p, R, dp, dR, normals, uniforms, track.omega, track.phase)
+    if quality == "realistic":
+        vel = rng.normal(0.0, 1.0, (n, 3))
+        omega = rng.normal(0.0, 1.5, (n, 3))
+        episodes = [draw_episode(camera.imaging, np.random.default_rng([3, i])) for i in range(n)]
+        want = ref.read(p, R, dp, dR, track, gens, vel, omega, episodes)
+        im = [imaging_of(e, vel[i], omega[i]) for i, e in enumerate(episodes)]
+        ims = Imaging(*(np.stack([np.asarray(getattr(x, f)) for x in im]) for f in Imaging._fields))
+        fn = Counted(lambda *a: tag_read(setup, *a[:8], imaging=a[8]))
+        args: tuple = (p, R, dp, dR, normals, uniforms, track.omega, track.phase, ims)
+    else:
+        want = ref.read(p, R, dp, dR, track, gens)
+        fn = Counted(lambda *a: tag_read(setup, *a))
+        args = (p, R, dp, dR, normals, uniforms, track.omega, track.phase)
+    got = fn(*args)
     assert np.array_equal(np.asarray(got.status), want["tag_status"])
     assert np.array_equal(np.asarray(got.detected), want["tag_detected"])
     counts = np.bincount(want["tag_status"], minlength=12)
     assert counts[0] > 50 and counts[2] > 50 and counts[4] > 10 and counts[9] > 5, counts
     assert (counts[10] > 10) == tall, counts
     assert rel_err(got.corners, want["tag_corners"]) < 1e-9
-    fn(p, R, dp, dR, normals, uniforms, track.omega, track.phase)
+    fn(*args)
     assert fn.traces == 1
