@@ -12,8 +12,10 @@ deck plate), :mod:`.tof` (the ToF readings), :mod:`.homography`, :mod:`.plane`, 
 :mod:`.table` and :mod:`.ihrcf` (the IHRCF pose), :mod:`.ippe`, :mod:`.lm` and :mod:`.pnp` (ATDA's
 PnP), :mod:`.dynamics` (the physics tick, mixer, ground effect), :mod:`.autopilot` (the velocity
 controller), :mod:`.deck_motion` (profiles, the ship, Stewart legs), :mod:`.contact` (touchdown
-geometry), :mod:`.wind`, :mod:`.navigation` (GNSS/INS errors) and :mod:`.imm` (the fused filter's
-bank).
+geometry), :mod:`.wind`, :mod:`.navigation` (GNSS/INS errors), :mod:`.detector` (the fitted detector
+model), :mod:`.tag_camera` (the projected camera's reading), :mod:`.frames` (camera latency and
+frame dropout), :mod:`.imu`, :mod:`.imm` (the fused filter's bank), :mod:`.fused_blocks` and
+:mod:`.fused` (the IMU-fused filter), :mod:`.advance` (one control period of flight).
 """
 
 from __future__ import annotations

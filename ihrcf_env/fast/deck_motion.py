@@ -24,10 +24,12 @@ from ihrcf_env.core.ship import BAND, ShipOptions
 from ihrcf_env.fast.linalg3 import matrix_from_euler
 
 __all__ = [
+    "DeckTrack",
     "ShipConstants",
     "ShipMotion",
     "ShipPhasor",
     "deck_pose",
+    "deck_track",
     "leg_lengths",
     "ship_constants",
     "ship_motion",
@@ -259,3 +261,38 @@ def leg_lengths(position: Array, rotation: Array, top_joints: Array, base_joints
         for i in range(3)
     ]
     return jnp.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+
+
+class DeckTrack(NamedTuple):
+    """The deck at a physics tick: its frame's ``position`` (3,; world, the tag centre on the top
+    face) and ``rotation`` (3, 3; world from deck), the plate's ``body`` centre (3,) and whether the
+    deck has ``stalled`` (held at its last reachable pose)."""
+
+    position: Array
+    rotation: Array
+    body: Array
+    stalled: Array
+
+
+def deck_track(
+    prev: DeckTrack,
+    offset: Array,
+    rpy: Array,
+    home_position: Array,
+    top_joints: Array,
+    base_joints: Array,
+    min_leg: float,
+    max_leg: float,
+    half_thickness: float,
+) -> DeckTrack:
+    """The deck at the next tick for the profile's pose (``offset``, ``rpy``): that pose, or, once a
+    pose leaves the legs' stroke or is not finite, the last reachable one for the rest of the
+    episode (as :class:`ihrcf_env.sim.deck.DeckTrajectory` drives the platform)."""
+    pos, R = deck_pose(offset, rpy, home_position)
+    legs = leg_lengths(pos, R, top_joints, base_joints)
+    bad = jnp.any(legs < min_leg) | jnp.any(legs > max_leg) | ~jnp.all(jnp.isfinite(legs))
+    stalled = prev.stalled | bad
+    new = DeckTrack(pos, R, pos - R[:, 2] * half_thickness, stalled)
+    return DeckTrack(
+        *(jnp.where(stalled, a, b) for a, b in zip(prev._replace(stalled=stalled), new, strict=True))
+    )

@@ -25,7 +25,7 @@ from ihrcf_env.fast.plane import fit_plane, plane_z
 from ihrcf_env.fast.rigid import rigid_fit
 from ihrcf_env.fast.table import TouchTableArrays, lookup
 
-__all__ = ["IHRCFSetup", "Pose", "ihrcf", "ihrcf_setup"]
+__all__ = ["IHRCFSetup", "Pose", "ihrcf", "ihrcf_parts", "ihrcf_setup"]
 
 
 class IHRCFSetup(NamedTuple):
@@ -87,6 +87,14 @@ def assemble(R: Array, p: Array, residual: Array, code: Array, fit_rms: Array) -
 def ihrcf(corners_px: Array, ranges: Array, ranges_valid: Array, detected: Array, setup: IHRCFSetup) -> Pose:
     """IHRCF of one frame: tag ``corners_px`` (4, 2; aruco order), ``ranges`` (4,) m of ps1..ps4 (NaN
     allowed) with ``ranges_valid`` (4,), ``detected`` (the tag was found)."""
+    return ihrcf_parts(corners_px, ranges, ranges_valid, detected, setup)[0]
+
+
+def ihrcf_parts(
+    corners_px: Array, ranges: Array, ranges_valid: Array, detected: Array, setup: IHRCFSetup
+) -> tuple[Pose, Array, Array]:
+    """:func:`ihrcf` with its intermediate results: (the pose, the tag's corners (4, 3) on the
+    fitted deck plane (camera frame, m), the ranges (4,) that defined the plane)."""
     sensor_xy, model = setup.sensor_xy, setup.model
     code = jnp.where(detected, rs.OK, rs.NOT_DETECTED)
     code = _first(code, ~jnp.all(jnp.isfinite(corners_px)), rs.NONFINITE_CORNERS)
@@ -126,4 +134,4 @@ def ihrcf(corners_px: Array, ranges: Array, ranges_valid: Array, detected: Array
     R_bc = jnp.asarray(R_BODY_CAM, dtype=R_cd.dtype)
     R_bd = matmul(R_bc, R_cd)
     p_bd = matvec(R_bc, t_cd) + setup.camera_position
-    return assemble(R_bd, p_bd, rms, code, rms)
+    return assemble(R_bd, p_bd, rms, code, rms), corners_cam, valid

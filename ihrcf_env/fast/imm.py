@@ -86,7 +86,9 @@ def imm_start(cfg: ImmConfig) -> ImmState:
     """A new bank: zero states, the initial covariances, equal probabilities."""
     m = cfg.drifts.shape[0]
     P0 = jnp.diag(jnp.repeat(cfg.sigmas**2, 3))
-    return ImmState(jnp.zeros((m, 9)), jnp.broadcast_to(P0, (m, 9, 9)), jnp.full(m, 1.0 / m))
+    return ImmState(
+        jnp.zeros((m, 9)), jnp.broadcast_to(P0, (m, 9, 9)), jnp.full(m, 1.0 / m, dtype=jnp.result_type(float))
+    )
 
 
 def _per_axis(block: Array, weights: Array) -> Array:

@@ -14,11 +14,12 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import jax.numpy as jnp
+import numpy as np
 from jax import Array
 
 from ihrcf_env.fast.linalg3 import matvec, tmatvec
 
-__all__ = ["RayHits", "Scene", "body_hits", "cast_rays", "true_ranges"]
+__all__ = ["RayHits", "Scene", "body_hits", "cast_rays", "own_fraction", "true_ranges"]
 
 
 class Scene(NamedTuple):
@@ -192,3 +193,14 @@ def true_ranges(
         self_normal,
     )
     return jnp.where(h.hit, h.fraction * max_range, max_range), h.hit
+
+
+def own_fraction(starts_body: Array, segments_body: Array, centres: np.ndarray, halves: np.ndarray) -> Array:
+    """(R,) fraction at which each segment ``starts_body + f segments_body`` (R, 3; body frame)
+    enters the drone's own collision boxes (``centres``, ``halves`` (B, 3), body frame; host-side
+    constants), ``inf`` where it enters none."""
+    f = jnp.full(starts_body.shape[:1], jnp.inf, dtype=starts_body.dtype)
+    for c, h in zip(np.asarray(centres), np.asarray(halves), strict=True):
+        fb, _ = _box_entry(starts_body - jnp.asarray(c), segments_body, jnp.asarray(h))
+        f = jnp.minimum(f, fb)
+    return f
