@@ -8,13 +8,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from fast_helpers import rel_err
 from scipy.spatial.transform import Rotation
 
 from ihrcf_env.core.profiles import SumOfSines, paper_profile
 from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.fast.deck_motion import DeckTrack, deck_pose, deck_track, sines_arrays, sum_of_sines
 from ihrcf_env.sim.deck import DeckTrajectory
+
+from .fast_helpers import rel_err
 
 GEOM = StewartGeometry()
 DT = 1.0 / 240.0

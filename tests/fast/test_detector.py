@@ -7,7 +7,6 @@ import copy
 
 import numpy as np
 import pytest
-from fast_helpers import Counted, rel_err, rotations
 
 from ihrcf_env.core.detector_model import QUIET_ZONE_SCALE, CornerTrack, DetectorModel, tag_features
 from ihrcf_env.core.rig import SensorRig, intrinsics_from_fov, tag_corners_deck
@@ -17,6 +16,8 @@ from ihrcf_env.sim.batched.detector import BatchedCornerTrack, model_corners
 from ihrcf_env.sim.faults import REASON_FRAME_LOST
 from ihrcf_env.sim.sensors.base import TAG_STATUS, tag_status_code
 from ihrcf_env.sim.sensors.tag_camera import REASON_DEPTH
+
+from .fast_helpers import Counted, rel_err, rotations
 
 W, H = 640, 480
 K = intrinsics_from_fov(W, H, np.radians(60.0))

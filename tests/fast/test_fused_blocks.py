@@ -8,7 +8,6 @@ from types import SimpleNamespace
 
 import jax
 import numpy as np
-from fast_helpers import rel_err, rotations
 from scipy.stats import chi2
 
 from ihrcf_env.core.batch import fused_measure
@@ -18,6 +17,8 @@ from ihrcf_env.core.estimators.fused_params import FusedParams
 from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 from ihrcf_env.fast import fused_blocks as fb
+
+from .fast_helpers import rel_err, rotations
 
 RIG = SensorRig()
 TAG = 0.4

@@ -7,13 +7,14 @@ import copy
 import jax
 import numpy as np
 import pytest
-from fast_helpers import rel_err, rotations
 from scipy.spatial.transform import Rotation
 
 from ihrcf_env.config.sensors import IMUConfig, IMUNoise
 from ihrcf_env.fast.imu import RESET_DRAWS, imu_params, imu_read, imu_reset, read_draws, reset_draws
 from ihrcf_env.sim.sensors.base import BodyState
 from ihrcf_env.sim.sensors.imu import IMU
+
+from .fast_helpers import rel_err, rotations
 
 DT = 1.0 / 60.0
 

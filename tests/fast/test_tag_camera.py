@@ -8,9 +8,9 @@ import copy
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from fast_helpers import Counted, rel_err, rotations
 
 from ihrcf_env.config.sensors import CameraConfig
+from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.detector_model import DetectorModel
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.fast.rays import Scene
@@ -22,7 +22,8 @@ from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
 from ihrcf_env.sim.sensors.base import tag_status_code
 from ihrcf_env.sim.sensors.imaging import draw_episode
 from ihrcf_env.sim.sensors.tag_camera import RAY_MARGIN_M, REASON_OCCLUDED
-from ihrcf_env.sim.world import WorldConfig
+
+from .fast_helpers import Counted, rel_err, rotations
 
 CFG = WorldConfig()
 RAY_SCENE = RayScene.of(CFG.deck.size, CFG.deck.thickness, CFG.stewart.base_radius, CFG.stewart.base_height)
