@@ -90,6 +90,15 @@ class World:
     :meth:`nav_position` / :meth:`nav_velocity` give the estimate the autopilot flies on.
     """
 
+    def __new__(cls, config: WorldConfig | None = None, gui: bool = False) -> World:
+        """A :class:`World`, or with ``physics="numpy"`` the world whose flight the numpy
+        integrator advances (:class:`ihrcf_env.sim.batched.world.NumpyPhysicsWorld`)."""
+        if cls is World and config is not None and config.physics == "numpy":
+            from ihrcf_env.sim.batched.world import NumpyPhysicsWorld
+
+            cls = NumpyPhysicsWorld
+        return super().__new__(cls)
+
     def __init__(self, config: WorldConfig | None = None, gui: bool = False) -> None:
         self.config = config if config is not None else WorldConfig()
         self._closed = True  # until the client exists
@@ -349,10 +358,6 @@ class World:
     def step(self) -> Touchdown | None:
         """Advance one control period (``substeps`` physics steps); return the first contact, if any."""
         self._check_open()
-        if self.config.physics == "numpy":
-            from ihrcf_env.sim.batched.loop import advance
-
-            return advance([self])[0]
         cid = self.client
         quad, ctrl, deck = self.quad, self.controller, self.deck
         dt = self.dt

@@ -104,3 +104,24 @@ def test_worlds_advanced_together_read_the_ranges_of_a_world_alone(make_world: A
             np.testing.assert_array_equal(ra["ranges"], rb["ranges"])
             np.testing.assert_array_equal(ra["ranges_valid"], rb["ranges_valid"])
     assert hits == 3 * 30
+
+
+def test_a_numpy_world_is_its_own_class_and_world_step_is_pybullet_only() -> None:
+    import inspect
+
+    from ihrcf_env.sim.batched.world import NumpyPhysicsWorld
+    from ihrcf_env.sim.world import World
+
+    w = World(WorldConfig(camera=None, physics="numpy"))
+    try:
+        assert type(w) is NumpyPhysicsWorld and isinstance(w, World)
+    finally:
+        w.close()
+    plain = World(WorldConfig(camera=None))
+    try:
+        assert type(plain) is World
+    finally:
+        plain.close()
+    # no batched-physics branch or vector-env handshake in the reference world's step
+    source = inspect.getsource(World.step)
+    assert "numpy" not in source and "advance" not in source
