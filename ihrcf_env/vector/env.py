@@ -78,8 +78,10 @@ def build_env(env_id: str, options: dict[str, Any]) -> SubEnv:
     creator = entry if callable(entry) else load_env_creator(entry)
     env = creator(**{**spec.kwargs, **options})
     if isinstance(env, LandingObservation) and isinstance(env.env, DeckLandingEnv):
+        env.env.spec = spec  # as gym.make records it (the vector env keeps the step limit itself)
         return SubEnv(env, env.env, env)
     if isinstance(env, DeckLandingEnv):
+        env.spec = spec
         return SubEnv(env, env, None)
     env.close()
     raise TypeError(

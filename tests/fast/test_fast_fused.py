@@ -56,7 +56,13 @@ def _frame(b) -> FusedFrame:
     )  # fmt: skip
 
 
-@pytest.mark.parametrize("config", list(CONFIGS))
+#: Configurations whose compile is left to the slow run (``pytest -m slow``, in CI after the default run).
+SLOW = ("options", "ihrcf_only")
+
+
+@pytest.mark.parametrize(
+    "config", [pytest.param(c, marks=pytest.mark.slow) if c in SLOW else c for c in CONFIGS]
+)
 def test_fused_matches_batch_fused(config: str) -> None:
     params, Km = CONFIGS[config]
     n = 6

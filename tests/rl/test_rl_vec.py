@@ -82,7 +82,8 @@ def test_sb3_vec_env_refuses_next_step_autoreset_and_reaches_the_sub_envs(closin
     venv = closing(make_sb3_vec_env(ID, 2, 0))
     assert isinstance(venv, VecEnv)
     assert [s.id for s in venv.get_attr("spec")] == [ID, ID]
-    assert venv.env_is_wrapped(gym.wrappers.TimeLimit) == [True, True]
+    # the native vector env keeps the step limit itself: its envs carry no TimeLimit
+    assert venv.env_is_wrapped(gym.wrappers.TimeLimit) == [False, False]
     venv.set_attr("probe_value", 3.5, indices=[1])
     assert venv.get_attr("probe_value", indices=1) == [3.5]
     assert venv.env_method("get_wrapper_attr", "probe_value", indices=[1]) == [3.5]
