@@ -1,0 +1,339 @@
+"""A Gymnasium vector env over a functional JAX env: ``gym.make_vec(id, num_envs=N, backend="jax")``.
+
+:class:`JaxVectorEnv` steps ``num_envs`` episodes of a :class:`FunctionalEnv` (pure ``reset`` /
+``step`` functions over a state pytree, one env per call) as one compiled call per step
+(``jax.jit`` of ``jax.vmap``). Numpy in and out: actions are checked whole (shape, finite) before
+any env steps; observations, rewards, ``terminated`` and ``truncated`` come back as numpy arrays,
+``info`` as Gymnasium's vector envs give it (each key an array over the envs with a boolean
+``_key`` mask). Gymnasium 1.x autoreset: next-step (default; an env that ended is reset by the
+following ``step``, which returns its first observation with reward 0) or same-step (the env that
+ends is reset in that step; its last observation and info in ``info["final_obs"]`` /
+``info["final_info"]``). The step limit of the id's spec truncates, as ``gym.make``'s TimeLimit.
+
+Every reset draws a new episode (never a cached first state). ``seeding="paired"`` (default) draws
+each episode's start, deck motion and wind on the host from the env's own generator exactly as the
+PyBullet env does (sub-env ``i`` of ``reset(seed=s)`` gets seed ``s + i``, and its later episodes
+continue that generator), so a seed gives the same episode on both backends; ``seeding="jax"``
+draws them inside the compiled step from the env's JAX key (the same distributions, no host work,
+no pairing). The per-step sensor noise always comes from each env's JAX key (derived from its
+episode key: deterministic for a seed, independent of ``num_envs``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any, Protocol
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding as gym_seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+from numpy.typing import NDArray
+
+from ihrcf_env.core.checks import check_int
+from ihrcf_env.vector.checks import (
+    check_actions,
+    check_autoreset_mode,
+    env_seeds,
+    split_reset_mask,
+    time_limit,
+)
+
+__all__ = ["MAX_JAX_ENVS", "SEEDINGS", "FunctionalEnv", "JaxVectorEnv", "bucket"]
+
+#: Most envs of one JAX vector env.
+MAX_JAX_ENVS = 65536
+#: The ways a JAX vector env draws its episodes (module docstring).
+SEEDINGS = ("paired", "jax")
+
+StepReturn = tuple[NDArray[Any], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]
+
+
+class FunctionalEnv(Protocol):
+    """What :class:`JaxVectorEnv` steps: pure functions of one env (no batch axis).
+
+    ``draw_host(rng)`` draws an episode (a pytree of numpy arrays) from a numpy generator as the
+    PyBullet env draws it; ``draw(key, params)`` draws one in JAX; ``reset_from(episode, key,
+    params) -> (obs, state)``; ``step(key, state, action, params) -> (obs, state, reward,
+    terminated, info)`` with ``info`` a dict of arrays. ``episode_key(rng)`` is the integer key of
+    the episode ``draw_host`` would draw next (the JAX noise key derives from it)."""
+
+    @property
+    def params(self) -> Any: ...
+
+    @property
+    def observation_space(self) -> spaces.Space[Any]: ...
+
+    @property
+    def action_space(self) -> spaces.Space[Any]: ...
+
+    def draw_host(self, rng: np.random.Generator) -> tuple[int, Any]: ...
+
+    def draw(self, key: Any, params: Any) -> Any: ...
+
+    def reset_from(self, episode: Any, key: Any, params: Any) -> tuple[Any, Any]: ...
+
+    def step(self, key: Any, state: Any, action: Any, params: Any) -> tuple[Any, Any, Any, Any, Any]: ...
+
+
+def bucket(n: int) -> int:
+    """The padded batch size of ``n`` rows reset at once: the next power of two (so that a few
+    compiled reset functions serve any count)."""
+    return 1 << max(0, int(n) - 1).bit_length()
+
+
+class JaxVectorEnv(VectorEnv):
+    """``num_envs`` episodes of ``fenv`` stepped as one compiled call (module docstring).
+
+    ``env_id`` names the spec (its step limit; ``max_episode_steps`` overrides it as in
+    ``gym.make``: -1 for none). ``dtype`` is the computation's float type (``"float64"`` or
+    ``"float32"``)."""
+
+    metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+
+    def __init__(
+        self,
+        env_id: str,
+        fenv: FunctionalEnv,
+        num_envs: int = 1,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        max_episode_steps: int | None = None,
+        seeding: str = "paired",
+        dtype: str = "float64",
+    ) -> None:
+        import jax
+
+        n = check_int("num_envs", num_envs, low=1, high=MAX_JAX_ENVS)
+        if seeding not in SEEDINGS:
+            raise ValueError(f"seeding must be one of {SEEDINGS}, got {seeding!r}")
+        if dtype not in ("float64", "float32"):
+            raise ValueError(f"dtype must be 'float64' or 'float32', got {dtype!r}")
+        self.autoreset_mode = check_autoreset_mode(autoreset_mode)
+        self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
+        self.max_episode_steps = time_limit(env_id, max_episode_steps)
+        self.env_id = env_id
+        self.spec = gym.spec(env_id)
+        self.num_envs = n
+        self.seeding = seeding
+        self.dtype = dtype
+        self.fenv = fenv
+        self.single_observation_space = fenv.observation_space
+        self.single_action_space = fenv.action_space
+        self.observation_space = batch_space(self.single_observation_space, n)
+        self.action_space = batch_space(self.single_action_space, n)
+        self._x64 = dtype == "float64"
+        self._rngs: list[np.random.Generator] = [gym_seeding.np_random(None)[0] for _ in range(n)]
+        self._autoreset = np.zeros(n, dtype=bool)
+        self._elapsed = np.zeros(n, dtype=np.int64)
+        self._state: Any = None
+        self._keys: Any = None
+        self._obs: NDArray[Any] | None = None
+        self._closed = False
+        params = fenv.params
+        with jax.enable_x64(self._x64):
+            self._params = jax.tree_util.tree_map(jax.numpy.asarray, params)
+        self._step_fn = jax.jit(self._batched_step)
+        self._reset_fns: dict[int, Callable[..., Any]] = {}
+        self._draw_fn = jax.jit(jax.vmap(fenv.draw, in_axes=(0, None)))
+
+    # -- compiled pieces -------------------------------------------------------------------
+    def _batched_step(self, state: Any, keys: Any, actions: Any, stepping: Any, params: Any) -> Any:
+        """All envs stepped; the rows not ``stepping`` keep their state (their outputs are
+        discarded by the host)."""
+        import jax
+        import jax.numpy as jnp
+
+        split = jax.vmap(jax.random.split)(keys)
+        new_keys, step_keys = split[:, 0], split[:, 1]
+        obs, new_state, reward, terminated, info = jax.vmap(self.fenv.step, in_axes=(0, 0, 0, None))(
+            step_keys, state, actions, params
+        )
+
+        def keep(new: Any, old: Any) -> Any:
+            m = stepping.reshape((-1,) + (1,) * (jnp.ndim(new) - 1))
+            return jnp.where(m, new, old)
+
+        state = jax.tree_util.tree_map(keep, new_state, state)
+        keys = jnp.where(stepping[:, None], new_keys, keys)
+        return obs, state, reward, terminated, info, keys
+
+    def _reset_fn(self, size: int) -> Callable[..., Any]:
+        """The compiled reset of ``size`` rows (episodes given, or drawn in JAX) scattered into
+        the batch state at ``rows`` (rows = num_envs: padding, dropped)."""
+        fn = self._reset_fns.get(size)
+        if fn is not None:
+            return fn
+        import jax
+
+        fenv = self.fenv
+
+        def reset_rows(
+            state: Any, keys: Any, obs: Any, rows: Any, episodes: Any, row_keys: Any, params: Any
+        ) -> Any:
+            if episodes is None:
+                split = jax.vmap(jax.random.split)(row_keys)
+                row_keys, draw_keys = split[:, 0], split[:, 1]
+                episodes = jax.vmap(fenv.draw, in_axes=(0, None))(draw_keys, params)
+            split = jax.vmap(jax.random.split)(row_keys)
+            row_keys, reset_keys = split[:, 0], split[:, 1]
+            new_obs, new_state = jax.vmap(fenv.reset_from, in_axes=(0, 0, None))(episodes, reset_keys, params)
+
+            def put(batch: Any, rows_value: Any) -> Any:
+                return batch.at[rows].set(rows_value, mode="drop")
+
+            if state is None:
+                state = new_state
+                obs = new_obs
+            else:
+                state = jax.tree_util.tree_map(put, state, new_state)
+                obs = put(obs, new_obs)
+            keys = put(keys, row_keys) if keys is not None else row_keys
+            return state, keys, obs
+
+        fn = jax.jit(reset_rows)
+        self._reset_fns[size] = fn
+        return fn
+
+    # -- reset -------------------------------------------------------------------------------
+    def reset(
+        self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[NDArray[Any], dict[str, Any]]:
+        """Reset every env (``reset(seed=s)``: env ``i`` with seed ``s + i``) or, with
+        ``options["reset_mask"]``, the envs it marks; a new episode for each (module docstring)."""
+        self._check_open()
+        seeds = env_seeds(seed, self.num_envs)
+        mask, rest = split_reset_mask(options, self.num_envs)
+        if rest:
+            raise ValueError(f"options: the JAX backend takes only 'reset_mask', got {sorted(rest)}")
+        if mask is not None and self._state is None:
+            raise gym.error.ResetNeeded("options['reset_mask']: reset every env once first")
+        rows = np.arange(self.num_envs) if mask is None else np.flatnonzero(mask)
+        for i in rows:
+            if seeds[i] is not None or self._state is None:
+                self._rngs[i] = gym_seeding.np_random(seeds[i])[0]
+        self._reset_rows(rows)
+        assert self._obs is not None
+        return self._obs.copy(), self._info_rows({}, rows)
+
+    def _reset_rows(self, rows: NDArray[np.intp]) -> None:
+        """New episodes for ``rows`` (their step counters and pending autoresets cleared)."""
+        import jax
+        import jax.numpy as jnp
+
+        n = self.num_envs
+        size = n if self._state is None else bucket(rows.size)
+        padded = np.full(size, n, dtype=np.int32)
+        padded[: rows.size] = rows
+        episode_keys = np.zeros(size, dtype=np.uint64)
+        episodes: Any = None
+        with jax.enable_x64(self._x64):
+            if self.seeding == "paired":
+                drawn = [self.fenv.draw_host(self._rngs[i]) for i in rows]
+                episode_keys[: rows.size] = [k for k, _ in drawn]
+                eps = [e for _, e in drawn]
+                eps += [eps[0]] * (size - rows.size)
+                episodes = jax.tree_util.tree_map(lambda *xs: jnp.asarray(np.stack(xs)), *eps)
+            else:
+                episode_keys[: rows.size] = [int(self._rngs[i].integers(0, 2**63)) for i in rows]
+            row_keys = jax.vmap(_key_of)(
+                jnp.asarray((episode_keys >> np.uint64(32)).astype(np.uint32)),
+                jnp.asarray((episode_keys & np.uint64(0xFFFFFFFF)).astype(np.uint32)),
+            )
+            fn = self._reset_fn(size)
+            first = self._state is None
+            self._state, self._keys, obs = fn(
+                self._state,
+                self._keys,
+                None if first else jnp.asarray(self._obs),
+                None if first else jnp.asarray(padded),
+                episodes,
+                row_keys,
+                self._params,
+            )
+        self._obs = np.asarray(obs)
+        self._elapsed[rows] = 0
+        self._autoreset[rows] = False
+
+    # -- step ---------------------------------------------------------------------------------
+    def step(self, actions: Any) -> StepReturn:
+        """Step every env with its row of ``actions`` (shape ``(num_envs, *action shape)``); an env
+        that ended at the previous step is reset instead (next-step autoreset)."""
+        import jax
+        import jax.numpy as jnp
+
+        self._check_open()
+        a = check_actions(actions, self.num_envs, self.single_action_space.shape)  # type: ignore[arg-type]
+        if self._state is None:
+            raise gym.error.ResetNeeded("step: reset the vector env first")
+        n = self.num_envs
+        reset_rows = np.flatnonzero(self._autoreset)
+        if reset_rows.size:
+            self._reset_rows(reset_rows)
+        stepping = ~np.isin(np.arange(n), reset_rows)
+        with jax.enable_x64(self._x64):
+            dt = jnp.float64 if self._x64 else jnp.float32
+            obs, self._state, reward, terminated, info, self._keys = self._step_fn(
+                self._state, self._keys, jnp.asarray(a, dt), jnp.asarray(stepping), self._params
+            )
+        obs_np = np.asarray(obs)
+        rewards = np.where(stepping, np.asarray(reward, np.float64), 0.0)
+        term = np.asarray(terminated, bool) & stepping
+        self._elapsed[stepping] += 1
+        limit = self.max_episode_steps
+        trunc = stepping & ~term & (limit is not None) & (self._elapsed >= (limit or 0))
+        assert self._obs is not None
+        out_obs = np.where(stepping.reshape((-1,) + (1,) * (obs_np.ndim - 1)), obs_np, self._obs)
+        step_info = {k: np.asarray(v) for k, v in info.items()}
+        infos = self._info_rows(step_info, np.flatnonzero(stepping))
+        ended = np.flatnonzero(term | trunc)
+        self._obs = out_obs
+        if self.autoreset_mode == AutoresetMode.SAME_STEP and ended.size:
+            final_obs = out_obs[ended].copy()
+            done = np.zeros(n, dtype=bool)
+            done[ended] = True
+            final_info = {k: (v & done if k.startswith("_") else v) for k, v in infos.items()}
+            self._reset_rows(ended)
+            out_obs = self._obs.copy()
+            fo = np.full(n, None, dtype=object)
+            for j, i in enumerate(ended):
+                fo[i] = final_obs[j]
+            infos = {
+                **infos,
+                "final_obs": fo,
+                "_final_obs": done,
+                "final_info": final_info,
+                "_final_info": done,
+            }
+        else:
+            self._autoreset = term | trunc
+        return out_obs.copy(), rewards, term, trunc, infos
+
+    def _info_rows(self, step_info: dict[str, NDArray[Any]], rows: NDArray[np.intp]) -> dict[str, Any]:
+        """The vector ``info``: each key of the step's info, marked for ``rows``."""
+        n = self.num_envs
+        mask = np.zeros(n, dtype=bool)
+        mask[rows] = True
+        out: dict[str, Any] = {}
+        for key, value in step_info.items():
+            out[key] = value
+            out[f"_{key}"] = mask.copy()
+        return out
+
+    # -- closing ------------------------------------------------------------------------------
+    def close_extras(self, **kwargs: Any) -> None:
+        """Drop the batch state (no other resources are held)."""
+        self._closed = True
+        self._state = None
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("vector env is closed (close() was called): make a new one with gym.make_vec")
+
+
+def _key_of(hi: Any, lo: Any) -> Any:
+    """A JAX PRNG key of a 64-bit episode key given as two uint32 halves."""
+    import jax
+
+    return jax.random.fold_in(jax.random.PRNGKey(hi), lo)

@@ -1,0 +1,163 @@
+"""The JAX vector env's front (autoreset, seeding, checks, masks) over a small functional env."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
+
+jax = pytest.importorskip("jax")
+jnp = jax.numpy
+
+from ihrcf_env.core.seeding import SeedStreams  # noqa: E402
+from ihrcf_env.vector.jax_env import JaxVectorEnv, bucket  # noqa: E402
+
+ID = "ihrcf_env/DeckLanding-v2"  # for its spec only (the step limit is overridden)
+
+
+class Drop:
+    """A body falling under a commanded acceleration from a drawn height: ends below 0."""
+
+    def __init__(self) -> None:
+        self.params = {"dt": 0.1, "g": 1.0}
+        self.observation_space = spaces.Box(-np.inf, np.inf, (2,), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
+        self.host_draws = 0
+
+    def draw_host(self, rng: np.random.Generator) -> tuple[int, Any]:
+        self.host_draws += 1
+        streams = SeedStreams.from_generator(rng)
+        h = streams.generator("start").uniform(1.0, 2.0)
+        return streams.key, {"height": np.float64(h)}
+
+    def draw(self, key: Any, params: Any) -> Any:
+        return {"height": jax.random.uniform(key, (), minval=1.0, maxval=2.0)}
+
+    def reset_from(self, episode: Any, key: Any, params: Any) -> tuple[Any, Any]:
+        h = episode["height"]
+        state = {"h": h, "v": jnp.zeros_like(h), "noise": jax.random.normal(key, ())}
+        return jnp.stack([h, state["v"]]).astype(jnp.float32), state
+
+    def step(self, key: Any, state: Any, action: Any, params: Any) -> Any:
+        a = action[0] - params["g"]
+        v = state["v"] + a * params["dt"]
+        h = state["h"] + v * params["dt"]
+        new = {"h": h, "v": v, "noise": jax.random.normal(key, ())}
+        obs = jnp.stack([h, v]).astype(jnp.float32)
+        done = h < 0.0
+        return obs, new, -jnp.abs(v), done, {"height": h, "noise": new["noise"]}
+
+
+def make(n: int = 4, **kw: Any) -> JaxVectorEnv:
+    return JaxVectorEnv(ID, Drop(), num_envs=n, **kw)
+
+
+def test_paired_seeds_give_the_host_draws() -> None:
+    env = make(3)
+    obs, _ = env.reset(seed=7)
+    for i in range(3):
+        rng = gym.utils.seeding.np_random(7 + i)[0]
+        _, ep = Drop().draw_host(rng)
+        assert obs[i, 0] == np.float32(ep["height"])
+
+
+def test_deterministic_for_a_seed_and_independent_of_num_envs() -> None:
+    a, b = make(2), make(5)
+    oa, _ = a.reset(seed=3)
+    ob, _ = b.reset(seed=3)
+    np.testing.assert_array_equal(oa, ob[:2])
+    for _ in range(4):
+        ra = a.step(np.zeros((2, 1)))
+        rb = b.step(np.zeros((5, 1)))
+        np.testing.assert_array_equal(ra[0], rb[0][:2])
+        np.testing.assert_array_equal(ra[4]["noise"], rb[4]["noise"][:2])
+
+
+def test_next_step_autoreset() -> None:
+    env = make(2, seeding="paired")
+    env.reset(seed=0)
+    ended = False
+    for _ in range(40):
+        obs, rew, term, trunc, info = env.step(-np.ones((2, 1)))
+        if ended:  # the step after the end: a new episode, reward 0
+            assert rew[0] == 0.0 and not term[0] and not info["_height"][0]
+            assert 1.0 <= obs[0, 0] <= 2.0 and obs[0, 1] == 0.0
+            break
+        ended = bool(term[0])
+    else:
+        pytest.fail("env 0 never ended")
+
+
+def test_same_step_autoreset_and_final_obs() -> None:
+    env = make(2, autoreset_mode=AutoresetMode.SAME_STEP)
+    env.reset(seed=0)
+    for _ in range(40):
+        obs, rew, term, trunc, info = env.step(-np.ones((2, 1)))
+        if term[0]:
+            assert info["_final_obs"][0] and info["final_obs"][0][0] < 0.0
+            assert 1.0 <= obs[0, 0] <= 2.0
+            return
+    pytest.fail("env 0 never ended")
+
+
+def test_truncation_by_the_step_limit() -> None:
+    env = make(2, max_episode_steps=3)
+    env.reset(seed=0)
+    out = [env.step(np.ones((2, 1))) for _ in range(4)]
+    assert [bool(o[3][0]) for o in out] == [False, False, True, False]
+    assert out[3][1][0] == 0.0  # the reset step
+
+
+def test_jax_seeding_draws_fresh_episodes_without_the_host() -> None:
+    env = make(4, seeding="jax", max_episode_steps=2)
+    env.reset(seed=0)
+    assert env.fenv.host_draws == 0  # type: ignore[attr-defined]
+    starts = set()
+    for _ in range(9):
+        obs, *_ = env.step(np.zeros((4, 1)))
+        starts.update(np.round(obs[:, 0], 6)[obs[:, 1] == 0.0].tolist())
+    assert len(starts) >= 8  # every reset a new draw, never a cached first state
+
+
+def test_reset_mask_resets_only_the_marked_envs() -> None:
+    env = make(3)
+    o0, _ = env.reset(seed=0)
+    env.step(np.zeros((3, 1)))
+    o1, _ = env.reset(options={"reset_mask": np.array([False, True, False])})
+    assert o1[1, 1] == 0.0 and o1[0, 1] != 0.0 and o1[2, 1] != 0.0
+
+
+def test_bad_input_is_named() -> None:
+    with pytest.raises(ValueError, match="num_envs"):
+        make(0)
+    with pytest.raises(ValueError, match="seeding"):
+        make(2, seeding="x")
+    with pytest.raises(ValueError, match="dtype"):
+        make(2, dtype="float16")
+    env = make(2)
+    with pytest.raises(gym.error.ResetNeeded):
+        env.step(np.zeros((2, 1)))
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="actions"):
+        env.step(np.zeros((3, 1)))
+    with pytest.raises(ValueError, match="NaN"):
+        env.step(np.array([[0.0], [np.nan]]))
+    with pytest.raises(ValueError, match="reset_mask"):
+        env.reset(options={"altitude": 1.0})
+    env.close()
+    with pytest.raises(RuntimeError, match="closed"):
+        env.step(np.zeros((2, 1)))
+
+
+def test_resets_compile_per_bucket_only() -> None:
+    assert [bucket(k) for k in (1, 2, 3, 5, 8, 9)] == [1, 2, 4, 8, 8, 16]
+    env = make(8, max_episode_steps=1)
+    env.reset(seed=0)
+    for _ in range(6):
+        env.step(np.zeros((8, 1)))
+    assert set(env._reset_fns) <= {8}
+    assert env._step_fn._cache_size() == 1  # type: ignore[attr-defined]
