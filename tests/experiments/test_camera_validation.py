@@ -1,5 +1,7 @@
 """The projected camera model against the rendered camera + TagDetector, paired on the same states and
-the same ToF/IMU readings (ihrcf_env.experiments.camera_validation), both sensor presets (~2 min).
+the same ToF/IMU readings (ihrcf_env.experiments.camera_validation), both sensor presets. The
+statistical comparisons render hundreds of frames: they are marked ``slow`` (``pytest -m slow``,
+which ``.ci/run`` runs after the default tests).
 
 Errors within a trajectory are strongly correlated (a hovering drone keeps its corner errors, in
 both modes), so trajectories, not frames, are the independent samples. At 120 starts one axis's MAE
@@ -53,6 +55,7 @@ def filtered() -> CameraValidation:
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("preset", PRESETS)
 def test_single_frame_estimators_and_detection(single_frame: CameraValidation, preset: str) -> None:
     v = single_frame.presets[preset]
@@ -65,6 +68,7 @@ def test_single_frame_estimators_and_detection(single_frame: CameraValidation, p
         assert np.all(np.abs(v.ratio(est) - 1.0) <= MAE_TOLERANCE), (est, report)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("preset", PRESETS)
 def test_fused_filter_runs_on_projected_corners(filtered: CameraValidation, preset: str) -> None:
     """The fused filter converges and stays valid on the projected corners as on the rendered ones
@@ -78,6 +82,7 @@ def test_fused_filter_runs_on_projected_corners(filtered: CameraValidation, pres
     assert np.all(np.isfinite(v.mae["projected"]["fused"]))
 
 
+@pytest.mark.slow
 def test_report(single_frame: CameraValidation) -> None:
     text = single_frame.markdown()
     assert "sensor_preset='ideal'" in text and "sensor_preset='realistic'" in text
