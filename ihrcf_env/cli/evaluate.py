@@ -24,6 +24,7 @@ from ihrcf_env import LANDING_V1_ID, LANDING_V2_ID
 from ihrcf_env.cli.common import MAX_SEED, command_main, int_in, make_parser, seed_type
 from ihrcf_env.config.levels import LEVELS, TEST_SEEDS
 from ihrcf_env.control.gru_policy import GruPolicy, PolicyFileError
+from ihrcf_env.control.mlp_policy import MlpPolicy
 from ihrcf_env.core.metrics import failure_groups, wilson_interval
 from ihrcf_env.experiments.episode import EpisodeResult, run_episodes
 from ihrcf_env.experiments.policies import (
@@ -83,7 +84,7 @@ POLICY is one of
   scripted   the package's landing controller on the landing observation (own sensing only,
              never ground truth); needs a landing env ({LANDING_V1_ID} or {LANDING_V2_ID})
   blind:VZ   constant descent at VZ m/s (> 0), no lateral command
-  FILE.npz   a saved recurrent policy (ihrcf_env.control.gru_policy; numpy only)
+  FILE.npz   a saved recurrent or MLP policy (ihrcf_env.control.gru_policy / mlp_policy; numpy only)
   FILE.zip   a saved stable-baselines3 policy (--algo names its class), run deterministically;
              needs stable-baselines3 (pip install ".[rl]")
 
@@ -254,7 +255,7 @@ def _check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
         ap.error(f"argument --policy: no such file {spec!r}")
     if spec.endswith(".npz"):  # read before any env is built: a corrupt file is named at once
         try:
-            GruPolicy.load(spec)
+            MlpPolicy.load(spec) if MlpPolicy.is_mlp_file(spec) else GruPolicy.load(spec)
         except PolicyFileError as e:
             ap.error(f"argument --policy: {e}")
 

@@ -4,7 +4,8 @@ or a saved stable-baselines3 model (``.zip``).
 :func:`make_policy` turns a POLICY spec into a :class:`~ihrcf_env.control.policies.Policy` for an
 env; :func:`make_env_for` builds the env a saved policy was trained on (with ``deck_motion=True`` if
 its observation needs it). stable-baselines3 (the ``[rl]`` extra) is imported only for a ``.zip``; a
-``.npz`` (:class:`~ihrcf_env.control.gru_policy.GruPolicy`) runs in numpy.
+``.npz`` (:class:`~ihrcf_env.control.gru_policy.GruPolicy` or
+:class:`~ihrcf_env.control.mlp_policy.MlpPolicy`, by the file's header) runs in numpy.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 
 from ihrcf_env import LANDING_V1_ID
 from ihrcf_env.control.gru_policy import GruPolicy
+from ihrcf_env.control.mlp_policy import MlpPolicy
 from ihrcf_env.control.policies import BlindDescent, Policy, ScriptedLanding
 
 SB3_ALGOS = ("PPO", "SAC", "TD3", "A2C", "DDPG")
@@ -123,6 +125,23 @@ def load_gru(path: str, env: gym.Env) -> GruPolicy:
     return policy
 
 
+def load_mlp(path: str, env: gym.Env) -> MlpPolicy:
+    """Load the MLP policy ``path`` (a ``.npz``) and check its observation against ``env``'s."""
+    try:
+        policy = MlpPolicy.load(path)
+    except ValueError as e:
+        raise PolicyError(f"--policy {e}") from None
+    shape = getattr(env.observation_space, "shape", None)
+    if shape != (policy.input_size,):
+        raise PolicyError(
+            f"--policy {path!r}: it reads a flat observation of {policy.input_size} values, the env gives "
+            f"{_brief(env.observation_space)} (another env id, estimator set or --deck-motion?)"
+        )
+    if env.action_space.shape != (policy.action_size,):
+        raise PolicyError(f"--policy {path!r}: its actions do not match the env's {env.action_space}")
+    return policy
+
+
 def with_deck_motion(
     env_id: str, kwargs: dict[str, Any], spec: str, algo: str
 ) -> tuple[gym.Env, Policy] | None:
@@ -184,7 +203,7 @@ def make_policy(spec: str, env: gym.Env, algo: str = "PPO") -> Policy:
         if not os.path.isfile(spec):
             raise PolicyError(f"--policy {spec!r}: no such file")
         if spec.endswith(".npz"):
-            return load_gru(spec, env)
+            return load_mlp(spec, env) if MlpPolicy.is_mlp_file(spec) else load_gru(spec, env)
         return load_sb3(spec, algo, env)
     raise PolicyError(
         f"--policy {spec!r}: not 'scripted', 'blind:VZ', a saved recurrent policy (.npz) or a saved "
