@@ -7,49 +7,16 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
 jax = pytest.importorskip("jax")
 jnp = jax.numpy
 
-from ihrcf_env.core.seeding import SeedStreams  # noqa: E402
+from functional_toy import Drop  # noqa: E402
+
 from ihrcf_env.vector.jax_env import JaxVectorEnv, bucket  # noqa: E402
 
 ID = "ihrcf_env/DeckLanding-v2"  # for its spec only (the step limit is overridden)
-
-
-class Drop:
-    """A body falling under a commanded acceleration from a drawn height: ends below 0."""
-
-    def __init__(self) -> None:
-        self.params = {"dt": 0.1, "g": 1.0}
-        self.observation_space = spaces.Box(-np.inf, np.inf, (2,), np.float32)
-        self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
-        self.host_draws = 0
-
-    def draw_host(self, rng: np.random.Generator) -> tuple[int, Any]:
-        self.host_draws += 1
-        streams = SeedStreams.from_generator(rng)
-        h = streams.generator("start").uniform(1.0, 2.0)
-        return streams.key, {"height": np.float64(h)}
-
-    def draw(self, key: Any, params: Any) -> Any:
-        return {"height": jax.random.uniform(key, (), minval=1.0, maxval=2.0)}
-
-    def reset_from(self, episode: Any, key: Any, params: Any) -> tuple[Any, Any]:
-        h = episode["height"]
-        state = {"h": h, "v": jnp.zeros_like(h), "noise": jax.random.normal(key, ())}
-        return jnp.stack([h, state["v"]]).astype(jnp.float32), state
-
-    def step(self, key: Any, state: Any, action: Any, params: Any) -> Any:
-        a = action[0] - params["g"]
-        v = state["v"] + a * params["dt"]
-        h = state["h"] + v * params["dt"]
-        new = {"h": h, "v": v, "noise": jax.random.normal(key, ())}
-        obs = jnp.stack([h, v]).astype(jnp.float32)
-        done = h < 0.0
-        return obs, new, -jnp.abs(v), done, {"height": h, "noise": new["noise"]}
 
 
 def make(n: int = 4, **kw: Any) -> JaxVectorEnv:

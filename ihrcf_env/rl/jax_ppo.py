@@ -1,0 +1,233 @@
+"""PPO on the JAX backend: rejax's PPO over a functional landing env, exported as a numpy policy.
+
+:func:`gymnax_env` adapts a functional env (:class:`~ihrcf_env.vector.jax_env.FunctionalEnv`:
+``draw`` / ``reset_from`` / ``step``, one env per call) to gymnax's ``Environment`` interface, which
+rejax trains on (its autoreset draws a new episode on every reset; episodes end on termination or
+after ``max_steps``). :func:`train` runs rejax's PPO in chunks, each one compiled call, saving a
+checkpoint and the learning curve after every chunk (a stopped run resumes from its folder), and
+:func:`export_policy` writes the actor as an :class:`~ihrcf_env.control.mlp_policy.MlpPolicy`
+(numpy inference, no JAX needed to run it). Needs the ``[rl]`` extra (rejax, gymnax).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import serialization
+from gymnax.environments import environment, spaces
+from rejax import PPO
+
+from ihrcf_env.control.mlp_policy import MlpPolicy, mlp_from_arrays
+
+__all__ = ["PPOSettings", "export_policy", "gymnax_env", "make_ppo", "train"]
+
+
+def gymnax_env(fenv: Any, max_steps: int) -> tuple[environment.Environment, Any]:
+    """(gymnax env, its params) of the functional env ``fenv`` with episodes of at most
+    ``max_steps`` steps (the id's step limit)."""
+    obs_space = fenv.observation_space
+    act_space = fenv.action_space
+
+    class Landing(environment.Environment):
+        @property
+        def default_params(self) -> Any:
+            return fenv.params
+
+        def step_env(self, key: Any, state: Any, action: Any, params: Any) -> Any:
+            inner, t = state
+            obs, inner, reward, terminated, info = fenv.step(key, inner, action, params)
+            t = t + 1
+            done = jnp.logical_or(terminated, t >= max_steps)
+            info = {"success": info.get("is_success", jnp.zeros((), bool)), "terminated": terminated}
+            return obs, (inner, t), reward, done, info
+
+        def reset_env(self, key: Any, params: Any) -> Any:
+            k1, k2 = jax.random.split(key)
+            obs, inner = fenv.reset_from(fenv.draw(k1, params), k2, params)
+            return obs, (inner, jnp.zeros((), jnp.int32))
+
+        def observation_space(self, params: Any) -> Any:
+            return spaces.Box(obs_space.low, obs_space.high, obs_space.shape, jnp.float32)
+
+        def action_space(self, params: Any) -> Any:
+            return spaces.Box(act_space.low, act_space.high, act_space.shape, jnp.float32)
+
+        @property
+        def name(self) -> str:
+            return "ihrcf-landing"
+
+    return Landing(), fenv.params
+
+
+@dataclass(frozen=True)
+class PPOSettings:
+    """rejax PPO's hyperparameters (the names of :class:`rejax.PPO`)."""
+
+    num_envs: int = 256
+    num_steps: int = 64
+    num_epochs: int = 4
+    num_minibatches: int = 16
+    learning_rate: float = 3e-4
+    max_grad_norm: float = 0.5
+    gamma: float = 0.995
+    gae_lambda: float = 0.95
+    clip_eps: float = 0.2
+    ent_coef: float = 0.0
+    vf_coef: float = 0.5
+    hidden: tuple[int, ...] = (128, 128)
+    activation: str = "swish"
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def make_ppo(
+    fenv: Any,
+    max_steps: int,
+    settings: PPOSettings,
+    chunk_timesteps: int,
+    eval_envs: int = 64,
+) -> Any:
+    """rejax's PPO on ``fenv``, training ``chunk_timesteps`` per call of its ``train``; its
+    evaluation (once per chunk) flies ``eval_envs`` episodes with the actor's mean action and
+    returns (success rate, mean return, mean length)."""
+    env, params = gymnax_env(fenv, max_steps)
+
+    def evaluate(algo: Any, ts: Any, rng: Any) -> Any:
+        act = _mean_action(algo, ts)
+        keys = jax.random.split(rng, eval_envs)
+        obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+
+        def one(carry: Any, k: Any) -> Any:
+            obs, state, done, ret, length, success = carry
+            a = jax.vmap(act)(obs)
+            ks = jax.random.split(k, eval_envs)
+            obs2, state2, r, d, info = jax.vmap(env.step_env, in_axes=(0, 0, 0, None))(ks, state, a, params)
+            live = ~done
+            ret = ret + jnp.where(live, r, 0.0)
+            length = length + live
+            success = success | (live & info["success"])
+            return (obs2, state2, done | d, ret, length, success), None
+
+        zeros = jnp.zeros(eval_envs)
+        carry = (obs, state, jnp.zeros(eval_envs, bool), zeros, zeros, jnp.zeros(eval_envs, bool))
+        carry, _ = jax.lax.scan(one, carry, jax.random.split(rng, max_steps))
+        _, _, _, ret, length, success = carry
+        return jnp.stack([success.mean(), ret.mean(), length.mean()])
+
+    algo = PPO.create(
+        env=env,
+        env_params=params,
+        num_envs=settings.num_envs,
+        num_steps=settings.num_steps,
+        num_epochs=settings.num_epochs,
+        num_minibatches=settings.num_minibatches,
+        learning_rate=settings.learning_rate,
+        max_grad_norm=settings.max_grad_norm,
+        gamma=settings.gamma,
+        gae_lambda=settings.gae_lambda,
+        clip_eps=settings.clip_eps,
+        ent_coef=settings.ent_coef,
+        vf_coef=settings.vf_coef,
+        total_timesteps=chunk_timesteps,
+        eval_freq=chunk_timesteps,
+        skip_initial_evaluation=True,
+        normalize_observations=True,
+        agent_kwargs={"hidden_layer_sizes": settings.hidden, "activation": settings.activation},
+        **settings.extra,
+    )
+    return algo.replace(eval_callback=evaluate)
+
+
+def _mean_action(algo: Any, ts: Any) -> Callable[[Any], Any]:
+    """The actor's deterministic action (the Gaussian's mean, clipped) of one observation."""
+
+    def act(obs: Any) -> Any:
+        x = algo.normalize_obs(ts.obs_rms_state, obs)
+        features = algo.actor.apply(ts.actor_ts.params, x[None], method=lambda m, o: m.features(o))
+        mean = algo.actor.apply(ts.actor_ts.params, features, method=lambda m, f: m.action_mean(f))
+        return jnp.clip(mean[0], -1.0, 1.0)
+
+    return act
+
+
+def export_policy(algo: Any, ts: Any, path: str | Path, **meta: Any) -> MlpPolicy:
+    """Write the trained actor as an :class:`MlpPolicy` ``.npz`` at ``path``; returns it."""
+    p = ts.actor_ts.params["params"]
+    hidden = p["features"]
+    layers = [(hidden[f"Dense_{k}"]["kernel"], hidden[f"Dense_{k}"]["bias"]) for k in range(len(hidden))]
+    layers.append((p["action_mean"]["kernel"], p["action_mean"]["bias"]))
+    rms = ts.obs_rms_state
+    name = getattr(algo.actor.activation, "__name__", "swish")
+    activation = {"silu": "swish", "swish": "swish", "tanh": "tanh", "relu": "relu"}[name]
+    policy = mlp_from_arrays(
+        [(np.asarray(k), np.asarray(b)) for k, b in layers],
+        np.asarray(rms.mean),
+        np.asarray(rms.var),
+        activation=activation,
+        **meta,
+    )
+    policy.save(path)
+    return policy
+
+
+def train(
+    fenv: Any,
+    out: str | Path,
+    total_timesteps: int,
+    max_steps: int,
+    settings: PPOSettings | None = None,
+    chunk_timesteps: int = 1_000_000,
+    seed: int = 0,
+    eval_envs: int = 64,
+    time_budget_s: float | None = None,
+    log: Callable[[str], None] = print,
+) -> tuple[Any, Any, list[dict[str, float]]]:
+    """Train PPO on ``fenv`` for ``total_timesteps`` env steps in chunks of ``chunk_timesteps``,
+    resuming from ``out`` (``checkpoint.msgpack``, ``curve.json``) if a run left them there; stops
+    early when the next chunk would pass ``time_budget_s`` (s of wall time in this call). Returns
+    (algo, train state, curve: one row per chunk with steps, wall time, success rate, mean return
+    and length of the mean-action evaluation)."""
+    settings = settings or PPOSettings()
+    folder = Path(out)
+    folder.mkdir(parents=True, exist_ok=True)
+    per_iteration = settings.num_envs * settings.num_steps
+    chunk = max(1, -(-chunk_timesteps // per_iteration)) * per_iteration  # whole PPO iterations
+    algo = make_ppo(fenv, max_steps, settings, chunk, eval_envs)
+    ts = algo.init_state(jax.random.PRNGKey(seed))
+    ckpt, curve_file = folder / "checkpoint.msgpack", folder / "curve.json"
+    curve: list[dict[str, float]] = []
+    if ckpt.exists() and curve_file.exists():
+        ts = serialization.from_bytes(ts, ckpt.read_bytes())
+        curve = json.loads(curve_file.read_text())
+        log(f"resumed at {curve[-1]['steps'] if curve else 0:.0f} steps from {ckpt}")
+    train_fn = jax.jit(algo.train)
+    start = time.perf_counter()
+    last_chunk = 0.0
+    while (done := int(curve[-1]["steps"]) if curve else 0) < total_timesteps:
+        spent = time.perf_counter() - start
+        if time_budget_s is not None and curve and spent + last_chunk > time_budget_s:
+            log(f"time budget reached after {spent:.0f} s")
+            break
+        t0 = time.perf_counter()
+        ts, evaluation = train_fn(train_state=ts)
+        jax.block_until_ready(ts)
+        last_chunk = time.perf_counter() - t0
+        success, ret, length = (float(v) for v in np.asarray(evaluation).reshape(-1)[-3:])
+        wall = (curve[-1]["wall_s"] if curve else 0.0) + last_chunk
+        row = {"steps": float(done + chunk), "wall_s": wall, "success": success, "return": ret}
+        row["length"] = length
+        curve.append(row)
+        ckpt.write_bytes(serialization.to_bytes(ts))
+        curve_file.write_text(json.dumps(curve, indent=1))
+        log(
+            f"{row['steps']:.3g} steps  {wall:7.1f} s  success {success:5.1%}  return {ret:8.2f}  "
+            f"length {length:5.1f}"
+        )
+    return algo, ts, curve
