@@ -506,7 +506,7 @@ def step_with(
     )
     (flight, nav, nxt, _, ranges, valid, td, _), _ = lax.scan(tick_body, init, jnp.arange(S))
     # a contact latched in an earlier step is not this step's touchdown
-    td = jax.tree_util.tree_map(lambda n, o: jnp.where(st.flight.latched, o, n), _no_touchdown(dtype), td)
+    td = jax.tree_util.tree_map(lambda n, t: jnp.where(st.flight.latched, n, t), _no_touchdown(dtype), td)
     deck = jax.tree_util.tree_map(lambda x: x[S], deck_all)
     tick = tick0 + S
     st2 = st._replace(
