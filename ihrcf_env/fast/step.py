@@ -80,6 +80,12 @@ class StepInfo(NamedTuple):
     time: Array
 
 
+def _strong(tree: Any) -> Any:
+    """``tree`` with every leaf of a fixed (not weak) dtype: a state from ``reset`` and one from
+    ``step`` have the same types, so a compiled step never retraces for either."""
+    return jax.tree_util.tree_map(lambda x: jnp.asarray(x, dtype=jnp.asarray(x).dtype), tree)
+
+
 # -- argument checks (at trace time) ---------------------------------------------------------------
 def _check_params(params: Any) -> StepParams:
     if not isinstance(params, StepParams):
@@ -394,7 +400,7 @@ def reset_from_with(episode: Episode, draws: ReadDraws, params: StepParams) -> t
         phi = tasks.landing_potential(s, goal.reward)
     st = st._replace(phi=phi)
     truth = _truth(p, s, flight, q0, _air(p, wind, jnp.zeros((), dtype)))
-    return p.observe(raw, truth), st
+    return p.observe(raw, truth), _strong(st)
 
 
 def reset_from(episode: Episode, key: Any, params: StepParams) -> tuple[Any, EnvState]:
@@ -542,7 +548,7 @@ def step_with(
     st2 = st2._replace(phi=jnp.asarray(phi, dtype), done=done)
     truth = _truth(p, s, flight, quats[S], _air(p, st.wind, tick.astype(dtype) * dt))
     info = StepInfo(raw, truth, code, terms, td, tick.astype(dtype) * dt)
-    return p.observe(raw, truth), st2, jnp.asarray(reward, dtype), done, info
+    return p.observe(raw, truth), _strong(st2), jnp.asarray(reward, dtype), done, info
 
 
 def step_env(
