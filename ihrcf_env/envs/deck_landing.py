@@ -72,28 +72,26 @@ from ihrcf_env import tasks
 from ihrcf_env.config.landing import DeckLandingConfig
 from ihrcf_env.config.make import make_config
 from ihrcf_env.config.sensors import CameraConfig
-from ihrcf_env.config.task import ARENA_MARGIN, MIN_START_ALTITUDE
 from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.arrays import clip
-from ihrcf_env.core.checks import check_mapping, check_real, check_reals
+from ihrcf_env.core.checks import check_mapping
 from ihrcf_env.core.frames import euler_from_matrix, quat_from_matrix
-from ihrcf_env.core.profiles import PAPER_DURATION, MotionProfile, ShiftedProfile
+from ihrcf_env.core.profiles import MotionProfile
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.core.seeding import SeedStreams
-from ihrcf_env.core.ship import fits
 from ihrcf_env.envs.render import EnvRenderer
-from ihrcf_env.sim.deck import DeckTrajectory
 from ihrcf_env.sim.disturbances import Wind
 from ihrcf_env.sim.registry import SENSORS
 from ihrcf_env.sim.sensing import CAMERA_SENSORS, Snapshot
 from ihrcf_env.sim.sensors.base import TAG_STATUS
 from ihrcf_env.sim.world import Touchdown, World, touchdown_arrays
+from ihrcf_env.tasks import episode
 
-RESET_OPTIONS = ("altitude", "offset", "yaw", "deck_time")
+RESET_OPTIONS = episode.RESET_OPTIONS
 #: Deck profiles drawn at random per episode (a draw the legs cannot follow is drawn again).
-RANDOM_PROFILES = ("ship", "sea_state")
+RANDOM_PROFILES = episode.RANDOM_PROFILES
 #: Draws of a random sea per reset before giving up.
-MAX_DECK_DRAWS = 20
+MAX_DECK_DRAWS = episode.MAX_DECK_DRAWS
 #: Upper bound (s) of ``camera_age`` in the observation.
 MAX_SENSOR_AGE = 10.0
 #: Bound (m/s) of ``nav_velocity`` in the observation.
@@ -316,25 +314,9 @@ class DeckLandingEnv(gym.Env):
 
     def _draw_deck(self, rng: np.random.Generator, deck_time: float) -> tuple[MotionProfile, bool]:
         """This episode's deck motion from ``rng``, started at ``deck_time`` (s), and whether its
-        stroke was checked over ``horizon_s`` here. A random sea (``"ship"``, ``"sea_state"``) is
-        drawn again, from the same stream, while the draw would take a leg beyond its stroke within
-        ``horizon_s`` (rare extremes of a sea the platform otherwise reproduces); ValueError if
-        :data:`MAX_DECK_DRAWS` draws all do."""
-        deck = self.config.task.deck
-        random_sea = deck.profile in RANDOM_PROFILES
-        for _ in range(MAX_DECK_DRAWS if random_sea else 1):
-            profile = deck.make_profile(rng)
-            if deck_time:
-                profile = ShiftedProfile(profile, deck_time)
-            if not random_sea:
-                return profile, False
-            if fits(profile, self.config.world.stewart, deck.horizon_s, dt=DeckTrajectory.CHECK_DT):
-                return profile, True
-        raise ValueError(
-            f"deck_profile {deck.profile!r}: {MAX_DECK_DRAWS} draws of this sea all exceed the Stewart "
-            "legs' stroke within horizon_s: choose a calmer sea state, a larger length_scale, a larger "
-            "platform (stewart) or a shorter horizon_s"
-        )
+        stroke was checked over ``horizon_s`` here: :func:`ihrcf_env.tasks.episode.draw_deck` (a
+        random sea the legs cannot follow is drawn again)."""
+        return episode.draw_deck(self.config, rng, deck_time)
 
     def _trim_keeps_view(self) -> bool:
         """With ``start_trimmed``: move the trimmed drone so the camera still looks at the drawn
@@ -345,31 +327,9 @@ class DeckLandingEnv(gym.Env):
         self, options: dict[str, Any], rng: np.random.Generator
     ) -> tuple[float, tuple[float, float], float, float]:
         """(altitude m, offset (x, y) m, yaw rad, deck start time s) of a new episode: drawn from
-        ``rng`` (always, so ``options`` do not shift the stream), then ``options``."""
-        unknown = sorted(map(str, set(options) - set(RESET_OPTIONS)))
-        if unknown:
-            raise ValueError(f"reset options has unknown keys {unknown}; known: {', '.join(RESET_OPTIONS)}")
-        task = self.config.task
-        start = task.start
-        alt = start.altitude + rng.uniform(-1, 1) * start.altitude_jitter
-        off = rng.uniform(-1, 1, 2) * start.offset
-        yaw = rng.uniform(-1, 1) * start.yaw
-        deck_time = rng.uniform(0.0, PAPER_DURATION) if task.deck.random_start else 0.0
-        if "altitude" in options:
-            top = self.config.max_start_altitude
-            alt = check_real(
-                "options['altitude']", options["altitude"], "m", low=MIN_START_ALTITUDE, high=top
-            )
-        if "offset" in options:
-            limit = task.arena.half_width - ARENA_MARGIN
-            off = np.array(
-                check_reals("options['offset']", options["offset"], 2, "m", low=-limit, high=limit)
-            )
-        if "yaw" in options:
-            yaw = check_real("options['yaw']", options["yaw"], "rad", low=-4 * math.pi, high=4 * math.pi)
-        if "deck_time" in options:
-            deck_time = check_real("options['deck_time']", options["deck_time"], "s", low=0.0, high=1e6)
-        return float(alt), (float(off[0]), float(off[1])), float(yaw), float(deck_time)
+        ``rng`` (always, so ``options`` do not shift the stream), then ``options``
+        (:func:`ihrcf_env.tasks.episode.draw_start`)."""
+        return tuple(episode.draw_start(self.config, rng, options))  # type: ignore[return-value]
 
     def _get_obs(self) -> dict[str, Any]:
         w = self.world

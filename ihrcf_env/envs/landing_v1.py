@@ -49,7 +49,6 @@ wraps it (:mod:`ihrcf_env.wrappers.landing_obs`).
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -61,6 +60,7 @@ from ihrcf_env.config.task import LandingGoal
 from ihrcf_env.envs.deck_landing import DeckLandingEnv, _reward_info
 from ihrcf_env.sim.sensing import Snapshot
 from ihrcf_env.sim.world import Touchdown, touchdown_arrays
+from ihrcf_env.tasks import episode
 
 #: ``gym.make`` defaults of v1 that differ from the hover task's (any of them can still be given).
 V1_DEFAULTS: dict[str, Any] = TASK_DEFAULTS["landing-v1"]
@@ -68,7 +68,7 @@ V1_DEFAULTS: dict[str, Any] = TASK_DEFAULTS["landing-v1"]
 LEG_LENGTH = tasks.LEG_LENGTH
 #: Half of the tag's printed extent around its centre (m) per metre of ``tag_size``: the black
 #: square (8 cells) plus the one-cell white border the detector needs, i.e. 10/8 / 2.
-TAG_EXTENT = 10.0 / 8.0 / 2.0
+TAG_EXTENT = episode.TAG_EXTENT
 
 
 class DeckLandingV1Env(DeckLandingEnv):
@@ -95,28 +95,17 @@ class DeckLandingV1Env(DeckLandingEnv):
     def start_radius(self, altitude: float) -> float:
         """Largest start offset (m) at ``altitude`` (m above the deck origin): ``start_offset``, or
         less so that the tag and its white border stay ``view_margin`` inside the image whatever the
-        yaw (the inscribed circle of the view); 0 if even a centred start cannot see it."""
-        limit = self.config.task.start.offset
-        cam = self.config.world.camera
-        if cam is None or not self.goal.start_in_view:
-            return limit
-        tan_half = math.tan(cam.fov / 2) * min(1.0, cam.width / cam.height)
-        depth = altitude + float(self.rig.camera_position[2])  # the camera sits below the centre
-        half_view = depth * tan_half
-        tag = self.config.world.deck.tag_size * TAG_EXTENT * math.sqrt(2.0)
-        return float(min(limit, max(0.0, half_view - tag - self.goal.view_margin)))
+        yaw (the inscribed circle of the view); 0 if even a centred start cannot see it
+        (:func:`ihrcf_env.tasks.episode.start_radius`)."""
+        return episode.start_radius(self.config, altitude)
 
     def _draw_start(
         self, options: dict[str, Any], rng: np.random.Generator
     ) -> tuple[float, tuple[float, float], float, float]:
         """The hover task's draw (altitude, yaw, deck time and option checks), then the offset over
-        the disc of :meth:`start_radius` (uniform in area) unless ``options["offset"]`` fixes it."""
-        alt, off, yaw, deck_time = super()._draw_start(options, rng)
-        u, phi = rng.uniform(), rng.uniform(0.0, 2.0 * math.pi)
-        if "offset" not in options:
-            r = self.start_radius(alt) * math.sqrt(u)
-            off = (r * math.cos(phi), r * math.sin(phi))
-        return alt, off, yaw, deck_time
+        the disc of :meth:`start_radius` (uniform in area) unless ``options["offset"]`` fixes it
+        (:func:`ihrcf_env.tasks.episode.draw_start` with ``disc``)."""
+        return tuple(episode.draw_start(self.config, rng, options, disc=True))  # type: ignore[return-value]
 
     def _trim_keeps_view(self) -> bool:
         return self.goal.start_in_view and self.config.world.camera is not None

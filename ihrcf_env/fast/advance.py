@@ -2,8 +2,8 @@
 autopilot, the ground effect over the deck and the ground, the wind's drag force, the rigid-body
 tick, the touchdown test against the deck plate, the ground and the Stewart base, and, once down,
 the drone resting where it touched (moving with the deck on it). The port of
-:func:`ihrcf_env.sim.batched.loop.advance` for one world on velocity setpoints, without navigation
-errors or user disturbances.
+:func:`ihrcf_env.sim.batched.loop.advance` for one world on velocity setpoints, with the navigation
+errors given (no user disturbances).
 
 The deck's poses at the period's ticks and the air's velocity at each tick are inputs (from
 :mod:`ihrcf_env.fast.deck_motion` and :mod:`ihrcf_env.fast.wind`, or the simulator's). Frames:
@@ -30,6 +30,7 @@ from ihrcf_env.fast.dynamics import (
     thrust_scale,
     tick,
 )
+from ihrcf_env.fast.navigation import NavConstants, NavState, nav_estimate
 from ihrcf_env.fast.wind import DragConstants, wind_force
 
 __all__ = ["AdvanceConsts", "Flight", "advance", "angular_velocity_between", "quat_multiply"]
@@ -140,11 +141,15 @@ def advance(
     deck_top: Array,
     deck_quat: Array,
     air: Array | None = None,
+    nav: tuple[NavState, NavConstants] | None = None,
 ) -> Flight:
     """The flight after one control period under the velocity ``setpoint`` (4,): ``deck_top``
     (S + 1, 3) and ``deck_quat`` (S + 1, 4) the deck frame (its top face's centre) at the period's
     S + 1 ticks (first: now), ``air`` (S, 3) the air's velocity at the first S ticks (None: still
-    air). The first contact of the period (if any, and none before) is in ``code`` / ``tick``."""
+    air), ``nav`` the navigation errors at the S ticks (a :class:`~ihrcf_env.fast.navigation.NavState`
+    of (S, 3) arrays) and their constants: the autopilot's position and velocity loops close on
+    the estimate (None: on the truth). The first contact of the period (if any, and none before)
+    is in ``code`` / ``tick``."""
     dt = c.dt
     deck_rot = jnp.stack([matrix_from_quaternion(deck_quat[j]) for j in range(c.substeps + 1)])
     boxes = (
@@ -158,13 +163,17 @@ def advance(
         st = f.drone
         q_rep = quaternion_from_matrix(matrix_from_quaternion(st.quaternion))
         rot = matrix_from_quaternion(q_rep)
+        pos_fb, vel_fb = st.position, st.velocity
+        if nav is not None:
+            errors = NavState(nav[0].ep[j], nav[0].ev[j], nav[0].white[j])
+            pos_fb, vel_fb = nav_estimate(errors, st.position, st.velocity, nav[1])
         ctrl, cmd = velocity_control(
             f.control,
             setpoint,
             dt,
-            st.position,
+            pos_fb,
             q_rep,
-            st.velocity,
+            vel_fb,
             st.angular_velocity,
             c.drone,
             c.gains,

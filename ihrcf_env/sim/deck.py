@@ -26,6 +26,7 @@ from ihrcf_env.core.frames import matrix_from_quat, quat_from_matrix
 from ihrcf_env.core.profiles import MotionProfile, profile_leg_lengths, sample_until_unusable
 from ihrcf_env.core.stewart import StewartGeometry
 from ihrcf_env.sim.assets import asset_path, tag_texture
+from ihrcf_env.tasks.episode import STROKE_CHECK_DT
 
 
 class TickSeries:
@@ -88,7 +89,7 @@ class DeckTrajectory:
     chunk is computed from its own times alone, so the poses do not depend on the window.
     """
 
-    CHECK_DT = 0.05
+    CHECK_DT = STROKE_CHECK_DT
 
     def __init__(
         self,

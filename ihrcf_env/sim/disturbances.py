@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 from ihrcf_env.config.wind import Disturbance, WindParams
 from ihrcf_env.core.checks import check_reals, describe, is_real
+from ihrcf_env.tasks.episode import draw_wind
 
 #: Largest force (N) a disturbance may return: far beyond any wind or contact on a drone, far below
 #: where the physics loses its precision.
@@ -133,8 +134,9 @@ class Wind:
     def reset(self, rng: np.random.Generator) -> None:
         """Draw this episode's mean wind and gust sequence from ``rng``."""
         p = self.params
-        self.mean_speed = float(rng.uniform(p.mean_speed_min, p.mean_speed_max))
-        self.direction = float(rng.uniform(0.0, 2.0 * math.pi))
+        draw = draw_wind(rng)  # the draws the JAX backend pairs (ihrcf_env.tasks.episode)
+        self.mean_speed = float(p.mean_speed_min + (p.mean_speed_max - p.mean_speed_min) * draw.u_speed)
+        self.direction = float(2.0 * math.pi * draw.u_direction)
         c, s = math.cos(self.direction), math.sin(self.direction)
         self.mean = (self.mean_speed * c, self.mean_speed * s, 0.0)
         s_h, s_w, l_h, l_w = dryden_low_altitude(p.height)
@@ -142,7 +144,7 @@ class Wind:
         self.sigma = (k * s_h, k * s_h, k * s_w)
         v_adv = max(self.mean_speed, p.min_advection)
         self.tau = (l_h / v_adv, l_h / v_adv, l_w / v_adv)
-        self._rng = np.random.default_rng(int(rng.integers(2**63)))
+        self._rng = np.random.default_rng(draw.gust_seed)
         self._samples = []
         self._state = np.asarray(self.sigma) * self._rng.standard_normal(3)  # stationary start
 
