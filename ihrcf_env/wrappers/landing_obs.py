@@ -74,94 +74,22 @@ from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedEstimator, FusedParams, PoseEstimate
 from ihrcf_env.core.forecast import ForecastOptions
 from ihrcf_env.core.frames import matrix_from_euler, matrix_from_quat
+from ihrcf_env.core.landing_layout import (
+    ESTIMATE_FIELDS,
+    MAX_AGE,
+    MOTION,
+    MOTION_FIELDS,
+    POSITION_SCALE,
+    RATE_SCALE,
+    TRUTH_FIELDS,
+    sensor_fields,
+)
+from ihrcf_env.core.landing_layout import landing_blocks as core_landing_blocks
 from ihrcf_env.core.ship import DEFAULT_LENGTH_SCALE
 from ihrcf_env.wrappers.estimates import GROUND_TRUTH, base_config
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
 from ihrcf_env.wrappers.forecast_feed import FORECAST, ForecastFeed, forecast_fields
-from ihrcf_env.wrappers.layout import Block, Field, build_layout
-
-#: Largest age (s) shown for an estimate; also the age of one never seen.
-MAX_AGE = 10.0
-POSITION_SCALE = 2.0  # m
-RATE_SCALE = 5.0  # rad/s
-
-
-def _f(
-    name: str,
-    size: int,
-    scale: float,
-    bound: float,
-    non_negative: bool = False,
-    unit: str = "",
-    meaning: str = "",
-) -> Field:
-    return Field(name, size, 0.0 if non_negative else -bound, bound, scale, unit, meaning)
-
-
-def sensor_fields(max_range: float = 4.0) -> tuple[Field, ...]:
-    """The sensor block; ranges are scaled by the ToF ``max_range`` (m)."""
-    return (
-        _f(
-            "ranges",
-            4,
-            max_range,
-            1.0,
-            True,
-            "m",
-            "ToF ranges ps1..ps4 (scale: the ToF max range); an invalid reading reads 1",
-        ),
-        _f("ranges_valid", 4, 1.0, 1.0, True, "", "1 = valid"),
-        _f("imu.up", 3, 1.0, 1.0, False, "", "the world's up axis in the body frame (IMU attitude)"),
-        _f("imu.angular_velocity", 3, RATE_SCALE, 50.0 / RATE_SCALE, False, "rad/s", "body rates"),
-        _f(
-            "imu.linear_acceleration",
-            3,
-            GRAVITY,
-            200.0 / GRAVITY,
-            False,
-            "m/s^2",
-            "specific force, body frame",
-        ),
-        _f("nav_velocity", 3, 1.0, 20.0, False, "m/s", "the autopilot's velocity estimate, heading frame"),
-    )
-
-
-ESTIMATE_FIELDS: tuple[Field, ...] = (
-    _f(
-        "position",
-        3,
-        POSITION_SCALE,
-        10.0 / POSITION_SCALE,
-        False,
-        "m",
-        "deck origin (tag centre), heading frame",
-    ),
-    _f("normal", 3, 1.0, 1.0, False, "", "deck normal, heading frame"),
-    _f("yaw", 2, 1.0, 1.0, False, "", "cos, sin of the deck's yaw relative to the drone"),
-    _f("valid", 1, 1.0, 1.0, True, "", "1 = valid this step"),
-    _f(
-        "age",
-        1,
-        1.0,
-        MAX_AGE,
-        True,
-        "s",
-        "age of the values shown (an invalid estimate keeps its last values and its age grows)",
-    ),
-)
-TRUTH_FIELDS: tuple[Field, ...] = (
-    _f("position", 3, POSITION_SCALE, 10.0 / POSITION_SCALE, False, "m", "true deck origin, heading frame"),
-    _f("normal", 3, 1.0, 1.0, False, "", "true deck normal, heading frame"),
-    _f("yaw", 2, 1.0, 1.0, False, "", "cos, sin of the true deck yaw relative to the drone"),
-    _f("velocity", 3, 1.0, 20.0, False, "m/s", "the drone's velocity relative to the deck, heading frame"),
-    _f("wind", 3, 1.0, 40.0, False, "m/s", "the wind, heading frame"),
-)
-MOTION_FIELDS: tuple[Field, ...] = (
-    _f("velocity", 3, 1.0, 20.0, False, "m/s", "the deck's velocity relative to the drone, heading frame"),
-    _f("normal_rate", 3, 1.0, 20.0, False, "1/s", "the rate of the deck normal, heading frame"),
-)
-#: Observation block of the fused filter's deck motion (``deck_motion=True``).
-MOTION = "motion"
+from ihrcf_env.wrappers.layout import Block, build_layout
 
 
 def landing_obs_fields(
@@ -186,16 +114,10 @@ def landing_blocks(
     deck_motion: bool = False,
     forecast_horizons: int = 0,
 ) -> list[Block]:
-    """The blocks of the landing observation (:func:`landing_obs_fields`), in order."""
-    blocks: list[Block] = [("", sensor_fields(max_range))]
-    blocks += [(name, ESTIMATE_FIELDS) for name in estimators]
-    if deck_motion:
-        blocks.append((MOTION, MOTION_FIELDS))
-    if forecast_horizons > 0:
-        blocks.append((FORECAST, forecast_fields(forecast_horizons)))
-    if privileged:
-        blocks.append((GROUND_TRUTH, TRUTH_FIELDS))
-    return blocks
+    """The blocks of the landing observation (:func:`landing_obs_fields`), in order
+    (:func:`ihrcf_env.core.landing_layout.landing_blocks` with the forecast block)."""
+    forecast = (FORECAST, forecast_fields(forecast_horizons)) if forecast_horizons > 0 else None
+    return core_landing_blocks(estimators, max_range, privileged, deck_motion, forecast)
 
 
 def heading_rotation(quaternion: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
