@@ -235,7 +235,9 @@ def _companion_sandwich(a: Array, P: Array) -> Array:
     return jnp.concatenate([jnp.einsum("cij,cj->ci", FP, a)[:, :, None], FP[:, :, :-1]], axis=2)
 
 
-def _propagate(prm: ForecastParams, st: ForecastState, x: Array, P: Array, steps: Array) -> tuple[Array, Array]:
+def _propagate(
+    prm: ForecastParams, st: ForecastState, x: Array, P: Array, steps: Array
+) -> tuple[Array, Array]:
     """``steps`` (0 .. max_gap_cells) prediction steps, as a masked scan of fixed length."""
 
     def body(carry: tuple[Array, Array], k: Array) -> tuple[tuple[Array, Array], None]:
@@ -320,18 +322,17 @@ def _stable(a: Array, r: Array) -> Array:
     """Whether every root of ``z^p - a_1 z^(p-1) - ... - a_p`` (``a`` (3, p)) has a modulus
     below ``r`` (3,): the Schur-Cohn test (the step-down recursion of the scaled polynomial)."""
     p = a.shape[1]
-    powers = r[:, None] ** jnp.arange(1, p + 1)[None, :]
+    powers = jnp.cumprod(jnp.broadcast_to(r[:, None], a.shape), axis=1)
     c = -a / powers  # c_1 .. c_p of the monic polynomial in z / r
     ok = jnp.ones(a.shape[0], dtype=bool)
-    for m in range(p, 0, -1):
+    idx = np.arange(p)
+    for m in range(p, 1, -1):
         k = c[:, m - 1]
         ok = ok & (jnp.abs(k) < 1.0)
-        if m > 1:
-            den = jnp.where(ok, 1.0 - k * k, 1.0)
-            head = c[:, : m - 1]
-            rev = c[:, m - 2 :: -1]
-            c = jnp.concatenate([(head - k[:, None] * rev) / den[:, None], c[:, m - 1 :]], axis=1)
-    return ok
+        k = jnp.where(ok, k, 0.0)
+        rev = c[:, np.clip(m - 2 - idx, 0, p - 1)]
+        c = jnp.where(idx < m - 1, (c - k[:, None] * rev) / (1.0 - k * k)[:, None], c)
+    return ok & (jnp.abs(c[:, 0]) < 1.0)
 
 
 def _spectral_radius(a: Array) -> Array:
@@ -504,13 +505,18 @@ def _close(prm: ForecastParams, st: ForecastState, cell: Array) -> ForecastState
     return _where(due, refitted, st)
 
 
-def forecast_update(prm: ForecastParams, st: ForecastState, t: Array, sample: Array, valid: Array) -> ForecastState:
+def forecast_update(
+    prm: ForecastParams, st: ForecastState, t: Array, sample: Array, valid: Array
+) -> ForecastState:
     """Take one sample at time ``t`` (s): ``sample`` (heave m, roll rad, pitch rad) (3,); an
     invalid sample or a non-finite channel only advances the clock, a sample older than the
     current grid cell is ignored (the reference's ``update``)."""
     t = jnp.asarray(t)
     y = jnp.asarray(sample, st.acc.dtype)
-    cell = jnp.floor(t / prm.dt).astype(jnp.int_)
+    # the cell index of a true division (as the reference's): a constant divisor could be turned
+    # into a multiplication by its reciprocal, which rounds differently at the cells' edges
+    dt = jax.lax.optimization_barrier(jnp.asarray(prm.dt, t.dtype))
+    cell = jnp.floor(t / dt).astype(jnp.int_)
     cur = jnp.where(st.started, st.cell, cell)
     st = st._replace(cell=cur, started=jnp.asarray(True))
     ignore = cell < cur

@@ -166,4 +166,3 @@ def feed_step(
     )
     block = jnp.clip(block, jnp.asarray(fp.low, f), jnp.asarray(fp.high, f))
     return st, FeedOutput(block, mean, std, quiet, valid)
-
