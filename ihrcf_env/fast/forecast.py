@@ -9,20 +9,19 @@ reference runs on every call and is selected with ``jnp.where``:
 
 * the grid cells are a ring of ``cells`` slots (the reference's arrays), the current cell's
   accumulators beside them;
-* closing a cell measures it, then takes up to ``max_gap_cells`` prediction steps of the companion
-  model (a fixed count, masked past the cells actually skipped) where the reference takes the
-  bits of the step count; both give ``F^m P F^mT + sum_j F^j Q F^jT``;
+* closing a cell measures it, then takes the cells skipped (at most ``max_gap_cells``) as
+  prediction steps of the companion model in a bounded loop, where the reference takes the bits
+  of the step count; both give ``F^m P F^mT + sum_j F^j Q F^jT``;
 * the refit is computed on every cell close and kept only on the reference's schedule (a cell
   index that is a multiple of the refit period) when the window holds enough samples: the
   Savitzky-Golay smoothing, the interpolation of gaps and the rows left out by the same rules;
   the ridge least squares by a Cholesky factorisation of the fixed-size normal equations (the
   reference solves the same equations by LU); the spectral radius of the AR model (the
   reference's ``eigvals``) by bisection on the Schur-Cohn stability test of the scaled
-  polynomial; the stationary covariance (the reference's ten doublings, the sum of the first
-  1024 terms of the Lyapunov series) from the impulse response's lagged products.
+  polynomial; the stationary covariance by the reference's ten doublings of the Lyapunov sum.
 
 Nothing here calls ``jnp.linalg``; the long loops (prediction steps, bisection, impulse response)
-run under ``lax.scan``.
+run under ``lax.scan`` or a bounded ``lax.while_loop``.
 """
 
 from __future__ import annotations
@@ -54,7 +53,6 @@ __all__ = [
 
 _SENTINEL = -(1 << 30)  # cell id of an empty slot
 _BISECTIONS = 64  # bisection steps of the spectral radius
-_LYAPUNOV_TERMS = 1 << 10  # terms of the stationary covariance's series (the reference's 10 doublings)
 
 
 @dataclass(frozen=True)
@@ -196,6 +194,19 @@ def forecast_init(prm: ForecastParams, dtype: Any = None) -> ForecastState:
     )
 
 
+def _cumsum(x: Array, axis: int) -> Array:
+    """Cumulative sum by an associative scan (XLA's cumulative reductions are quadratic on CPU)."""
+    return jax.lax.associative_scan(jnp.add, x, axis=axis)
+
+
+def _cummax(x: Array, axis: int) -> Array:
+    return jax.lax.associative_scan(jnp.maximum, x, axis=axis)
+
+
+def _cummin_reverse(x: Array, axis: int) -> Array:
+    return jax.lax.associative_scan(jnp.minimum, x, axis=axis, reverse=True)
+
+
 def _where(c: Array, a: Any, b: Any) -> Any:
     """``a`` where the scalar ``c`` else ``b``, leaf by leaf."""
     return jax.tree.map(lambda u, v: jnp.where(c, u, v), a, b)
@@ -238,16 +249,20 @@ def _companion_sandwich(a: Array, P: Array) -> Array:
 def _propagate(
     prm: ForecastParams, st: ForecastState, x: Array, P: Array, steps: Array
 ) -> tuple[Array, Array]:
-    """``steps`` (0 .. max_gap_cells) prediction steps, as a masked scan of fixed length."""
+    """``steps`` (0 .. max_gap_cells) prediction steps of the companion model. A bounded
+    ``while_loop``: under ``vmap`` it runs the batch's largest count, the rows already done
+    held by a mask."""
 
-    def body(carry: tuple[Array, Array], k: Array) -> tuple[tuple[Array, Array], None]:
-        xc, Pc = carry
-        go = k < steps
+    def cond(carry: tuple[Array, Array, Array]) -> Array:
+        return carry[0] < steps
+
+    def body(carry: tuple[Array, Array, Array]) -> tuple[Array, Array, Array]:
+        k, xc, Pc = carry
         xn = _companion_x(st.ar, xc)
         Pn = _companion_sandwich(st.ar, Pc).at[:, 0, 0].add(st.q)
-        return (jnp.where(go, xn, xc), jnp.where(go, Pn, Pc)), None
+        return k + 1, xn, Pn
 
-    (x, P), _ = jax.lax.scan(body, (x, P), jnp.arange(prm.max_gap_cells))
+    _, x, P = jax.lax.while_loop(cond, body, (jnp.zeros_like(steps), x, P))
     return x, P
 
 
@@ -271,8 +286,8 @@ def _interp(good: Array, vals: Array) -> Array:
     """Per channel, ``np.interp`` of the cells holding samples (values ``vals``) over all cells."""
     n = vals.shape[0]
     idx = jnp.broadcast_to(jnp.arange(n)[:, None], vals.shape)
-    prev = jax.lax.cummax(jnp.where(good, idx, -1), axis=0)
-    nxt = jax.lax.cummin(jnp.where(good, idx, n), axis=0, reverse=True)
+    prev = _cummax(jnp.where(good, idx, -1), axis=0)
+    nxt = _cummin_reverse(jnp.where(good, idx, n), axis=0)
     zp = jnp.take_along_axis(vals, jnp.clip(prev, 0, n - 1), axis=0)
     zn = jnp.take_along_axis(vals, jnp.clip(nxt, 0, n - 1), axis=0)
     inside = (prev >= 0) & (nxt < n)
@@ -366,25 +381,16 @@ def _impulse(a: Array, steps: int) -> Array:
 
 
 def _stationary(a: Array, q: Array, p: int) -> Array:
-    """``sum_{j < 1024} F^j Q F^jT`` (3, p, p), ``Q = q e_0 e_0^T``: ``q sum_m g_m g_(m+d)`` over
-    the impulse response ``g`` up to ``1023 - max(i, k)``, ``d = |i - k|``."""
-    T = _LYAPUNOV_TERMS
-
-    def body(carry: Array, _: Any) -> tuple[Array, Array]:
-        hist = carry  # g_(m) .. g_(m - p + 1): the companion state after m steps of an impulse
-        nxt = jnp.concatenate([jnp.sum(a * hist, axis=1, keepdims=True), hist[:, :-1]], axis=1)
-        return nxt, hist[:, 0]
-
-    x0 = jnp.zeros_like(a).at[:, 0].set(1.0)
-    _, g = jax.lax.scan(body, x0, None, length=T + p)  # (T + p, 3): g_0 .. g_(T + p - 1)
-    g = g.T  # (3, T + p)
-    m = jnp.arange(T)
-    prods = jnp.stack([g[:, m] * g[:, m + d] for d in range(p)], axis=1)  # (3, p, T)
-    cum = jnp.cumsum(prods, axis=2)  # sum_(m <= L) g_m g_(m + d)
-    i = np.arange(p)
-    d = np.abs(i[:, None] - i[None, :])
-    last = T - 1 - np.maximum(i[:, None], i[None, :])
-    return q[:, None, None] * cum[:, d, last]
+    """``sum_{j < 1024} F^j Q F^jT`` (3, p, p), ``Q = q e_0 e_0^T``: the reference's ten doublings
+    of the Lyapunov sum (straight-line products, no loop)."""
+    F = jnp.zeros(a.shape + (p,), a.dtype).at[:, 0, :].set(a)
+    F = F.at[:, jnp.arange(1, p), jnp.arange(p - 1)].set(1.0)
+    P0 = jnp.zeros_like(F).at[:, 0, 0].set(q)
+    Fk = F
+    for _ in range(10):
+        P0 = P0 + Fk @ P0 @ jnp.swapaxes(Fk, 1, 2)
+        Fk = Fk @ Fk
+    return P0
 
 
 def _refit(prm: ForecastParams, st: ForecastState) -> tuple[ForecastState, Array]:
@@ -425,10 +431,10 @@ def _refit(prm: ForecastParams, st: ForecastState) -> tuple[ForecastState, Array
     k = jnp.arange(n - p)[:, None]
     rows = k >= first[None, :] + L
     idx = jnp.broadcast_to(cells, (n, 3))
-    prev = jax.lax.cummax(jnp.where(good, idx, -1), axis=0)
-    nxt = jax.lax.cummin(jnp.where(good, idx, n), axis=0, reverse=True)
+    prev = _cummax(jnp.where(good, idx, -1), axis=0)
+    nxt = _cummin_reverse(jnp.where(good, idx, n), axis=0)
     hole = ~good & (nxt - prev - 1 > ref._MAX_BRIDGE)
-    holes = jnp.concatenate([jnp.zeros((1, 3), jnp.int_), jnp.cumsum(hole, axis=0)], axis=0)
+    holes = jnp.concatenate([jnp.zeros((1, 3), jnp.int_), _cumsum(hole.astype(jnp.int_), axis=0)], axis=0)
     lo = np.clip(np.arange(n - p) - L, 0, n)
     hi = np.clip(np.arange(n - p) + p + 1 + L, 0, n)
     rows = rows & (holes[hi] - holes[lo] == 0)
@@ -450,13 +456,13 @@ def _refit(prm: ForecastParams, st: ForecastState) -> tuple[ForecastState, Array
     P0 = _stationary(a, q, p)
     G = _impulse(a, prm.n_steps)
     g = G[:, :, 0]
-    pv = jnp.concatenate([jnp.zeros((3, 1), fdt), jnp.cumsum(q[:, None] * g**2, axis=1)[:, :-1]], axis=1)
+    pv = jnp.concatenate([jnp.zeros((3, 1), fdt), _cumsum(q[:, None] * g**2, axis=1)[:, :-1]], axis=1)
 
     def shift(j: int) -> Array:
         return jnp.concatenate([jnp.zeros((3, j), fdt), g[:, : g.shape[1] - j]], axis=1)
 
     coef = (-g + 8.0 * shift(1) - 8.0 * shift(3) + shift(4)) / (12.0 * dt)
-    pv_rate = jnp.cumsum(q[:, None] * coef**2, axis=1)
+    pv_rate = _cumsum(q[:, None] * coef**2, axis=1)
     x = jnp.where(st.fitted, st.x - (mu - st.mu)[:, None], smooth[::-1][:p].T)
     P_first = jnp.eye(p, dtype=fdt)[None] * (r_cell * mean_count)[:, None, None]
     P = jnp.where(st.fitted, st.P, P_first)
