@@ -30,6 +30,7 @@ from ihrcf_env.core.estimators.fused_params import FusedParams
 from ihrcf_env.core.estimators.fused_ranges import ranges_distance, ranges_plane, ranges_tilt
 from ihrcf_env.core.estimators.ihrcf import IHRCFCorners, TouchPixels, ihrcf_measure
 from ihrcf_env.core.estimators.imm import Imm
+from ihrcf_env.core.estimators.imm_deck import DeckImm
 from ihrcf_env.core.frames import R_BODY_CAM, as_array, matrix_from_euler
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 
@@ -219,6 +220,35 @@ class FusedEstimator:
             self._R_wb = out[0]
         return out
 
+    def _new_att(self, t: float) -> Imm:
+        """A new attitude filter at time ``t`` (s), of the parameters' deck model."""
+        p = self.params
+        sigmas = (math.pi, p.init_rate_sigma, p.init_angle_accel_sigma)
+        drifts = [np.full(3, d) for d in p.angle_drift]
+        if p.deck_model == "oscillator":
+            return DeckImm(
+                sigmas, drifts, self._q_white_att, p.model_switch_time, t, p.deck_periods, p.deck_damping,
+                np.full(3, p.deck_angle_accel_sigma), np.full(3, p.deck_oscillator_drift),
+                angles=True, q_value=self._q_value_att,
+            )  # fmt: skip
+        return Imm(
+            sigmas, drifts, self._q_white_att, p.model_switch_time, t, angles=True, q_value=self._q_value_att
+        )
+
+    def _new_pos(self, t: float) -> Imm:
+        """A new position filter at time ``t`` (s), of the parameters' deck model."""
+        p = self.params
+        leak = GRAVITY * p.imu_attitude_walk  # gravity leak of the IMU's tilt wander, horizontal
+        sigmas = (10.0, p.init_velocity_sigma, p.init_accel_sigma)
+        drifts = [np.array([math.hypot(d, leak), math.hypot(d, leak), d]) for d in p.accel_drift]
+        if p.deck_model == "oscillator":
+            d = p.deck_oscillator_drift
+            return DeckImm(
+                sigmas, drifts, self._q_white_pos, p.model_switch_time, t, p.deck_periods, p.deck_damping,
+                np.full(3, p.deck_accel_sigma), np.array([math.hypot(d, leak), math.hypot(d, leak), d]),
+            )  # fmt: skip
+        return Imm(sigmas, drifts, self._q_white_pos, p.model_switch_time, t)
+
     def _drop(self) -> None:
         self._pos = None
         self._att = None
@@ -323,25 +353,10 @@ class FusedEstimator:
             return f"IHRCF: {ihrcf_reason}"  # nothing to start from before a position is measured
         new_att = self._att is None
         if self._att is None:
-            self._att = Imm(
-                (math.pi, p.init_rate_sigma, p.init_angle_accel_sigma),
-                [np.full(3, d) for d in p.angle_drift],
-                self._q_white_att,
-                p.model_switch_time,
-                t,
-                angles=True,
-                q_value=self._q_value_att,
-            )
+            self._att = self._new_att(t)
         new_pos = self._pos is None and (ihrcf is not None or (atda is not None and p.use_atda_position))
         if new_pos:
-            leak = GRAVITY * p.imu_attitude_walk  # gravity leak of the IMU's tilt wander, horizontal
-            self._pos = Imm(
-                (10.0, p.init_velocity_sigma, p.init_accel_sigma),
-                [np.array([math.hypot(d, leak), math.hypot(d, leak), d]) for d in p.accel_drift],
-                self._q_white_pos,
-                p.model_switch_time,
-                t,
-            )
+            self._pos = self._new_pos(t)
         sigma_r = self.range_sigma
 
         def apply(kf: Imm, blocks: list[Measurement], new: bool) -> int:
