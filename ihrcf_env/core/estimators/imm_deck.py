@@ -144,7 +144,9 @@ class DeckImm(Imm):
         self._model_cache.clear()
 
     def _model(self, dt: float) -> tuple[NDArray[np.float64], ...]:
-        """(T, F^T per model (n, 15, 15), Q per model (n, 15, 15)) over ``dt`` s, cached."""
+        """(T, F^T per model (n, 15, 15), Q per model (n, 15, 15)) over ``dt`` s (rounded to the
+        nanosecond, so that frame intervals equal but for rounding share one entry), cached."""
+        dt = round(dt, 9)
         hit = self._model_cache.get(dt)
         if hit is not None:
             return hit
