@@ -150,8 +150,10 @@ def descent_accuracy(
         if isinstance(fused, FusedEstimator):
             shadows = {name: _shadow(fused, change(fused.params)) for name, change in variants.items()}
         names = [*stage.sources, *shadows]
+        # fused filters output the pose at the frame's arrival, the others at its exposure
+        at_arrival = {n for n in names if n in shadows or isinstance(stage.sources.get(n), FusedEstimator)}
         out.stats = {n: [BandStats() for _ in BANDS] for n in names}
-        out.reasons = {n: Counter() for n in names if n.startswith("fused")}
+        out.reasons = {n: Counter() for n in names if n in at_arrival}
         for seed in seeds:
             obs, info = env.reset(seed=int(seed))
             policy.reset()
@@ -180,7 +182,7 @@ def descent_accuracy(
                     if frame.corners is not None and band is not None:
                         exposure = float(frame.time)
                         for name, est in estimates.items():
-                            at = now if name.startswith("fused") else exposure
+                            at = now if name in at_arrival else exposure
                             _, p_true, n_true = min(truth, key=lambda x: abs(x[0] - at))
                             out.stats[name][band].add(est, p_true, n_true)
                             if name in out.reasons and not est.valid and height < _REASON_BAND:

@@ -29,6 +29,7 @@ from ihrcf_env.core.estimators import (
     build_estimators,
     ihrcf_estimate,
 )
+from ihrcf_env.core.estimators.imm_deck import DeckImm
 from ihrcf_env.core.frames import (
     body_pose_to_cam,
     euler_from_matrix,
@@ -894,3 +895,37 @@ def test_deck_imm_set_oscillators_checks_and_changes_the_model() -> None:
         kf.set_oscillators((1.0, 2.0), np.full(2, 0.3))
     kf.set_oscillators((1.1, 2.0), np.full(3, 0.3))
     assert not np.allclose(kf._model(0.05)[1], F1)
+
+
+def test_set_deck_oscillation_centres_the_banks_on_identified_dynamics() -> None:
+    est = FusedEstimator(touch_pixels, RIG, TAG, K, params=FusedParams(deck_model="oscillator"))
+    with pytest.raises(ValueError, match="deck_model"):
+        FusedEstimator(touch_pixels, RIG, TAG, K).set_deck_oscillation(heave=(1.0, 0.01))
+    for bad in ((0.05, 0.01), (math.nan, 0.01), (1.0, -0.01), (1.0, math.inf)):
+        with pytest.raises(ValueError, match="heave"):
+            est.set_deck_oscillation(heave=bad)
+        with pytest.raises(ValueError, match="tilt"):
+            est.set_deck_oscillation(tilt=bad)
+    seen = []
+
+    def inform(k: int, frame: SensorFrame) -> SensorFrame:
+        if k == 20:  # 1 s in: the filters are live
+            est.set_deck_oscillation(heave=(2.4, 0.02), tilt=(0.6, 0.01))
+            seen.append((est._pos, est._att))
+        return frame
+
+    # the tag is lost from 1.2 to 2.6 s (longer than lost_timeout): the filters are created again
+    simulate(3.5, ship_deck, estimator=est, corrupt=inform, lost=lambda t: 1.2 <= t < 2.6)
+    pos, att = seen[0]
+    assert isinstance(pos, DeckImm) and isinstance(att, DeckImm)
+    bank = np.array(FusedParams().deck_periods)
+    np.testing.assert_allclose(pos.periods, bank * 2.0)
+    np.testing.assert_allclose(att.periods, bank * 0.5)
+    w = 2 * math.pi / 2.4
+    np.testing.assert_allclose(pos.accel_sigma, [0.3, 0.3, 0.02 * w * w])
+    assert isinstance(est._pos, DeckImm) and est._pos is not pos
+    np.testing.assert_allclose(est._pos.periods, bank * 2.0)
+    est.reset()
+    simulate(0.5, ship_deck, estimator=est)
+    assert isinstance(est._pos, DeckImm)
+    np.testing.assert_allclose(est._pos.periods, bank)

@@ -111,6 +111,8 @@ class FusedEstimator:
         self._converged = False  # both filters met the convergence rule since they were created
         #: the filters predicted to the last frame's arrival time (a frame that arrived late), or None
         self._ahead: tuple[Imm | None, Imm | None] | None = None
+        #: the oscillator banks set by :meth:`set_deck_oscillation` (position, attitude) or None
+        self._oscillation: dict[str, tuple[tuple[float, ...], NDArray[np.float64]]] = {}
         #: What the last :meth:`update` did: accepted / rejected measurement blocks with their
         #: squared Mahalanobis distance, re-initialisations, range noise (m), 1-sigmas (m, rad).
         self.diagnostics: dict[str, Any] = {}
@@ -143,6 +145,41 @@ class FusedEstimator:
         ahead = matrix_from_euler(*(angles + horizon * rates))[:, 2]
         behind = matrix_from_euler(*(angles - horizon * rates))[:, 2]
         return np.array(pos.x[3:6]), (ahead - behind) / (2.0 * horizon)
+
+    def set_deck_oscillation(
+        self, heave: tuple[float, float] | None = None, tilt: tuple[float, float] | None = None
+    ) -> None:
+        """Centre the oscillator banks of ``deck_model="oscillator"`` on identified deck dynamics
+        (for example :meth:`~ihrcf_env.core.forecast.DeckForecaster.oscillation`): ``heave`` =
+        (period s, standard deviation m) of the deck's vertical motion, ``tilt`` = (period s,
+        standard deviation rad) of its roll and pitch. The bank of each filter becomes
+        ``deck_periods`` scaled to that median period, and the oscillators' stationary
+        acceleration on the vertical axis (position) or on roll and pitch (attitude) ``std * (2 pi
+        / period)^2``; the other axes keep the parameters'. Applies to the live filters and to
+        those created later, until :meth:`reset`. ValueError with another deck model or a period
+        outside [0.1, 60] s or a negative or non-finite standard deviation (naming the argument)."""
+        p = self.params
+        if p.deck_model != "oscillator":
+            raise ValueError(f"set_deck_oscillation needs deck_model='oscillator', got {p.deck_model!r}")
+        bank = np.asarray(p.deck_periods, dtype=np.float64)
+        for key, value, sigma, axes in (
+            ("heave", heave, p.deck_accel_sigma, (2,)),
+            ("tilt", tilt, p.deck_angle_accel_sigma, (0, 1)),
+        ):
+            if value is None:
+                continue
+            period, std = (float(v) for v in value)
+            if not (math.isfinite(period) and 0.1 <= period <= 60.0):
+                raise ValueError(f"{key}: period must be in [0.1, 60] s, got {period!r}")
+            if not (math.isfinite(std) and std >= 0.0):
+                raise ValueError(f"{key}: standard deviation must be finite and >= 0, got {std!r}")
+            accel = np.full(3, sigma)
+            accel[list(axes)] = std * (2.0 * math.pi / period) ** 2
+            periods = tuple(float(x) for x in bank * (period / float(np.median(bank))))
+            self._oscillation[key] = (periods, accel)
+            kf = self._pos if key == "heave" else self._att
+            if isinstance(kf, DeckImm):
+                kf.set_oscillators(periods, accel)
 
     def update(self, frame: SensorFrame) -> PoseEstimate:
         """Fuse ``frame`` (time non-decreasing) and return the filtered deck pose in the body frame.
@@ -226,10 +263,12 @@ class FusedEstimator:
         sigmas = (math.pi, p.init_rate_sigma, p.init_angle_accel_sigma)
         drifts = [np.full(3, d) for d in p.angle_drift]
         if p.deck_model == "oscillator":
+            periods, accel = self._oscillation.get(
+                "tilt", (p.deck_periods, np.full(3, p.deck_angle_accel_sigma))
+            )
             return DeckImm(
-                sigmas, drifts, self._q_white_att, p.model_switch_time, t, p.deck_periods, p.deck_damping,
-                np.full(3, p.deck_angle_accel_sigma), np.full(3, p.deck_oscillator_drift),
-                angles=True, q_value=self._q_value_att,
+                sigmas, drifts, self._q_white_att, p.model_switch_time, t, periods, p.deck_damping,
+                accel, np.full(3, p.deck_oscillator_drift), angles=True, q_value=self._q_value_att,
             )  # fmt: skip
         return Imm(
             sigmas, drifts, self._q_white_att, p.model_switch_time, t, angles=True, q_value=self._q_value_att
@@ -243,9 +282,10 @@ class FusedEstimator:
         drifts = [np.array([math.hypot(d, leak), math.hypot(d, leak), d]) for d in p.accel_drift]
         if p.deck_model == "oscillator":
             d = p.deck_oscillator_drift
+            periods, accel = self._oscillation.get("heave", (p.deck_periods, np.full(3, p.deck_accel_sigma)))
             return DeckImm(
-                sigmas, drifts, self._q_white_pos, p.model_switch_time, t, p.deck_periods, p.deck_damping,
-                np.full(3, p.deck_accel_sigma), np.array([math.hypot(d, leak), math.hypot(d, leak), d]),
+                sigmas, drifts, self._q_white_pos, p.model_switch_time, t, periods, p.deck_damping,
+                accel, np.array([math.hypot(d, leak), math.hypot(d, leak), d]),
             )  # fmt: skip
         return Imm(sigmas, drifts, self._q_white_pos, p.model_switch_time, t)
 
