@@ -929,3 +929,12 @@ def test_set_deck_oscillation_centres_the_banks_on_identified_dynamics() -> None
     simulate(0.5, ship_deck, estimator=est)
     assert isinstance(est._pos, DeckImm)
     np.testing.assert_allclose(est._pos.periods, bank)
+
+
+def test_observation_options_refuse_the_oscillator_with_batched_estimators() -> None:
+    from ihrcf_env.config.observation import check_observation_options
+
+    osc = FusedParams(deck_model="oscillator")
+    assert check_observation_options(fused_params=osc).fused_params is osc
+    with pytest.raises(ValueError, match=r"batch_estimators.*deck_model='oscillator'"):
+        check_observation_options(fused_params=osc, batch_estimators=True)
