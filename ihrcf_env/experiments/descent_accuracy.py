@@ -223,14 +223,16 @@ def markdown(results: Sequence[tuple[DescentAccuracy, DescentAccuracy]], seeds: 
                 lines.append(f"| {moving.level} | {lo:g}-{hi:g} | {name} | {cells} | {n} / {ns} |")
     lines += [
         "",
-        "Invalid fused estimates with the tag in view below 2 m (moving deck), most frequent reasons:",
+        "Invalid fused estimates with the tag in view below 2 m (moving deck) and the most frequent "
+        "reasons ([event]: the filter's restarts, counted per frame):",
         "",
     ]
     lines += ["| level | estimator | invalid | reasons |", "|---|---|---|---|"]
     for moving, _ in results:
         for name, counter in moving.reasons.items():
             top = "; ".join(f"{r} ({k})" for r, k in counter.most_common(4))
-            lines.append(f"| {moving.level} | {name} | {sum(counter.values())} | {top or '-'} |")
+            invalid = sum(k for r, k in counter.items() if not r.startswith("[event]"))
+            lines.append(f"| {moving.level} | {name} | {invalid} | {top or '-'} |")
     lines += ["", "Outcomes (moving / static): " + "; ".join(
         f"{m.level}: {dict(m.outcomes)} / {dict(s.outcomes)}" for m, s in results
     )]  # fmt: skip
