@@ -158,6 +158,11 @@ def check_observation_options(
             f"batch_estimators: the batched form covers the built-in estimators {sorted(BATCHED)} "
             f"only, got {list(names)}"
         )
+    if batch and isinstance(fused_params, FusedParams) and fused_params.deck_model != "kinematic":
+        raise ValueError(
+            f"batch_estimators: the batched fused filter has the kinematic deck model only, got "
+            f"fused_params.deck_model={fused_params.deck_model!r}"
+        )
     if is_raw:
         given = [
             n

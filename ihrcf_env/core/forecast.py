@@ -188,6 +188,7 @@ class DeckForecaster:
         self.G = np.zeros((3, self.n_steps, p))
         self.pv = np.zeros((3, self.n_steps))
         self.pv_rate = np.zeros((3, self.n_steps))
+        self.moments = (np.zeros(3), np.zeros(3))  # the fit's m0 (variance) and m2 (rate variance)
         self.fitted = False
 
     # -- per sample -------------------------------------------------------------------------
@@ -302,6 +303,12 @@ class DeckForecaster:
         mu = np.sum(np.where(span, z, 0.0), axis=0) / (n - first)
         z = np.where(span, z - mu, 0.0)
         smooth = savgol_filter(z, _SG_LENGTH, _SG_ORDER, axis=0)
+        inside = span[1:] & span[:-1] & (cells[1:] >= first[None, :] + _SG_LENGTH)  # (n - 1, 3)
+        m = np.maximum(inside.sum(axis=0), 1)
+        moments = (
+            np.sum(np.where(inside, smooth[1:] ** 2, 0.0), axis=0) / m,
+            np.sum(np.where(inside, np.diff(smooth, axis=0) ** 2, 0.0), axis=0) / m / (self.dt * self.dt),
+        )
         # noise of one cell: the scatter about the smoothed values of the cells holding samples
         c0 = savgol_filter(np.eye(_SG_LENGTH)[_SG_LENGTH // 2], _SG_LENGTH, _SG_ORDER)[_SG_LENGTH // 2]
         inner = good & (cells >= first[None, :] + _SG_LENGTH) & (cells < n - _SG_LENGTH)
@@ -374,6 +381,7 @@ class DeckForecaster:
             self.x = np.ascontiguousarray(smooth[::-1][:p].T)
             self.P = np.tile(np.eye(p), (3, 1, 1)) * (r_cell * mean_count)[:, None, None]
         self.mu, self.F, self.q, self.P0 = mu, F, q, P0
+        self.moments = moments
         self.r_cell, self.mean_count = r_cell, mean_count
         self.pow_F, self.pow_Q, self.G = pow_F, pow_Q, G
         self.fitted = True
@@ -440,6 +448,16 @@ class DeckForecaster:
             * _gauss_inside(mean[:, 3], std[:, 3], half)
         )
         return float(np.min(prob))
+
+    def oscillation(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The deck's oscillation per channel (heave, roll, pitch) over the last fit's window: the
+        mean zero-crossing period (s), ``2 pi sqrt(m0 / m2)`` from the variance of the smoothed
+        cells about the window mean (``m0``) and that of their first difference per second
+        (``m2``), and the standard deviation ``sqrt(m0)`` (m, rad, rad); NaN before the first fit."""
+        if not self.fitted:
+            return np.full(3, np.nan), np.full(3, np.nan)
+        m0, m2 = self.moments
+        return 2.0 * np.pi * np.sqrt(m0 / np.maximum(m2, 1e-30)), np.sqrt(m0)
 
     def state_dict(self) -> dict[str, Any]:
         """The fitted model's coefficients per channel (for inspection)."""

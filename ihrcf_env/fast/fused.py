@@ -153,6 +153,8 @@ def fused_setup(
         raise TypeError(f"params must be a FusedParams, got {type(p).__name__}")
     if p.range_only_update:
         raise ValueError("FusedParams.range_only_update is not supported by the JAX fused filter")
+    if p.deck_model != "kinematic":
+        raise ValueError(f"FusedParams.deck_model={p.deck_model!r} is not supported by the JAX fused filter")
     if not (math.isfinite(max_residual) and max_residual > 0):
         raise ValueError(f"max_residual must be positive (m), got {max_residual!r}")
     walk2 = p.imu_attitude_walk**2

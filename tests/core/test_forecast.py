@@ -223,3 +223,21 @@ def test_fixed_noise_option() -> None:
     feed(fc, t, sines(t, [(0.02, 5.0, 0.3)]))
     r = fc.state_dict()["noise_var_cell"] * fc.mean_count
     np.testing.assert_allclose(r, [0.003**2, 0.001**2, 0.001**2])
+
+
+def test_oscillation_gives_the_zero_crossing_period_and_the_spread() -> None:
+    fc = DeckForecaster()
+    assert np.isnan(fc.oscillation()[0]).all() and np.isnan(fc.oscillation()[1]).all()
+    t = np.arange(0.0, 40.0, 1 / 30)
+    rng = np.random.default_rng(0)
+    # a strong swell at 1.3 s and a weaker sea at 0.8 s, with noise
+    parts = [(0.02, 2 * math.pi / 1.3, 0.3), (0.006, 2 * math.pi / 0.8, 1.0)]
+    y = sines(t, parts) + rng.normal(0, 0.002, (t.size, 3))
+    feed(fc, t, y)
+    period, std = fc.oscillation()
+    # the zero-crossing period of the two: 2 pi sqrt(m0 / m2)
+    m0 = sum(a * a for a, _, _ in parts)
+    m2 = sum((a * w) ** 2 for a, w, _ in parts)
+    np.testing.assert_allclose(period, 2 * math.pi * math.sqrt(m0 / m2), rtol=0.05)
+    spread = np.std(sines(t, parts), axis=0)
+    np.testing.assert_allclose(std, spread, rtol=0.35)

@@ -29,6 +29,7 @@ from ihrcf_env.core.estimators import (
     build_estimators,
     ihrcf_estimate,
 )
+from ihrcf_env.core.estimators.imm_deck import DeckImm
 from ihrcf_env.core.frames import (
     body_pose_to_cam,
     euler_from_matrix,
@@ -757,3 +758,183 @@ def test_imm_constant_value_noise_equals_per_step_noise() -> None:
     np.testing.assert_allclose(a.X, b.X, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(a.Ps, b.Ps, rtol=1e-10, atol=1e-18)
     np.testing.assert_allclose(a.mu, b.mu, rtol=1e-10)
+
+
+# -------------------------------------------------------------- narrow-band deck model (option)
+
+
+def ship_deck(t: float) -> Pose:
+    """A sum of sines in a Froude-scaled ship's band: periods 1.0-1.6 s, heave about 2 cm, roll
+    and pitch about 1 deg, sway and surge about 1 cm."""
+    w = 2 * math.pi
+    rpy = (
+        1.0 * DEG * math.sin(w * t / 1.35 + 0.3) + 0.4 * DEG * math.sin(w * t / 1.05 + 1.0),
+        1.2 * DEG * math.sin(w * t / 1.25 + 2.0) + 0.5 * DEG * math.sin(w * t / 1.6),
+        0.3 + 0.3 * DEG * math.sin(w * t / 1.5),
+    )
+    p = np.array(
+        [
+            0.01 * math.sin(w * t / 1.4 + 0.5),
+            0.008 * math.sin(w * t / 1.2 + 1.5),
+            0.02 * math.sin(w * t / 1.3 + 0.7) + 0.008 * math.sin(w * t / 1.0 + 2.2),
+        ]
+    )
+    return matrix_from_euler(*rpy), p
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("deck_model", "ship"),
+        ("deck_model", None),
+        ("deck_periods", ()),
+        ("deck_periods", (0.0,)),
+        ("deck_periods", (1.0, math.inf)),
+        ("deck_periods", (1.0,) * 9),
+        ("deck_periods", [1.0]),
+        ("deck_periods", (True,)),
+        ("deck_damping", 0.0),
+        ("deck_damping", 1.5),
+        ("deck_accel_sigma", -0.1),
+        ("deck_angle_accel_sigma", math.nan),
+        ("deck_oscillator_drift", -1.0),
+    ],
+)
+def test_deck_model_options_are_checked_by_name(field: str, value: object) -> None:
+    with pytest.raises(ValueError, match=field):
+        FusedParams(**{field: value})  # type: ignore[arg-type]
+
+
+def test_default_deck_model_is_unchanged_bit_for_bit() -> None:
+    # estimates of the default filter on a ship-like deck with a noisy IMU, as computed before the
+    # deck-model option existed
+    before = [
+        [-0.020868844258078, -0.000898736735453, -1.014941030185137,
+         -0.00998593042584, -0.008632572068535, 0.303628485695446],
+        [-0.021378029393306, 0.017915714256538, -0.994796676521246,
+         0.000119402755231, 0.013426546103463, 0.295290412272411],
+        [-0.020727670430257, 0.005319479151543, -1.008479769396474,
+         -0.002013022025583, -0.005064914342986, 0.305344299214343],
+        [-0.00482030199018, -0.010889907129386, -0.918703265837525,
+         0.020969527465943, -0.030251172675812, 0.301531429107177],
+    ]  # fmt: skip
+    assert FusedParams().deck_model == "kinematic"
+    run = simulate(3.0, ship_deck, seed=1, imu="noisy")
+    got = [np.concatenate([run.estimates[i].position, run.estimates[i].euler]) for i in (12, 25, 40, 60)]
+    np.testing.assert_allclose(got, before, rtol=0, atol=2e-15)
+    assert int(run.valid.sum()) == 52
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_oscillator_deck_model_follows_a_ship_like_deck(seed: int) -> None:
+    # the kinematic models lag a deck swaying at 1-1.6 s; the oscillators follow it: the position
+    # error is at most a quarter of the kinematic filter's, the tilt error no larger (+10 %)
+    errors, valid = {}, {}
+    for model in ("kinematic", "oscillator"):
+        est = FusedEstimator(touch_pixels, RIG, TAG, K, params=FusedParams(deck_model=model))
+        run = simulate(6.0, ship_deck, seed=seed, imu="noisy", estimator=est)
+        errors[model], valid[model] = mae(run.errors()[60:]), run.valid[20:].mean()
+    kin, osc = errors["kinematic"], errors["oscillator"]
+    assert np.all(osc[:3] < 0.25 * kin[:3]), (osc, kin)
+    assert np.all(osc[3:5] < 1.1 * kin[3:5]), (osc, kin)
+    assert np.all(osc[:3] < 2.0), osc
+    assert valid["oscillator"] == 1.0 and valid["oscillator"] >= valid["kinematic"]
+
+
+def test_oscillator_deck_model_on_a_still_deck() -> None:
+    est = FusedEstimator(touch_pixels, RIG, TAG, K, params=FusedParams(deck_model="oscillator"))
+    run = simulate(10.0, estimator=est)
+    assert run.valid[FusedParams().min_updates + 5 :].all()
+    fused = mae(run.errors()[100:])
+    assert np.all(fused[:3] < 2.0) and np.all(fused[3:] < 0.25), fused
+    assert est.motion() is not None and est._pos is not None and est._pos.X.shape[1] == 15
+
+
+def test_oscillator_deck_model_is_refused_by_the_batched_filter() -> None:
+    from ihrcf_env.core.batch.fused import BatchFused
+
+    with pytest.raises(ValueError, match="deck_model"):
+        BatchFused(1, touch_pixels, RIG, TAG, K, params=FusedParams(deck_model="oscillator"))
+
+
+def test_oscillator_transition_reduces_to_the_kinematic_model_and_has_the_stated_level() -> None:
+    from ihrcf_env.core.estimators.imm import Imm as _Imm
+    from ihrcf_env.core.estimators.imm_deck import oscillator_transition
+
+    dt, drift, white = 0.05, np.array([0.02, 0.03, 0.01]), np.array([0.003, 0.004, 0.005])
+    F, Q = oscillator_transition(dt, 1.2, 0.1, False, np.full(3, 0.3), drift, white)
+    _, Ft0, Q0 = _Imm((1.0, 1.0, 1.0), [drift], white, 30.0, 0.0)._model(dt)
+    np.testing.assert_allclose(F[:9, :9], Ft0.T, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(Q[:9, :9], Q0[0], rtol=1e-9, atol=1e-18)
+    assert not F[:9, 9:].any() and not Q[9:, 9:].any()
+    # coupled: the stationary variances of the displacement and rate are sigma^2 / w^4, sigma^2 / w^2
+    sigma, period = np.array([0.3, 0.5, 0.2]), 1.2
+    F, Q = oscillator_transition(dt, period, 0.1, True, sigma, drift, white)
+    idx = np.r_[9:15]
+    Fo, Qo = F[np.ix_(idx, idx)], Q[np.ix_(idx, idx)]
+    P = np.zeros((6, 6))
+    for _ in range(4000):
+        P = Fo @ P @ Fo.T + Qo
+    w = 2 * math.pi / period
+    np.testing.assert_allclose(np.diag(P)[:3], sigma**2 / w**4, rtol=0.02)
+    np.testing.assert_allclose(np.diag(P)[3:], sigma**2 / w**2, rtol=0.02)
+
+
+def test_deck_imm_set_oscillators_checks_and_changes_the_model() -> None:
+    from ihrcf_env.core.estimators.imm_deck import DeckImm
+
+    kf = DeckImm(
+        (1.0, 0.5, 0.5), [np.full(3, 0.01)], np.full(3, 0.003), 30.0, 0.0, (1.0, 1.5), 0.1,
+        np.full(3, 0.3), np.full(3, 0.01),
+    )  # fmt: skip
+    assert kf.X.shape == (3, 15) and kf.Ps.shape == (3, 15, 15)
+    F1 = kf._model(0.05)[1].copy()
+    with pytest.raises(ValueError, match="periods"):
+        kf.set_oscillators((1.0,), np.full(3, 0.3))
+    with pytest.raises(ValueError, match="accel_sigma"):
+        kf.set_oscillators((1.0, 2.0), np.full(2, 0.3))
+    kf.set_oscillators((1.1, 2.0), np.full(3, 0.3))
+    assert not np.allclose(kf._model(0.05)[1], F1)
+
+
+def test_set_deck_oscillation_centres_the_banks_on_identified_dynamics() -> None:
+    est = FusedEstimator(touch_pixels, RIG, TAG, K, params=FusedParams(deck_model="oscillator"))
+    with pytest.raises(ValueError, match="deck_model"):
+        FusedEstimator(touch_pixels, RIG, TAG, K).set_deck_oscillation(heave=(1.0, 0.01))
+    for bad in ((0.05, 0.01), (math.nan, 0.01), (1.0, -0.01), (1.0, math.inf)):
+        with pytest.raises(ValueError, match="heave"):
+            est.set_deck_oscillation(heave=bad)
+        with pytest.raises(ValueError, match="tilt"):
+            est.set_deck_oscillation(tilt=bad)
+    seen = []
+
+    def inform(k: int, frame: SensorFrame) -> SensorFrame:
+        if k == 20:  # 1 s in: the filters are live
+            est.set_deck_oscillation(heave=(2.4, 0.02), tilt=(0.6, 0.01))
+            seen.append((est._pos, est._att))
+        return frame
+
+    # the tag is lost from 1.2 to 2.6 s (longer than lost_timeout): the filters are created again
+    simulate(3.5, ship_deck, estimator=est, corrupt=inform, lost=lambda t: 1.2 <= t < 2.6)
+    pos, att = seen[0]
+    assert isinstance(pos, DeckImm) and isinstance(att, DeckImm)
+    bank = np.array(FusedParams().deck_periods)
+    np.testing.assert_allclose(pos.periods, bank * 2.0)
+    np.testing.assert_allclose(att.periods, bank * 0.5)
+    w = 2 * math.pi / 2.4
+    np.testing.assert_allclose(pos.accel_sigma, [0.3, 0.3, 0.02 * w * w])
+    assert isinstance(est._pos, DeckImm) and est._pos is not pos
+    np.testing.assert_allclose(est._pos.periods, bank * 2.0)
+    est.reset()
+    simulate(0.5, ship_deck, estimator=est)
+    assert isinstance(est._pos, DeckImm)
+    np.testing.assert_allclose(est._pos.periods, bank)
+
+
+def test_observation_options_refuse_the_oscillator_with_batched_estimators() -> None:
+    from ihrcf_env.config.observation import check_observation_options
+
+    osc = FusedParams(deck_model="oscillator")
+    assert check_observation_options(fused_params=osc).fused_params is osc
+    with pytest.raises(ValueError, match=r"batch_estimators.*deck_model='oscillator'"):
+        check_observation_options(fused_params=osc, batch_estimators=True)

@@ -120,3 +120,8 @@ def test_fused_matches_batch_fused(config: str) -> None:
 def test_range_only_update_is_refused() -> None:
     with pytest.raises(ValueError, match="range_only_update"):
         fused_setup(TABLE, RIG, TAG, K, params=FusedParams(range_only_update=True))
+
+
+def test_oscillator_deck_model_is_refused() -> None:
+    with pytest.raises(ValueError, match="deck_model"):
+        fused_setup(TABLE, RIG, TAG, K, params=FusedParams(deck_model="oscillator"))

@@ -96,6 +96,10 @@ class BatchFused:
         self.dist = None if dist is None else np.asarray(dist, dtype=np.float64).ravel().copy()
         self.max_residual = float(max_residual)
         self.params = p = params if params is not None else FusedParams()
+        if p.deck_model != "kinematic":
+            raise ValueError(
+                f"FusedParams.deck_model={p.deck_model!r} is not supported by the batched fused filter"
+            )
         self.blocks = BlocksBatch(p, rig, self.tag_size, self.max_residual)
         self.gate = {k: float(chi2.ppf(p.gate_probability, k)) for k in (1, 2, 3)}
         walk2 = p.imu_attitude_walk**2

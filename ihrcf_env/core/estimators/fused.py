@@ -30,6 +30,7 @@ from ihrcf_env.core.estimators.fused_params import FusedParams
 from ihrcf_env.core.estimators.fused_ranges import ranges_distance, ranges_plane, ranges_tilt
 from ihrcf_env.core.estimators.ihrcf import IHRCFCorners, TouchPixels, ihrcf_measure
 from ihrcf_env.core.estimators.imm import Imm
+from ihrcf_env.core.estimators.imm_deck import DeckImm
 from ihrcf_env.core.frames import R_BODY_CAM, as_array, matrix_from_euler
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 
@@ -110,6 +111,8 @@ class FusedEstimator:
         self._converged = False  # both filters met the convergence rule since they were created
         #: the filters predicted to the last frame's arrival time (a frame that arrived late), or None
         self._ahead: tuple[Imm | None, Imm | None] | None = None
+        #: the oscillator banks set by :meth:`set_deck_oscillation` (position, attitude) or None
+        self._oscillation: dict[str, tuple[tuple[float, ...], NDArray[np.float64]]] = {}
         #: What the last :meth:`update` did: accepted / rejected measurement blocks with their
         #: squared Mahalanobis distance, re-initialisations, range noise (m), 1-sigmas (m, rad).
         self.diagnostics: dict[str, Any] = {}
@@ -142,6 +145,41 @@ class FusedEstimator:
         ahead = matrix_from_euler(*(angles + horizon * rates))[:, 2]
         behind = matrix_from_euler(*(angles - horizon * rates))[:, 2]
         return np.array(pos.x[3:6]), (ahead - behind) / (2.0 * horizon)
+
+    def set_deck_oscillation(
+        self, heave: tuple[float, float] | None = None, tilt: tuple[float, float] | None = None
+    ) -> None:
+        """Centre the oscillator banks of ``deck_model="oscillator"`` on identified deck dynamics
+        (for example :meth:`~ihrcf_env.core.forecast.DeckForecaster.oscillation`): ``heave`` =
+        (period s, standard deviation m) of the deck's vertical motion, ``tilt`` = (period s,
+        standard deviation rad) of its roll and pitch. The bank of each filter becomes
+        ``deck_periods`` scaled to that median period, and the oscillators' stationary
+        acceleration on the vertical axis (position) or on roll and pitch (attitude) ``std * (2 pi
+        / period)^2``; the other axes keep the parameters'. Applies to the live filters and to
+        those created later, until :meth:`reset`. ValueError with another deck model or a period
+        outside [0.1, 60] s or a negative or non-finite standard deviation (naming the argument)."""
+        p = self.params
+        if p.deck_model != "oscillator":
+            raise ValueError(f"set_deck_oscillation needs deck_model='oscillator', got {p.deck_model!r}")
+        bank = np.asarray(p.deck_periods, dtype=np.float64)
+        for key, value, sigma, axes in (
+            ("heave", heave, p.deck_accel_sigma, (2,)),
+            ("tilt", tilt, p.deck_angle_accel_sigma, (0, 1)),
+        ):
+            if value is None:
+                continue
+            period, std = (float(v) for v in value)
+            if not (math.isfinite(period) and 0.1 <= period <= 60.0):
+                raise ValueError(f"{key}: period must be in [0.1, 60] s, got {period!r}")
+            if not (math.isfinite(std) and std >= 0.0):
+                raise ValueError(f"{key}: standard deviation must be finite and >= 0, got {std!r}")
+            accel = np.full(3, sigma)
+            accel[list(axes)] = std * (2.0 * math.pi / period) ** 2
+            periods = tuple(float(x) for x in bank * (period / float(np.median(bank))))
+            self._oscillation[key] = (periods, accel)
+            kf = self._pos if key == "heave" else self._att
+            if isinstance(kf, DeckImm):
+                kf.set_oscillators(periods, accel)
 
     def update(self, frame: SensorFrame) -> PoseEstimate:
         """Fuse ``frame`` (time non-decreasing) and return the filtered deck pose in the body frame.
@@ -218,6 +256,38 @@ class FusedEstimator:
         if not isinstance(out, str):
             self._R_wb = out[0]
         return out
+
+    def _new_att(self, t: float) -> Imm:
+        """A new attitude filter at time ``t`` (s), of the parameters' deck model."""
+        p = self.params
+        sigmas = (math.pi, p.init_rate_sigma, p.init_angle_accel_sigma)
+        drifts = [np.full(3, d) for d in p.angle_drift]
+        if p.deck_model == "oscillator":
+            periods, accel = self._oscillation.get(
+                "tilt", (p.deck_periods, np.full(3, p.deck_angle_accel_sigma))
+            )
+            return DeckImm(
+                sigmas, drifts, self._q_white_att, p.model_switch_time, t, periods, p.deck_damping,
+                accel, np.full(3, p.deck_oscillator_drift), angles=True, q_value=self._q_value_att,
+            )  # fmt: skip
+        return Imm(
+            sigmas, drifts, self._q_white_att, p.model_switch_time, t, angles=True, q_value=self._q_value_att
+        )
+
+    def _new_pos(self, t: float) -> Imm:
+        """A new position filter at time ``t`` (s), of the parameters' deck model."""
+        p = self.params
+        leak = GRAVITY * p.imu_attitude_walk  # gravity leak of the IMU's tilt wander, horizontal
+        sigmas = (10.0, p.init_velocity_sigma, p.init_accel_sigma)
+        drifts = [np.array([math.hypot(d, leak), math.hypot(d, leak), d]) for d in p.accel_drift]
+        if p.deck_model == "oscillator":
+            d = p.deck_oscillator_drift
+            periods, accel = self._oscillation.get("heave", (p.deck_periods, np.full(3, p.deck_accel_sigma)))
+            return DeckImm(
+                sigmas, drifts, self._q_white_pos, p.model_switch_time, t, periods, p.deck_damping,
+                accel, np.array([math.hypot(d, leak), math.hypot(d, leak), d]),
+            )  # fmt: skip
+        return Imm(sigmas, drifts, self._q_white_pos, p.model_switch_time, t)
 
     def _drop(self) -> None:
         self._pos = None
@@ -323,25 +393,10 @@ class FusedEstimator:
             return f"IHRCF: {ihrcf_reason}"  # nothing to start from before a position is measured
         new_att = self._att is None
         if self._att is None:
-            self._att = Imm(
-                (math.pi, p.init_rate_sigma, p.init_angle_accel_sigma),
-                [np.full(3, d) for d in p.angle_drift],
-                self._q_white_att,
-                p.model_switch_time,
-                t,
-                angles=True,
-                q_value=self._q_value_att,
-            )
+            self._att = self._new_att(t)
         new_pos = self._pos is None and (ihrcf is not None or (atda is not None and p.use_atda_position))
         if new_pos:
-            leak = GRAVITY * p.imu_attitude_walk  # gravity leak of the IMU's tilt wander, horizontal
-            self._pos = Imm(
-                (10.0, p.init_velocity_sigma, p.init_accel_sigma),
-                [np.array([math.hypot(d, leak), math.hypot(d, leak), d]) for d in p.accel_drift],
-                self._q_white_pos,
-                p.model_switch_time,
-                t,
-            )
+            self._pos = self._new_pos(t)
         sigma_r = self.range_sigma
 
         def apply(kf: Imm, blocks: list[Measurement], new: bool) -> int:

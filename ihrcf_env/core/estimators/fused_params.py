@@ -11,6 +11,9 @@ from typing import Literal
 
 _DEG = math.pi / 180.0
 
+#: The fused filter's models of the deck's motion (``FusedParams.deck_model``).
+DECK_MODELS: tuple[str, ...] = ("kinematic", "oscillator")
+
 
 @dataclass(frozen=True)
 class FusedParams:
@@ -87,6 +90,18 @@ class FusedParams:
             wrong (a deck that moved faster than the motion models allow through a gap in the
             frames): the position restarts at the two measurements' combination, its rates kept
             with ``init_velocity_sigma`` added, and the output stays valid.
+    Deck model (``docs/fused.md``, :mod:`~ihrcf_env.core.estimators.imm_deck`):
+        deck_model: ``"kinematic"`` (default: the motion models above) or ``"oscillator"``: the
+            deck's motion as a narrow-band process, a damped oscillator per axis in the state of
+            the position and the attitude filters, one model per period of ``deck_periods``
+            beside the kinematic ones.
+        deck_periods: the oscillators' natural periods (s), 1-8 values.
+        deck_damping: their damping ratio (0, 1].
+        deck_accel_sigma: stationary 1-sigma of the deck origin's oscillating acceleration per
+            axis, m/s^2.
+        deck_angle_accel_sigma: the same of the deck's angular acceleration, rad/s^2.
+        deck_oscillator_drift: drift of the oscillator models' slow acceleration ``b``, as a
+            fraction-free density ((m/s^3)/sqrt(Hz), (rad/s^3)/sqrt(Hz) for the attitude).
     """
 
     tof_sigma: float = 0.010
@@ -128,6 +143,12 @@ class FusedParams:
     range_only_update: bool = False
     drop_lost_track: bool = False
     reseed_agreeing: bool = False
+    deck_model: Literal["kinematic", "oscillator"] = "kinematic"
+    deck_periods: tuple[float, ...] = (0.8, 1.2, 1.8)
+    deck_damping: float = 0.1
+    deck_accel_sigma: float = 0.3
+    deck_angle_accel_sigma: float = 0.5
+    deck_oscillator_drift: float = 0.01
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -135,6 +156,19 @@ class FusedParams:
             if f.name == "accel_hold":
                 if v not in ("end", "trapezoid"):
                     raise ValueError(f"accel_hold must be 'end' or 'trapezoid', got {v!r}")
+            elif f.name == "deck_model":
+                if v not in DECK_MODELS:
+                    raise ValueError(f"deck_model must be one of {DECK_MODELS}, got {v!r}")
+            elif f.name == "deck_periods":
+                if not (
+                    isinstance(v, tuple)
+                    and 1 <= len(v) <= 8
+                    and all(
+                        isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) and x > 0
+                        for x in v
+                    )
+                ):
+                    raise ValueError(f"deck_periods must be a tuple of 1-8 finite numbers > 0 (s), got {v!r}")
             elif f.name in ("accel_drift", "angle_drift"):
                 if not (
                     isinstance(v, tuple)
@@ -164,10 +198,13 @@ class FusedParams:
         ):
             if getattr(self, name) <= 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)!r}")
+        if not 0.0 < self.deck_damping <= 1.0:
+            raise ValueError(f"deck_damping must be in (0, 1], got {self.deck_damping!r}")
         if not 0.0 < self.gate_probability < 1.0:
             raise ValueError(f"gate_probability must be in (0, 1), got {self.gate_probability!r}")
 
 
 __all__ = [
+    "DECK_MODELS",
     "FusedParams",
 ]

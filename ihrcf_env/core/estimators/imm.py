@@ -148,7 +148,7 @@ class Imm:
     def x(self) -> NDArray[np.float64]:
         """The combined (moment-matched) state (9,), values wrapped for angles."""
         if self._x is None:
-            ref, D = self._deviations(0, 9)
+            ref, D = self._deviations(0, self.X.shape[1])
             x = ref + self.mu @ D
             if self.angles:
                 x[0:3] = wrap_angles(x[0:3])
@@ -177,27 +177,30 @@ class Imm:
         (see the constructor) plus each model's drift on the accelerations' derivative."""
         if dt <= 0:
             return
-        n = len(self.mu)
+        n, k = self.X.shape
         T, Ft, Q0 = self._model(float(dt))
         X, Ps = self.X, self.Ps
         if n > 1:  # mixing: model j starts from the mixture of the models weighted by P(i | j)
             c = self.mu @ T  # predicted model probabilities
             W = T.T * self.mu
             W /= c[:, None]  # W[j, i] = P(i | j) = T[i, j] mu_i / c_j
-            ref, D = self._deviations(0, 9)
-            mean = W @ D  # (n, 9)
+            ref, D = self._deviations(0, k)
+            mean = W @ D  # (n, k)
             X = ref + mean
             # sum_i W[j, i] (P_i + (D_i - m_j)(D_i - m_j)^T) = sum_i W[j, i] (P_i + D_i D_i^T) - m_j m_j^T
             G = Ps + D[:, :, None] * D[:, None, :]
-            Ps = (W @ G.reshape(n, 81)).reshape(n, 9, 9) - mean[:, :, None] * mean[:, None, :]
+            Ps = (W @ G.reshape(n, k * k)).reshape(n, k, k) - mean[:, :, None] * mean[:, None, :]
             self.mu = c / c.sum()
-        X = X @ Ft
+        if Ft.ndim == 2:  # one transition for every model
+            X = X @ Ft
+        else:  # (n, k, k): one per model
+            X = np.einsum("ni,nij->nj", X, Ft)
         if u is not None:
             X[:, 0:3] += 0.5 * dt * dt * u
             X[:, 3:6] += dt * u
         if self.angles:
             X[:, 0:3] = wrap_angles(X[:, 0:3])
-        Ps = Ft.T @ Ps @ Ft + Q0
+        Ps = (Ft.T if Ft.ndim == 2 else Ft.transpose(0, 2, 1)) @ Ps @ Ft + Q0
         if q_value is not None:
             Ps[:, 0:3, 0:3] += q_value * dt
         self.X = X
