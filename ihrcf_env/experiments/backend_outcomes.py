@@ -34,7 +34,7 @@ __all__ = ["BackendOutcomes", "jax_outcomes", "main", "pybullet_outcomes"]
 
 ENV_ID = "ihrcf_env/DeckLanding-v2"
 #: The camera both backends fly (the JAX backend has only this one).
-CAMERA = {"camera_model": "projected", "camera_output": "corners"}
+CAMERA: dict[str, Any] = {"camera_model": "projected", "camera_output": "corners"}
 
 
 @dataclass(frozen=True)

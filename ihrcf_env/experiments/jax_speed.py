@@ -177,6 +177,7 @@ def cost_per_env_step(fenv: Any, dtype: str) -> tuple[float, float]:
         cost = compiled.cost_analysis()
     if isinstance(cost, list):
         cost = cost[0] if cost else {}
+    cost = cost or {}
     return float(cost.get("flops", float("nan"))), float(cost.get("bytes accessed", float("nan")))
 
 

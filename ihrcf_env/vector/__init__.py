@@ -38,10 +38,25 @@ __all__ = [
 ]
 
 
-def make_vector_env(env_id: str, num_envs: int = 1, workers: int = 1, **options: Any) -> VectorEnv:
-    """The vector env of ``num_envs`` envs of ``env_id``: in this process (``workers=1``) or over
-    ``workers`` processes; ``options`` as ``gym.make`` takes them (and ``autoreset_mode``,
-    ``batch_estimators``)."""
+def make_vector_env(
+    env_id: str, num_envs: int = 1, workers: int = 1, backend: str = "pybullet", **options: Any
+) -> VectorEnv:
+    """The vector env of ``num_envs`` envs of ``env_id``: PyBullet envs in this process
+    (``workers=1``) or over ``workers`` processes; ``options`` as ``gym.make`` takes them (and
+    ``autoreset_mode``, ``batch_estimators``). ``backend="jax"``: the compiled JAX step
+    (:mod:`ihrcf_env.vector.jax_make`; needs the ``[jax]`` extra; also ``seeding``, ``dtype``)."""
+    if backend == "jax":
+        if workers != 1:
+            raise ValueError("workers: the JAX backend runs in this process (workers=1)")
+        try:
+            import jax  # noqa: F401
+        except ImportError:
+            raise ImportError("backend='jax' needs JAX: pip install 'ihrcf_env[jax]'") from None
+        from ihrcf_env.vector.jax_make import make_jax_vector_env
+
+        return make_jax_vector_env(env_id, num_envs, **options)
+    if backend != "pybullet":
+        raise ValueError(f"backend must be 'pybullet' or 'jax', got {backend!r}")
     if check_int("workers", workers, low=1, high=MAX_WORKERS) > 1:
         return WorkerVectorEnv(env_id, num_envs, workers, **options)
     return DeckLandingVectorEnv(env_id, num_envs, **options)

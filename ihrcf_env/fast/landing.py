@@ -1,0 +1,86 @@
+"""The landing task as one functional env: the physics/sensor step and the observation joined.
+
+:class:`LandingFunctional` joins :mod:`ihrcf_env.fast.step` (physics, sensors, task rules; its
+observation hook returns the raw reading and the truth) and :mod:`ihrcf_env.fast.observe` (the
+estimators and the normalised observation, in the layout of the PyBullet env's
+``LandingObservation``) into the functions a trainer or :class:`~ihrcf_env.vector.jax_env.JaxVectorEnv`
+steps, one env per call: ``draw``, ``draw_host``, ``reset_from``, ``reset``, ``step``. Its state
+is ``(EnvState, ObserveState)``; its ``info`` holds the outcome code, the reward terms, the episode
+time and the truth.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from gymnasium import spaces
+
+from ihrcf_env.config.landing import DeckLandingConfig
+from ihrcf_env.core.seeding import SeedStreams
+from ihrcf_env.fast import observe as ob
+from ihrcf_env.fast import step as st
+from ihrcf_env.fast.episode import draw_episode, host_episode
+from ihrcf_env.fast.params import make_params
+from ihrcf_env.tasks import SUCCESS as _SUCCESS
+
+__all__ = ["LandingFunctional"]
+
+
+def _raw_and_truth(raw: Any, truth: Any) -> Any:
+    return raw, truth
+
+
+class LandingFunctional:
+    """The landing task of a resolved ``config`` as pure functions of one env (module
+    docstring); ``dtype`` the float type (float64 needs x64 while tracing and running);
+    ``max_steps`` the episode's step limit."""
+
+    def __init__(self, config: DeckLandingConfig, dtype: Any = jnp.float64, max_steps: int = 600) -> None:
+        self.config = config
+        self.step_params = make_params(config, observe=_raw_and_truth, dtype=dtype, max_steps=max_steps)
+        self.observe_params = ob.observe_params(config)
+        op = self.observe_params
+        self.obs_slices = dict(op.slices)
+        self.obs_scales = dict(op.scales)
+        self.observation_space = spaces.Box(
+            np.asarray(op.low, np.float32), np.asarray(op.high, np.float32), dtype=np.float32
+        )
+        self.action_space = spaces.Box(-1.0, 1.0, (4,), np.float32)
+        self.params: Any = ()
+
+    def draw_host(self, rng: np.random.Generator) -> tuple[int, Any]:
+        """The episode key and episode the PyBullet env draws next from its generator ``rng``."""
+        streams = SeedStreams.from_generator(rng)
+        return streams.key, host_episode(self.step_params, streams)
+
+    def draw(self, key: Any, params: Any) -> Any:
+        return draw_episode(key, self.step_params)
+
+    def reset_from(self, episode: Any, key: Any, params: Any) -> tuple[Any, Any]:
+        (raw, truth), env_state = st.reset_from(episode, key, self.step_params)
+        op = self.observe_params
+        obs, obs_state, _ = ob.observe(op, ob.observe_init(op), raw, truth)
+        return obs, (env_state, obs_state)
+
+    def reset(self, key: Any, params: Any) -> tuple[Any, Any]:
+        k1, k2 = jax.random.split(key)
+        return self.reset_from(self.draw(k1, params), k2, params)
+
+    def step(self, key: Any, state: Any, action: Any, params: Any) -> tuple[Any, Any, Any, Any, Any]:
+        env_state, obs_state = state
+        (raw, truth), env_state, reward, done, info = st.step_env(key, env_state, action, self.step_params)
+        obs, obs_state, estimates = ob.observe(self.observe_params, obs_state, raw, truth)
+        out = {
+            "outcome": info.outcome,
+            "is_success": info.outcome == jnp.asarray(_SUCCESS),
+            "time": info.time,
+            "drone_position_world": truth.drone_position_world,
+            "deck_position_world": truth.deck_position_world,
+            "deck_position_body": truth.deck_position_body,
+        }
+        for name, e in estimates.items():
+            out[f"{name}_valid"] = e.valid
+        return obs, (env_state, obs_state), reward, done, out

@@ -1,0 +1,73 @@
+"""The landing ids on the JAX backend: ``gym.make_vec(id, num_envs=N, backend="jax", **options)``.
+
+:func:`make_functional` validates the options once (:func:`~ihrcf_env.config.make.make_config`, as
+``gym.make`` does) and builds the functional env (:class:`~ihrcf_env.fast.landing.LandingFunctional`);
+:func:`make_jax_vector_env` puts the Gymnasium vector env front on it. The backend has one camera,
+the projected one with corner output (:data:`JAX_DEFAULTS`); options it cannot honour (the rendered
+camera, user sensors, estimators, noise models, faults or disturbances) raise ValueError naming
+them before anything is compiled.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from gymnasium.vector import AutoresetMode
+
+from ihrcf_env.config.make import make_config
+from ihrcf_env.vector.checks import time_limit
+from ihrcf_env.vector.jax_env import JaxVectorEnv
+
+__all__ = ["BACKENDS", "JAX_DEFAULTS", "make_functional", "make_jax_vector_env"]
+
+#: The vector envs' backends.
+BACKENDS = ("pybullet", "jax")
+#: The camera of the JAX backend (the defaults it puts before the user's options).
+JAX_DEFAULTS: dict[str, Any] = {"camera_model": "projected", "camera_output": "corners"}
+
+
+def _task_of(env_id: str) -> str:
+    from ihrcf_env import LANDING_V1_ID, LANDING_V2_ID
+
+    tasks = {LANDING_V1_ID: "landing-v1", LANDING_V2_ID: "landing-v2"}
+    if env_id not in tasks:
+        raise ValueError(f"backend='jax': only {sorted(tasks)} have a JAX backend, got {env_id!r}")
+    return tasks[env_id]
+
+
+def make_functional(env_id: str, dtype: str = "float64", max_steps: int = 600, **options: Any) -> Any:
+    """The functional env of ``env_id`` with ``options`` (``gym.make``'s) in ``dtype``."""
+    import jax
+    import jax.numpy as jnp
+
+    from ihrcf_env.fast.landing import LandingFunctional
+
+    task = _task_of(env_id)
+    for name, value in JAX_DEFAULTS.items():
+        if name in options and options[name] != value:
+            raise ValueError(f"{name}={options[name]!r}: the JAX backend has only {name}={value!r}")
+    if dtype not in ("float64", "float32"):
+        raise ValueError(f"dtype must be 'float64' or 'float32', got {dtype!r}")
+    config = make_config(task=task, **{**JAX_DEFAULTS, **options})
+    with jax.enable_x64(dtype == "float64"):
+        return LandingFunctional(config, dtype=jnp.dtype(dtype), max_steps=max_steps)
+
+
+def make_jax_vector_env(
+    env_id: str,
+    num_envs: int = 1,
+    autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+    max_episode_steps: int | None = None,
+    seeding: str = "paired",
+    dtype: str = "float64",
+    **options: Any,
+) -> JaxVectorEnv:
+    """The JAX vector env of ``num_envs`` episodes of ``env_id`` (module docstring). It carries the
+    functional env's ``config``, ``obs_slices`` and ``obs_scales``."""
+    limit = time_limit(env_id, max_episode_steps)
+    fenv = make_functional(env_id, dtype, max_steps=limit or 600, **options)
+    env = JaxVectorEnv(env_id, fenv, num_envs, autoreset_mode, max_episode_steps, seeding, dtype)
+    env.config = fenv.config  # type: ignore[attr-defined]
+    env.obs_slices = fenv.obs_slices  # type: ignore[attr-defined]
+    env.obs_scales = fenv.obs_scales  # type: ignore[attr-defined]
+    return env
