@@ -80,9 +80,9 @@ _BOUNDS: dict[str, tuple[float, float, str]] = {
 class ForecastCommitConfig:
     """Tunables of the forecast commit rule (module docstring; m, s, rad)."""
 
-    max_tilt: float = math.radians(18.0)  # forecast relative tilt allowed at touchdown (+ k sigma)
+    max_tilt: float = math.radians(19.0)  # forecast relative tilt allowed at touchdown (+ k sigma)
     max_speed: float = 0.45  # forecast relative vertical speed allowed at touchdown (+ k sigma)
-    k_sigma: float = 1.0  # standard deviations of margin
+    k_sigma: float = 0.5  # standard deviations of margin
     k_late: float = 0.0  # margin from late_time on
     k_abort: float = 0.0  # margin of the abort check in the drop
     abort_margin: float = math.radians(2.0)  # the abort needs max_tilt exceeded by this much
@@ -91,7 +91,7 @@ class ForecastCommitConfig:
     abort_clearance: float = 0.35  # m of clearance below which the drop is never aborted
     max_aborts: int = 2
     fallback_time: float = 22.0  # s from the episode start: decide on the motion now without a forecast
-    late_time: float = 24.0  # s from the episode start: k_late replaces k_sigma
+    late_time: float = 18.0  # s from the episode start: k_late replaces k_sigma
     max_forecast_tilt: float = math.radians(15.0)  # a forecast tilting the deck more is not used
     max_forecast_std: float = math.radians(6.0)  # nor one this uncertain
 

@@ -71,7 +71,7 @@ def test_window_margin_grows_with_the_forecast_sigma() -> None:
 
 
 def test_window_refuses_a_deck_rising_into_the_touchdown() -> None:
-    cfg = ForecastCommitConfig()
+    cfg = ForecastCommitConfig(k_sigma=1.0)
     mean, std = _forecast(lambda t: np.full_like(t, LEAN))
     assert check_window(H, mean, std, UP, 2.0, 0.2, cfg).ok
     mean[:, 1] = 0.3  # heave rate up 0.3 m/s: 0.5 m/s relative
