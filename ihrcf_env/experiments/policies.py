@@ -1,5 +1,5 @@
-"""Policies by name for evaluation: ``scripted``, ``blind:VZ``, a saved recurrent policy (``.npz``)
-or a saved stable-baselines3 model (``.zip``).
+"""Policies by name for evaluation: ``scripted``, ``scripted-forecast``, ``blind:VZ``, a saved
+recurrent policy (``.npz``) or a saved stable-baselines3 model (``.zip``).
 
 :func:`make_policy` turns a POLICY spec into a :class:`~ihrcf_env.control.policies.Policy` for an
 env; :func:`make_env_for` builds the env a saved policy was trained on (with ``deck_motion=True`` if
@@ -18,6 +18,7 @@ import gymnasium as gym
 import numpy as np
 
 from ihrcf_env import LANDING_V1_ID
+from ihrcf_env.control.forecast_landing import FORECAST_POLICY_OPTIONS, ForecastLanding
 from ihrcf_env.control.gru_policy import GruPolicy
 from ihrcf_env.control.mlp_policy import MlpPolicy
 from ihrcf_env.control.policies import BlindDescent, Policy, ScriptedLanding
@@ -25,6 +26,8 @@ from ihrcf_env.control.policies import BlindDescent, Policy, ScriptedLanding
 SB3_ALGOS = ("PPO", "SAC", "TD3", "A2C", "DDPG")
 #: The estimate the scripted policy flies on.
 SCRIPTED_ESTIMATOR = "fused"
+#: The scripted landing that commits to a forecast quiet window (its env has ``deck_forecast``).
+FORECAST_POLICY = "scripted-forecast"
 
 
 class PolicyError(ValueError):
@@ -173,7 +176,7 @@ def make_policy(spec: str, env: gym.Env, algo: str = "PPO") -> Policy:
     ``--policy`` if it cannot be."""
     base: Any = env.unwrapped
     max_velocity = tuple(float(v) for v in getattr(base, "max_velocity", np.ones(4)))
-    baseline = spec == "scripted" or spec.startswith("blind:")
+    baseline = spec in ("scripted", FORECAST_POLICY) or spec.startswith("blind:")
     if baseline and action_mode(env) != "velocity":
         raise PolicyError(
             f"--policy {spec!r}: the baselines fly velocity commands; the env has "
@@ -189,6 +192,16 @@ def make_policy(spec: str, env: gym.Env, algo: str = "PPO") -> Policy:
             ) from None
         except ValueError as e:  # the layout lacks the fields it reads
             raise PolicyError(f"--policy scripted: {e}") from None
+    if spec == FORECAST_POLICY:
+        try:
+            return ForecastLanding.from_env(env, estimator=SCRIPTED_ESTIMATOR)
+        except AttributeError:
+            raise PolicyError(
+                f"--policy {FORECAST_POLICY} needs the landing observation (obs_slices/obs_scales) with "
+                "deck_forecast"
+            ) from None
+        except ValueError as e:  # no forecast, or the layout lacks the fields it reads
+            raise PolicyError(f"--policy {FORECAST_POLICY}: {e}") from None
     if spec.startswith("blind:"):
         text = spec.removeprefix("blind:")
         try:
@@ -206,8 +219,8 @@ def make_policy(spec: str, env: gym.Env, algo: str = "PPO") -> Policy:
             return load_mlp(spec, env) if MlpPolicy.is_mlp_file(spec) else load_gru(spec, env)
         return load_sb3(spec, algo, env)
     raise PolicyError(
-        f"--policy {spec!r}: not 'scripted', 'blind:VZ', a saved recurrent policy (.npz) or a saved "
-        "stable-baselines3 model (.zip)"
+        f"--policy {spec!r}: not 'scripted', '{FORECAST_POLICY}', 'blind:VZ', a saved recurrent policy "
+        "(.npz) or a saved stable-baselines3 model (.zip)"
     )
 
 
@@ -217,6 +230,8 @@ def make_env_for(env_id: str, kwargs: dict[str, Any], spec: str, algo: str = "PP
     pair = with_deck_motion(env_id, kwargs, spec, algo)
     if pair is not None:
         return pair
+    if spec == FORECAST_POLICY and "deck_forecast" not in kwargs:
+        kwargs = {**kwargs, "deck_forecast": FORECAST_POLICY_OPTIONS}
     env = gym.make(env_id, **kwargs)
     try:
         return env, make_policy(spec, env, algo)
@@ -226,6 +241,7 @@ def make_env_for(env_id: str, kwargs: dict[str, Any], spec: str, algo: str = "PP
 
 
 __all__ = [
+    "FORECAST_POLICY",
     "SB3_ALGOS",
     "PolicyError",
     "SB3Policy",
