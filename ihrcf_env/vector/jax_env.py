@@ -105,6 +105,9 @@ class JaxVectorEnv(VectorEnv):
     ) -> None:
         import jax
 
+        from ihrcf_env.fast.cache import enable_compilation_cache
+
+        enable_compilation_cache()
         n = check_int("num_envs", num_envs, low=1, high=MAX_JAX_ENVS)
         if seeding not in SEEDINGS:
             raise ValueError(f"seeding must be one of {SEEDINGS}, got {seeding!r}")

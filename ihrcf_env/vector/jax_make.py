@@ -1,7 +1,7 @@
 """The landing ids on the JAX backend: ``gym.make_vec(id, num_envs=N, backend="jax", **options)``.
 
 :func:`make_functional` validates the options once (:func:`~ihrcf_env.config.make.make_config`, as
-``gym.make`` does) and builds the functional env (:class:`~ihrcf_env.fast.landing.LandingFunctional`);
+``gym.make`` does) and builds the functional env (:class:`~ihrcf_env.vector.jax_landing.LandingFunctional`);
 :func:`make_jax_vector_env` puts the Gymnasium vector env front on it. The backend has one camera,
 the projected one with corner output (:data:`JAX_DEFAULTS`); options it cannot honour (the rendered
 camera, user sensors, estimators, noise models, faults or disturbances) raise ValueError naming
@@ -40,7 +40,7 @@ def make_functional(env_id: str, dtype: str = "float64", max_steps: int = 600, *
     import jax
     import jax.numpy as jnp
 
-    from ihrcf_env.fast.landing import LandingFunctional
+    from ihrcf_env.vector.jax_landing import LandingFunctional
 
     task = _task_of(env_id)
     for name, value in JAX_DEFAULTS.items():

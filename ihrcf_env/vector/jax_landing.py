@@ -1,4 +1,5 @@
-"""The landing task as one functional env: the physics/sensor step and the observation joined.
+"""The landing task as one functional env for the JAX backend: the physics/sensor step and the
+observation joined, with its Gymnasium spaces.
 
 :class:`LandingFunctional` joins :mod:`ihrcf_env.fast.step` (physics, sensors, task rules; its
 observation hook returns the raw reading and the truth) and :mod:`ihrcf_env.fast.observe` (the
