@@ -85,7 +85,11 @@ def rollout_fn(fenv: Any, num_envs: int, steps: int) -> Callable[[Any, Any], Any
                 return jax.tree_util.tree_map(m, new, s)
 
             state = jax.lax.cond(jnp.any(done), fresh, lambda s: s, state)
-            return (state, total + reward.sum(), ended + done.sum()), None
+            return (
+                state,
+                total + reward.sum().astype(total.dtype),
+                ended + done.sum().astype(ended.dtype),
+            ), None
 
         init = (state, jnp.zeros((), reward_dtype(params)), jnp.zeros((), jnp.int32))
         (state, total, ended), _ = jax.lax.scan(one, init, jax.random.split(key, steps))
