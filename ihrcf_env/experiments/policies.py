@@ -90,7 +90,7 @@ def load_sb3(path: str, algo: str, env: gym.Env) -> SB3Policy:
     frames = 1
     if isinstance(space, gym.spaces.Box) and isinstance(want, gym.spaces.Box) and len(space.shape) == 2:
         frames = space.shape[0]  # a frame-stacked policy: compare with the env's space stacked
-        want = gym.spaces.Box(np.stack([want.low] * frames), np.stack([want.high] * frames), dtype=want.dtype)
+        want = gym.spaces.Box(np.stack([want.low] * frames), np.stack([want.high] * frames), dtype=np.float32)
     same = (
         isinstance(space, gym.spaces.Box)
         and isinstance(want, gym.spaces.Box)
