@@ -38,6 +38,7 @@ from ihrcf_env.config.landing import DeckLandingConfig
 from ihrcf_env.core.batch import fused_result as fr
 from ihrcf_env.core.batch import result as rs
 from ihrcf_env.core.batch.pipeline import BATCHED
+from ihrcf_env.core.batch.pnp import MAX_LM_ITER
 from ihrcf_env.core.calibration import Calibration
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.estimators import FusedParams
@@ -102,6 +103,7 @@ class ObserveParams:
         atda: ATDA's candidates are needed (``atda`` listed, or the fused filter uses them).
         max_residual: IHRCF's rigid-fit bound (m), for the reason text.
         fused_params: the fused filter's parameters (None without it).
+        lm_iterations: the LM steps polishing each of ATDA's IPPE poses.
     """
 
     names: tuple[str, ...]
@@ -128,6 +130,7 @@ class ObserveParams:
     atda: bool
     max_residual: float
     fused_params: FusedParams | None
+    lm_iterations: int = MAX_LM_ITER
 
 
 class EstimateInfo(NamedTuple):
@@ -200,9 +203,12 @@ def _rig(calibration: Calibration) -> SensorRig:
     return SensorRig(float(r["a"]), float(r["theta"]), (float(cp[0]), float(cp[1]), float(cp[2])))
 
 
-def observe_params(config: DeckLandingConfig) -> ObserveParams:
+def observe_params(config: DeckLandingConfig, lm_iterations: int = MAX_LM_ITER) -> ObserveParams:
     """The :class:`ObserveParams` of a resolved landing config (:func:`ihrcf_env.make_config`):
-    its observation options, the calibration it names and the world's timing. ValueError naming
+    its observation options, the calibration it names and the world's timing; ``lm_iterations``
+    the LM steps that polish each IPPE pose (always all of them: the default is cv2's limit, with
+    which the poses are cv2's; fewer are cheaper and stop short of cv2's converged pose where
+    it needs more steps). ValueError naming
     what this observation cannot build (a raw observation, ``deck_forecast``, an estimator other
     than ``ihrcf``/``atda``/``fused``, the camera's image output, the fused filter's
     ``range_only_update``)."""
@@ -210,6 +216,8 @@ def observe_params(config: DeckLandingConfig) -> ObserveParams:
         raise TypeError(
             f"config must be a DeckLandingConfig (ihrcf_env.make_config), got {type(config).__name__}"
         )
+    if isinstance(lm_iterations, bool) or not isinstance(lm_iterations, int) or not 0 <= lm_iterations <= 100:
+        raise ValueError(f"lm_iterations must be an int in [0, 100], got {lm_iterations!r}")
     if config.task_name not in TASKS:
         raise ValueError(
             f"config: the observation of task {config.task_name!r} is not built here (tasks: {TASKS})"
@@ -280,6 +288,7 @@ def observe_params(config: DeckLandingConfig) -> ObserveParams:
         atda="atda" in names or fused_atda,
         max_residual=float(obs.max_residual),
         fused_params=fp,
+        lm_iterations=lm_iterations,
     )
 
 
@@ -454,6 +463,7 @@ def observe(
             jnp.asarray(p.dist),
             p.tag_size,
             jnp.asarray(p.camera_position),
+            p.lm_iterations,
         )
     prior, has_prior = st.prior, st.has_prior
     fused_state = st.fused

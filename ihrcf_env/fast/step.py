@@ -35,7 +35,17 @@ from jax import Array, lax
 from ihrcf_env import tasks
 from ihrcf_env.fast.advance import Flight, advance, angular_velocity_between
 from ihrcf_env.fast.autopilot import controller_reset
-from ihrcf_env.fast.deck_motion import DeckTrack, deck_pose, deck_track, ship_pose, sum_of_sines
+from ihrcf_env.fast.deck_motion import (
+    DeckTrack,
+    ShipPhasor,
+    deck_pose,
+    deck_track,
+    ship_phasor,
+    ship_phasor_advance,
+    ship_pose,
+    ship_pose_of_phasor,
+    sum_of_sines,
+)
 from ihrcf_env.fast.dynamics import hover_state, matrix_from_quaternion, quaternion_from_matrix
 from ihrcf_env.fast.episode import Episode, draw_episode
 from ihrcf_env.fast.frames import TICK_EPS, pipe_deliver, pipe_init, pipe_push
@@ -131,8 +141,11 @@ def _profile_pose(p: StepParams, ep: Episode, t: Array) -> tuple[Array, Array]:
 
 
 def _deck_next(p: StepParams, ep: Episode, prev: DeckTrack, tick: Array) -> DeckTrack:
+    return _deck_at(p, prev, *_profile_pose(p, ep, tick * p.dt + ep.deck_time))
+
+
+def _deck_at(p: StepParams, prev: DeckTrack, off: Array, rpy: Array) -> DeckTrack:
     d = p.deck
-    off, rpy = _profile_pose(p, ep, tick * p.dt + ep.deck_time)
     return deck_track(
         prev, off, rpy, jnp.asarray(d.home_position), jnp.asarray(d.top_joints), jnp.asarray(d.base_joints),
         d.min_leg, d.max_leg, d.half_thickness,
@@ -453,11 +466,26 @@ def step_with(
     tick0 = st.tick
 
     # the deck's poses at ticks tick0 .. tick0 + S
-    def deck_body(prev: DeckTrack, j: Array) -> tuple[DeckTrack, DeckTrack]:
-        nxt = _deck_next(p, ep, prev, (tick0 + j).astype(dtype))
-        return nxt, nxt
+    if p.deck.kind == "ship":
+        # the ship's components as phasors rotated tick by tick (two transcendentals per component
+        # and step instead of per tick)
+        assert p.deck.ship is not None
+        ship = p.deck.ship
+        phasor = ship_phasor((tick0 + 1).astype(dtype) * dt + ep.deck_time, dt, ep.deck, ship)
 
-    _, decks = lax.scan(deck_body, st.deck, jnp.arange(1, S + 1))
+        def ship_body(carry: tuple[DeckTrack, ShipPhasor], _: Array) -> tuple[tuple, DeckTrack]:
+            prev, ph = carry
+            nxt = _deck_at(p, prev, *ship_pose_of_phasor(ph, ep.deck, ship))
+            return (nxt, ship_phasor_advance(ph)), nxt
+
+        _, decks = lax.scan(ship_body, (st.deck, phasor), None, length=S)
+    else:
+
+        def deck_body(prev: DeckTrack, j: Array) -> tuple[DeckTrack, DeckTrack]:
+            nxt = _deck_next(p, ep, prev, (tick0 + j).astype(dtype))
+            return nxt, nxt
+
+        _, decks = lax.scan(deck_body, st.deck, jnp.arange(1, S + 1))
     deck_all = jax.tree_util.tree_map(lambda a0, a1: jnp.concatenate([a0[None], a1]), st.deck, decks)
     quats = jnp.concatenate([st.deck_quat[None], jax.vmap(quaternion_from_matrix)(decks.rotation)])
     times = (tick0 + jnp.arange(S)).astype(dtype) * dt
@@ -484,20 +512,14 @@ def step_with(
         new_td = tasks.touchdown_state(s, f2.code.astype(jnp.int32), f2.touch_velocity, p.deck.top_half)
         td = jax.tree_util.tree_map(lambda n, o: jnp.where(touched, n, o), new_td, td)
         f2 = f2._replace(tick=jnp.where(code0 != 0, f.tick, jnp.where(touched, j + 1, 0)))
-        # the ToF on its own clock
+        # the ToF's sample clock (the sample itself is read after the ticks, at the last one due)
+        due = jnp.asarray(False)
         if p.tof.ticks_per_sample is not None:
             due = _clock_index(p, tick) >= nxt
-            d = f2.drone
-            m = jnp.minimum(rng_m, p.tof.samples - 1)
-            r, v = tof_reading(
-                p, ep, d.position, matrix_from_quaternion(d.quaternion), deck_j.position, deck_j.rotation,
-                tick.astype(dtype) * dt, draws.read.tof_z[m], draws.read.tof_u[m],
-            )  # fmt: skip
-            ranges = jnp.where(due, r, ranges)
-            valid = jnp.where(due, v, valid)
             nxt = jnp.where(due, _clock_index(p, tick) + 1, nxt)
             rng_m = rng_m + due.astype(jnp.int32)
-        return (f2, nav, nxt, rng_m, ranges, valid, td, tof_t), None
+        d = f2.drone
+        return (f2, nav, nxt, rng_m, ranges, valid, td, tof_t), (due, rng_m, d.position, d.quaternion)
 
     f_in = st.flight._replace(code=jnp.where(st.flight.latched, st.flight.code, 0).astype(jnp.int8))
     init = (
@@ -510,7 +532,19 @@ def step_with(
         _no_touchdown(dtype),
         jnp.zeros((), dtype),
     )
-    (flight, nav, nxt, _, ranges, valid, td, _), _ = lax.scan(tick_body, init, jnp.arange(S))
+    (flight, nav, nxt, _, ranges, valid, td, _), ticks = lax.scan(tick_body, init, jnp.arange(S))
+    if p.tof.ticks_per_sample is not None:
+        # the ToF sample of the period's last due tick (the earlier ones are overwritten by it)
+        dues, counts, positions, quaternions = ticks
+        last = S - 1 - jnp.argmax(dues[::-1])
+        m = jnp.clip(counts[last] - 1, 0, p.tof.samples - 1)
+        r, v = tof_reading(
+            p, ep, positions[last], matrix_from_quaternion(quaternions[last]), deck_all.position[last + 1],
+            deck_all.rotation[last + 1], (tick0 + last + 1).astype(dtype) * dt, draws.read.tof_z[m],
+            draws.read.tof_u[m],
+        )  # fmt: skip
+        ranges = jnp.where(jnp.any(dues), r, ranges)
+        valid = jnp.where(jnp.any(dues), v, valid)
     # a contact latched in an earlier step is not this step's touchdown
     td = jax.tree_util.tree_map(lambda n, t: jnp.where(st.flight.latched, n, t), _no_touchdown(dtype), td)
     deck = jax.tree_util.tree_map(lambda x: x[S], deck_all)

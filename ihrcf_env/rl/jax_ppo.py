@@ -193,7 +193,35 @@ def train(
     resuming from ``out`` (``checkpoint.msgpack``, ``curve.json``) if a run left them there; stops
     early when the next chunk would pass ``time_budget_s`` (s of wall time in this call). Returns
     (algo, train state, curve: one row per chunk with steps, wall time, success rate, mean return
-    and length of the mean-action evaluation)."""
+    and length of the mean-action evaluation). Runs in 32-bit JAX (``jax_enable_x64`` off for the
+    call: rejax's running statistics are float32)."""
+    with jax.enable_x64(False):
+        return _train(
+            fenv,
+            out,
+            total_timesteps,
+            max_steps,
+            settings,
+            chunk_timesteps,
+            seed,
+            eval_envs,
+            time_budget_s,
+            log,
+        )
+
+
+def _train(
+    fenv: Any,
+    out: str | Path,
+    total_timesteps: int,
+    max_steps: int,
+    settings: PPOSettings | None,
+    chunk_timesteps: int,
+    seed: int,
+    eval_envs: int,
+    time_budget_s: float | None,
+    log: Callable[[str], None],
+) -> tuple[Any, Any, list[dict[str, float]]]:
     settings = settings or PPOSettings()
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
