@@ -7,7 +7,8 @@ threads JAX may use):
 * the single PyBullet env (``gym.make(id, **options)``, the reference) stepped with random
   actions: env-steps/s;
 * the JAX backend's functional step (pure JAX, as a trainer runs it: ``lax.scan`` over steps of
-  ``vmap``-ped envs with batch-level autoreset, random actions drawn in JAX) for each ``N``, in
+  the envs vmapped in chunks of :data:`~ihrcf_env.vector.jax_batch.CHUNK`, with batch-level
+  autoreset, random actions drawn in JAX) for each ``N``, in
   float64 and float32: compile time (s), env-steps/s and the ratio to the PyBullet env;
 * the Gymnasium vector env front (``gym.make_vec(..., backend="jax")``, numpy in and out) for the
   same ``N``: env-steps/s;
@@ -59,6 +60,8 @@ def rollout_fn(fenv: Any, num_envs: int, steps: int) -> Callable[[Any, Any], Any
     import jax
     import jax.numpy as jnp
 
+    from ihrcf_env.vector.jax_batch import map_envs
+
     shape = fenv.action_space.shape
 
     def reset_all(key: Any, params: Any) -> Any:
@@ -75,8 +78,8 @@ def rollout_fn(fenv: Any, num_envs: int, steps: int) -> Callable[[Any, Any], Any
             ka, ks, kr = jax.random.split(k, 3)
             actions = jax.random.uniform(ka, (num_envs, *shape), minval=-1.0, maxval=1.0)
             keys = jax.random.split(ks, num_envs)
-            _, state, reward, done, _ = jax.vmap(fenv.step, in_axes=(0, 0, 0, None))(
-                keys, state, actions, params
+            _, state, reward, done, _ = map_envs(
+                lambda k, s, a: fenv.step(k, s, a, params), keys, state, actions
             )
 
             def fresh(s: Any) -> Any:

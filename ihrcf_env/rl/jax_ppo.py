@@ -11,9 +11,10 @@ checkpoint and the learning curve after every chunk (a stopped run resumes from 
 
 from __future__ import annotations
 
+import argparse
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -27,7 +28,7 @@ from rejax import PPO
 
 from ihrcf_env.control.mlp_policy import MlpPolicy, mlp_from_arrays
 
-__all__ = ["PPOSettings", "export_policy", "gymnax_env", "make_ppo", "train"]
+__all__ = ["PPOSettings", "export_policy", "gymnax_env", "main", "make_ppo", "train"]
 
 
 def gymnax_env(fenv: Any, max_steps: int) -> tuple[environment.Environment, Any]:
@@ -259,3 +260,44 @@ def _train(
             f"length {length:5.1f}"
         )
     return algo, ts, curve
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m ihrcf_env.rl.jax_ppo``: train PPO on the JAX backend's landing env (float32,
+    projected camera) and export the policy."""
+    ap = argparse.ArgumentParser(description=main.__doc__)
+    ap.add_argument("--env-id", default="ihrcf_env/DeckLanding-v2")
+    ap.add_argument("--level", default="moderate")
+    ap.add_argument("--timesteps", type=float, default=1e7, help="env steps in all")
+    ap.add_argument(
+        "--chunk", type=float, default=5e5, help="env steps per compiled call (a checkpoint each)"
+    )
+    ap.add_argument("--time-budget", type=float, default=None, help="stop before this many s of wall time")
+    ap.add_argument("--out", required=True, help="run folder (checkpoint, curve); resumes a run left there")
+    ap.add_argument("--policy", default=None, help="write the trained policy here (.npz)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--num-envs", type=int, default=PPOSettings.num_envs)
+    ap.add_argument("--num-steps", type=int, default=PPOSettings.num_steps)
+    args = ap.parse_args(argv)
+    from ihrcf_env.vector.checks import time_limit
+    from ihrcf_env.vector.jax_make import make_functional
+
+    max_steps = time_limit(args.env_id, None) or 600
+    fenv = make_functional(args.env_id, "float32", max_steps=max_steps, level=args.level)
+    settings = PPOSettings(num_envs=args.num_envs, num_steps=args.num_steps)
+    algo, ts, curve = train(
+        fenv, args.out, int(args.timesteps), max_steps, settings, int(args.chunk), args.seed,
+        time_budget_s=args.time_budget,
+    )  # fmt: skip
+    if args.policy:
+        last = curve[-1] if curve else {"steps": 0.0, "wall_s": 0.0}
+        export_policy(
+            algo, ts, args.policy, env_id=args.env_id, level=args.level, trainer="rejax PPO (JAX backend)",
+            steps=int(last["steps"]), wall_s=float(last["wall_s"]),
+        )  # fmt: skip
+        print(f"policy written to {args.policy}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

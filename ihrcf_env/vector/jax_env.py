@@ -148,10 +148,12 @@ class JaxVectorEnv(VectorEnv):
         import jax
         import jax.numpy as jnp
 
+        from ihrcf_env.vector.jax_batch import map_envs
+
         split = jax.vmap(jax.random.split)(keys)
         new_keys, step_keys = split[:, 0], split[:, 1]
-        obs, new_state, reward, terminated, info = jax.vmap(self.fenv.step, in_axes=(0, 0, 0, None))(
-            step_keys, state, actions, params
+        obs, new_state, reward, terminated, info = map_envs(
+            lambda k, s, a: self.fenv.step(k, s, a, params), step_keys, state, actions
         )
 
         def keep(new: Any, old: Any) -> Any:
