@@ -492,7 +492,7 @@ def step_with(
     air = jax.vmap(lambda t: _air(p, st.wind, t))(times)
     one = p.advance
 
-    def tick_body(carry: tuple, j: Array) -> tuple[tuple, None]:
+    def tick_body(carry: tuple, j: Array) -> tuple[tuple, tuple[Array, Array, Array, Array]]:
         f, nav, nxt, rng_m, ranges, valid, td, tof_t = carry
         code0 = f.code
         top = lax.dynamic_slice_in_dim(deck_all.position, j, 2)
