@@ -23,11 +23,13 @@ import numpy as np
 from ihrcf_env import LANDING_V1_ID, LANDING_V2_ID
 from ihrcf_env.cli.common import MAX_SEED, command_main, int_in, make_parser, seed_type
 from ihrcf_env.config.levels import LEVELS, TEST_SEEDS
+from ihrcf_env.control.forecast_landing import FORECAST_POLICY_OPTIONS
 from ihrcf_env.control.gru_policy import GruPolicy, PolicyFileError
 from ihrcf_env.control.mlp_policy import MlpPolicy
 from ihrcf_env.core.metrics import failure_groups, wilson_interval
 from ihrcf_env.experiments.episode import EpisodeResult, run_episodes
 from ihrcf_env.experiments.policies import (
+    FORECAST_POLICY,
     SB3_ALGOS,
     SCRIPTED_ESTIMATOR,
     PolicyError,
@@ -134,7 +136,7 @@ def _check_baseline_options(ap: argparse.ArgumentParser, policy: str, options: d
                 f"argument --option: {key}={options[key]!r}: the {policy.partition(':')[0]} policy "
                 f"flies {key}={want!r}"
             )
-    if policy == "scripted" and "estimators" in options:
+    if policy in ("scripted", FORECAST_POLICY) and "estimators" in options:
         names = options["estimators"]
         if isinstance(names, str) or not isinstance(names, list) or SCRIPTED_ESTIMATOR not in names:
             ap.error(
@@ -181,7 +183,8 @@ def add_episode_arguments(ap: argparse.ArgumentParser) -> None:
     ap.add_argument(
         "--policy",
         required=True,
-        help="scripted | blind:VZ | a recurrent .npz | a stable-baselines3 .zip (required)",
+        help="scripted | scripted-forecast | blind:VZ | a saved .npz (recurrent or MLP) | a "
+        "stable-baselines3 .zip (required)",
     )
     ap.add_argument(
         "--seed",
@@ -224,7 +227,7 @@ def _check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
     if args.seed is None:
         args.seed = TEST_SEEDS.start if args.level is not None else 0
     args.options = _parse_options(ap, args.option)
-    if args.policy == "scripted" or args.policy.startswith("blind:"):
+    if args.policy in ("scripted", FORECAST_POLICY) or args.policy.startswith("blind:"):
         _check_baseline_options(ap, args.policy, args.options)
     last = args.seed + args.episodes - 1
     if last > MAX_SEED:
@@ -237,13 +240,15 @@ def _check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
         ap.error(f"argument --env-id: {args.env_id!r} is not an ihrcf_env landing env (one of {ours})")
     spec = args.policy
     saved = spec.endswith((".zip", ".npz"))
-    if not (spec == "scripted" or spec.startswith("blind:") or saved or os.path.exists(spec)):
+    if not (
+        spec in ("scripted", FORECAST_POLICY) or spec.startswith("blind:") or saved or os.path.exists(spec)
+    ):
         ap.error(
-            f"argument --policy: {spec!r} is not 'scripted', 'blind:VZ', a saved recurrent .npz or a "
-            "saved stable-baselines3 .zip"
+            f"argument --policy: {spec!r} is not 'scripted', '{FORECAST_POLICY}', 'blind:VZ', a saved .npz "
+            "or a saved stable-baselines3 .zip"
         )
-    if spec == "scripted" and args.env_id not in (LANDING_V1_ID, LANDING_V2_ID):
-        ap.error(f"argument --policy: scripted needs a landing observation: use --env-id {LANDING_V2_ID}")
+    if spec in ("scripted", FORECAST_POLICY) and args.env_id not in (LANDING_V1_ID, LANDING_V2_ID):
+        ap.error(f"argument --policy: {spec} needs a landing observation: use --env-id {LANDING_V2_ID}")
     if spec.startswith("blind:"):
         try:
             vz = float(spec.removeprefix("blind:"))
@@ -276,6 +281,8 @@ def make_env_and_policy(ap: argparse.ArgumentParser, args: argparse.Namespace) -
         kwargs["max_episode_steps"] = args.max_steps
     if args.deck_motion:
         kwargs["deck_motion"] = True
+    if spec == FORECAST_POLICY and "deck_forecast" not in kwargs:
+        kwargs["deck_forecast"] = FORECAST_POLICY_OPTIONS  # the forecast block it flies on
     try:
         env = gym.make(args.env_id, **kwargs)
     except (TypeError, ValueError, RuntimeError) as e:  # e.g. --deck-motion on an env without it

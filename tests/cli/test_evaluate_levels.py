@@ -57,3 +57,18 @@ def test_bad_protocol_arguments_are_named(
     with pytest.raises(SystemExit) as e:
         main(["--policy", "blind:0.3", *argv])
     assert e.value.code == 2 and text in capsys.readouterr().err
+
+
+def test_the_forecast_landing_runs_with_its_forecast_block(capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(
+        ["--policy", "scripted-forecast", "--level", "moderate", "--episodes", "1", "--camera-model",
+         "projected", "--max-steps", "30", "--quiet"]
+    )  # fmt: skip
+    out = capsys.readouterr().out
+    assert code == 0 and "scripted-forecast" in out and "deck_forecast" in out
+
+
+def test_the_forecast_landing_keeps_the_fused_estimate(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as e:
+        main(["--policy", "scripted-forecast", "--level", "calm", "--option", 'estimators=["ihrcf"]'])
+    assert e.value.code == 2 and "estimators" in capsys.readouterr().err
