@@ -67,7 +67,7 @@ _SG_LENGTH = 7  # Savitzky-Golay window (cells) and polynomial order of the fit'
 _SG_ORDER = 3
 _MIN_FILL = 0.5  # fraction of the cells since the first sample of the window holding samples
 _MAX_BRIDGE = 5  # cells of missing samples bridged by interpolation in a fit
-_MIN_SPAN = 10.0  # s of samples before a fit (at most the window, at least 4 orders of cells)
+_MIN_SPAN = 10.0  # default s of samples before a fit (at most the window, at least 4 orders of cells)
 _MAX_RADIUS = 0.999  # largest modulus of a pole of the fitted AR model
 _NOISE_FLOOR = 1e-12
 _RIDGE = 1e-4  # ridge of the least squares, relative to the mean energy of a lag
@@ -83,7 +83,8 @@ class ForecastOptions:
     ``refit_period`` (s, in [sample_period, window]) between fits; ``max_gap`` (s) of missing
     samples bridged by prediction before the state is reset; ``noise_std`` (heave m, roll rad,
     pitch rad) of one sample, or None to fit it from the window; ``quiet_lead`` (s) from now to
-    the start of the quiescence window.
+    the start of the quiescence window; ``min_span`` (s, in [``sample_period``, ``window``]) of
+    samples before the first fit (at least four model orders of cells are needed in any case).
     """
 
     horizons: tuple[float, ...] = (0.25, 0.5, 1.0, 2.0, 3.0)
@@ -94,6 +95,7 @@ class ForecastOptions:
     max_gap: float = 3.0
     noise_std: tuple[float, float, float] | None = None
     quiet_lead: float = 1.0
+    min_span: float = _MIN_SPAN
 
     def __post_init__(self) -> None:
         name = "forecast"
@@ -116,6 +118,7 @@ class ForecastOptions:
             set_field(self, "noise_std", ns)
         lead = check_real(f"{name}.quiet_lead", self.quiet_lead, "s", low=0.0, high=w / 2)
         set_field(self, "quiet_lead", lead)
+        set_field(self, "min_span", check_real(f"{name}.min_span", self.min_span, "s", low=dt, high=w))
 
     @property
     def cells(self) -> int:
@@ -281,7 +284,7 @@ class DeckForecaster:
         good = cnt > 0
         first = np.where(good.any(axis=0), np.argmax(good, axis=0), n)
         span = n - first
-        min_cells = max(4 * self.p, min(n, int(round(_MIN_SPAN / self.dt))))
+        min_cells = max(4 * self.p, min(n, int(round(self.options.min_span / self.dt))))
         if np.any(span < min_cells) or np.any(good.sum(axis=0) < _MIN_FILL * span):
             return None
         z = np.empty((n, 3))

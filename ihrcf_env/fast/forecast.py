@@ -150,7 +150,7 @@ def forecast_params(
         refit_cells=max(1, int(round(o.refit_period / dt))),
         max_gap_cells=(1 << n_bits) - 1,
         n_steps=int(math.ceil(reach / dt)) + 8,
-        min_cells=max(4 * p, min(n, int(round(ref._MIN_SPAN / dt)))),
+        min_cells=max(4 * p, min(n, int(round(o.min_span / dt)))),
         horizons=horizons,
         quiet_offsets=o.quiet_lead + np.linspace(0.0, th.min_duration, ref.QUIET_POINTS),
         vertical_speed=float(th.vertical_speed),

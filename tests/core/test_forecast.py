@@ -116,6 +116,24 @@ def test_not_ready_before_the_first_fit() -> None:
     assert f.mean.shape == (5, len(OUTPUTS))
 
 
+def test_a_shorter_min_span_fits_sooner() -> None:
+    """The first fit waits for ``min_span`` s of samples (and four model orders of cells)."""
+    parts = [(0.02, 5.0, 0.3)]
+    t = np.arange(0.0, 12.0, 1.0 / 30.0)
+    y = sines(t, parts)
+
+    def first_ready(fc: DeckForecaster) -> float:
+        for k in range(t.size):
+            fc.update(float(t[k]), y[k])
+            if fc.forecast().ready:
+                return float(t[k])
+        return math.inf
+
+    default = first_ready(DeckForecaster())
+    short = first_ready(DeckForecaster(ForecastOptions(order=12, min_span=5.0)))
+    assert 9.5 <= default <= 11.5 and 4.5 <= short <= 6.5
+
+
 def test_forecast_beats_persistence_on_noisy_sines() -> None:
     parts = [(0.02, 4.2, 0.3), (0.012, 6.5, 1.1)]
     rng = np.random.default_rng(7)
@@ -199,6 +217,8 @@ def test_old_samples_ignored_and_bad_input_refused() -> None:
         ({"noise_std": (0.01, 0.01)}, "forecast.noise_std"),
         ({"noise_std": (0.01, -0.01, 0.0)}, r"forecast.noise_std\[1\]"),
         ({"quiet_lead": -0.1}, "forecast.quiet_lead"),
+        ({"min_span": 0.0}, "forecast.min_span"),
+        ({"min_span": 100.0}, "forecast.min_span"),
     ],
 )
 def test_options_refused_by_name(fields: dict[str, object], name: str) -> None:
