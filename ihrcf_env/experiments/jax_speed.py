@@ -7,8 +7,8 @@ threads JAX may use):
 * the single PyBullet env (``gym.make(id, **options)``, the reference) stepped with random
   actions: env-steps/s;
 * the JAX backend's functional step (pure JAX, as a trainer runs it: ``lax.scan`` over steps of
-  the envs vmapped in chunks of :data:`~ihrcf_env.vector.jax_batch.CHUNK`, with batch-level
-  autoreset, random actions drawn in JAX) for each ``N``, in
+  the envs vmapped in chunks of :data:`~ihrcf_env.vector.jax_batch.CHUNK`, the envs that ended
+  reset in the same step, random actions drawn in JAX) for each ``N``, in
   float64 and float32: compile time (s), env-steps/s and the ratio to the PyBullet env;
 * the Gymnasium vector env front (``gym.make_vec(..., backend="jax")``, numpy in and out) for the
   same ``N``: env-steps/s;
@@ -56,22 +56,21 @@ class SpeedRow:
 def rollout_fn(fenv: Any, num_envs: int, steps: int) -> Callable[[Any, Any], Any]:
     """A jitted function ``(key, params) -> (total reward, episodes ended)`` that resets
     ``num_envs`` envs and runs ``steps`` steps of all of them with random actions, resetting the
-    envs that ended (batch-level: the reset runs only in steps where some env ended)."""
+    envs that ended (only those: :func:`~ihrcf_env.vector.jax_batch.reset_ended`)."""
     import jax
     import jax.numpy as jnp
 
-    from ihrcf_env.vector.jax_batch import map_envs
+    from ihrcf_env.vector.jax_batch import map_envs, reset_ended
 
     shape = fenv.action_space.shape
 
-    def reset_all(key: Any, params: Any) -> Any:
-        keys = jax.random.split(key, num_envs)
-        episodes = jax.vmap(fenv.draw, in_axes=(0, None))(keys, params)
-        return jax.vmap(fenv.reset_from, in_axes=(0, 0, None))(episodes, keys, params)
+    def reset_one(key: Any, params: Any) -> Any:
+        k1, k2 = jax.random.split(key)
+        return fenv.reset_from(fenv.draw(k1, params), k2, params)[1]
 
     def run(key: Any, params: Any) -> Any:
         k0, key = jax.random.split(key)
-        _, state = reset_all(k0, params)
+        state = jax.vmap(reset_one, in_axes=(0, None))(jax.random.split(k0, num_envs), params)
 
         def one(carry: Any, k: Any) -> Any:
             state, total, ended = carry
@@ -81,13 +80,7 @@ def rollout_fn(fenv: Any, num_envs: int, steps: int) -> Callable[[Any, Any], Any
             _, state, reward, done, _ = map_envs(
                 lambda k, s, a: fenv.step(k, s, a, params), keys, state, actions
             )
-
-            def fresh(s: Any) -> Any:
-                _, new = reset_all(kr, params)
-                m = lambda a, b: jnp.where(done.reshape((-1,) + (1,) * (a.ndim - 1)), a, b)  # noqa: E731
-                return jax.tree_util.tree_map(m, new, s)
-
-            state = jax.lax.cond(jnp.any(done), fresh, lambda s: s, state)
+            state = reset_ended(lambda k: reset_one(k, params), kr, state, done)
             return (
                 state,
                 total + reward.sum().astype(total.dtype),

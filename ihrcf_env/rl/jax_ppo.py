@@ -3,7 +3,8 @@
 :func:`gymnax_env` adapts a functional env (:class:`~ihrcf_env.vector.jax_env.FunctionalEnv`:
 ``draw`` / ``reset_from`` / ``step``, one env per call) to gymnax's ``Environment`` interface, which
 rejax trains on (its autoreset draws a new episode on every reset; episodes end on termination or
-after ``max_steps``). :func:`train` runs rejax's PPO in chunks, each one compiled call, saving a
+after ``max_steps``). :class:`LandingPPO` steps the envs as one batch and resets only those that ended.
+:func:`train` runs it in chunks, each one compiled call, saving a
 checkpoint and the learning curve after every chunk (a stopped run resumes from its folder), and
 :func:`export_policy` writes the actor as an :class:`~ihrcf_env.control.mlp_policy.MlpPolicy`
 (numpy inference, no JAX needed to run it). Needs the ``[rl]`` extra (rejax, gymnax).
@@ -27,8 +28,9 @@ from gymnax.environments import environment, spaces
 from rejax import PPO
 
 from ihrcf_env.control.mlp_policy import MlpPolicy, mlp_from_arrays
+from ihrcf_env.vector.jax_batch import autoreset_step
 
-__all__ = ["PPOSettings", "export_policy", "gymnax_env", "main", "make_ppo", "train"]
+__all__ = ["LandingPPO", "PPOSettings", "export_policy", "gymnax_env", "main", "make_ppo", "train"]
 
 
 def gymnax_env(fenv: Any, max_steps: int) -> tuple[environment.Environment, Any]:
@@ -66,6 +68,29 @@ def gymnax_env(fenv: Any, max_steps: int) -> tuple[environment.Environment, Any]
             return "ihrcf-landing"
 
     return Landing(), fenv.params
+
+
+class LandingPPO(PPO):
+    """rejax's PPO whose N envs step as one batch: the step in chunks
+    (:func:`~ihrcf_env.vector.jax_batch.map_envs`) and the reset run only for the envs that ended
+    (:func:`~ihrcf_env.vector.jax_batch.autoreset_step`). gymnax's per-env autoreset under
+    ``vmap`` would run a reset, about two steps' work, for every env on every step. Same
+    transitions otherwise: an env that ended starts a new episode in the same step."""
+
+    @property
+    def vmap_step(self) -> Callable[..., Any]:
+        env, params_default = self.env, self.env_params
+
+        def step(keys: Any, state: Any, action: Any, params: Any = params_default) -> Any:
+            return autoreset_step(
+                lambda k, s, a: env.step_env(k, s, a, params),
+                lambda k: env.reset_env(k, params),
+                keys,
+                state,
+                action,
+            )
+
+        return step
 
 
 @dataclass(frozen=True)
@@ -122,7 +147,7 @@ def make_ppo(
         _, _, _, ret, length, success = carry
         return jnp.stack([success.mean(), ret.mean(), length.mean()])
 
-    algo = PPO.create(
+    algo = LandingPPO.create(
         env=env,
         env_params=params,
         num_envs=settings.num_envs,

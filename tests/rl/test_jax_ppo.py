@@ -35,3 +35,22 @@ def test_train_runs_resumes_and_exports(tmp_path: Path) -> None:
     for obs in np.random.default_rng(0).normal(size=(5, 2)).astype(np.float32):
         np.testing.assert_allclose(back.act(obs), np.asarray(act(obs)), atol=2e-5)
     assert pol.meta == {"trained": "toy"}
+
+
+def test_the_batched_step_resets_only_the_envs_that_ended() -> None:
+    from ihrcf_env.rl.jax_ppo import LandingPPO, gymnax_env
+
+    fenv = Drop()
+    env, params = gymnax_env(fenv, 40)
+    algo = LandingPPO.create(env=env, env_params=params, num_envs=8, num_steps=4, total_timesteps=32)
+    keys = jax.random.split(jax.random.PRNGKey(0), 8)
+    _, state = jax.vmap(env.reset_env, in_axes=(0, None))(keys, params)
+    inner, t = state
+    inner = {**inner, "h": inner["h"].at[:3].set(0.01)}  # three envs land this step
+    actions = jax.numpy.zeros((8, 1))
+    obs, (new, t2), reward, done, _ = jax.jit(algo.vmap_step)(keys, (inner, t), actions, params)
+    d = np.asarray(done)
+    np.testing.assert_array_equal(d, np.arange(8) < 3)
+    np.testing.assert_array_equal(np.asarray(t2), np.where(d, 0, 1))  # new episodes start at t = 0
+    assert np.all(np.asarray(new["h"])[d] >= 1.0) and np.all(np.asarray(new["h"])[~d] > 0.0)
+    np.testing.assert_allclose(np.asarray(obs)[:, 0], np.asarray(new["h"]), rtol=1e-6)
