@@ -70,7 +70,7 @@ def gymnax_env(fenv: Any, max_steps: int) -> tuple[environment.Environment, Any]
     return Landing(), fenv.params
 
 
-class LandingPPO(PPO):
+class LandingPPO(PPO):  # type: ignore[misc,unused-ignore]  # Any without rejax installed
     """rejax's PPO whose N envs step as one batch: the step in chunks
     (:func:`~ihrcf_env.vector.jax_batch.map_envs`) and the reset run only for the envs that ended
     (:func:`~ihrcf_env.vector.jax_batch.autoreset_step`). gymnax's per-env autoreset under
