@@ -21,9 +21,9 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from ihrcf_env.core.batch import fused_result as fr
 from ihrcf_env.core.calibration.tables import RangePixelTable
 from ihrcf_env.core.constants import GRAVITY
+from ihrcf_env.core.estimators import fused_reasons as fr
 from ihrcf_env.core.estimators.fused_params import FusedParams
 from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.rig import SensorRig

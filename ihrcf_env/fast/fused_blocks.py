@@ -19,8 +19,8 @@ import numpy as np
 from jax import Array
 from numpy.typing import NDArray
 
-from ihrcf_env.core.batch import fused_result as fr
 from ihrcf_env.core.constants import GRAVITY
+from ihrcf_env.core.estimators import fused_reasons as fr
 from ihrcf_env.core.estimators.fused_measurements import _plane_shape
 from ihrcf_env.core.estimators.fused_params import FusedParams
 from ihrcf_env.core.frames import R_BODY_CAM

@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from ihrcf_env.core.batch import result as rs
+from ihrcf_env.core.estimators import reasons as rs
 from ihrcf_env.core.estimators.base import DEGENERATE_REL_TOL
 from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.geometry import quad_is_degenerate

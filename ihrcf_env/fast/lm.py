@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array, lax
 
-from ihrcf_env.core.batch import cvlm
+from ihrcf_env.core.estimators import cv_lm as cvlm
 
 __all__ = [
     "LMResult",

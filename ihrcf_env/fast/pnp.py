@@ -12,9 +12,11 @@ import jax
 import jax.numpy as jnp
 from jax import Array
 
-from ihrcf_env.core.batch import result as rs
-from ihrcf_env.core.batch.pnp import AMBIGUITY_RATIO, MAX_LM_ITER, R_MARKER_DECK, UNDISTORT_ITERATIONS
+from ihrcf_env.core.estimators import reasons as rs
+from ihrcf_env.core.estimators.atda import AMBIGUITY_RATIO, R_MARKER_DECK
 from ihrcf_env.core.estimators.base import DEGENERATE_REL_TOL
+from ihrcf_env.core.estimators.cv_lm import MAX_ITER as MAX_LM_ITER
+from ihrcf_env.core.estimators.cv_lm import UNDISTORT_ITERATIONS
 from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.fast.homography import collinear
 from ihrcf_env.fast.ihrcf import Pose, assemble
