@@ -1,7 +1,7 @@
 """ATDA's square-tag PnP for one frame: both closed-form IPPE poses polished by the
 fixed-iteration LM (:mod:`.lm`), then ATDA's choice (the lower RMS reprojection error, or of the
 two the one nearer a prior rotation when their errors are within ``AMBIGUITY_RATIO``): the port
-of :func:`ihrcf_env.core.batch.pnp.pnp_candidates` and ``pnp_choose``. Poses: the deck in the
+of :func:`ihrcf_env.core.estimators.atda.atda_candidates` and ``atda_choose``. Poses: the deck in the
 body frame (m, rad); errors: RMS px."""
 
 from __future__ import annotations
