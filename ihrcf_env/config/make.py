@@ -100,9 +100,11 @@ __all__ = [
     "AUTOPILOTS",
     "HOVER_OPTIONS",
     "LANDING_OPTIONS",
+    "REMOVED_OPTIONS",
     "SENSOR_PRESETS",
     "TASK_DEFAULTS",
     "V2_THRESHOLDS",
+    "check_removed_options",
     "level_faults",
     "make_config",
     "model_option",
@@ -185,7 +187,6 @@ LANDING_OPTIONS: tuple[str, ...] = (
     "reward_weights",
     "privileged",
     "deck_motion",
-    "batch_estimators",
 )
 #: Options of the hover task only (its observation wrapper's).
 HOVER_OPTIONS: tuple[str, ...] = ("keep_image", "flatten")
@@ -200,9 +201,16 @@ OBSERVATION_OPTIONS: tuple[str, ...] = (
     "fused_params",
     "privileged",
     "deck_motion",
-    "batch_estimators",
     "deck_forecast",
 )
+#: Options that were removed -> why and what to use instead: given, they are refused by name
+#: (ValueError), not silently ignored.
+REMOVED_OPTIONS: dict[str, str] = {
+    "batch_estimators": (
+        "the option and the batched estimators were removed (each env of a vector env runs its own "
+        'estimators); the batched path is the JAX backend, gym.make_vec(id, num_envs, backend="jax")'
+    ),
+}
 #: ``autopilot``: the classic position loop, or the wind-holding one (anti-windup and a
 #: disturbance observer, :class:`~ihrcf_env.sim.drone.VelocityController`).
 AUTOPILOTS: tuple[str, ...] = ("classic", "wind_hold")
@@ -489,10 +497,20 @@ def _task_and_level(task: object, level: object) -> tuple[str, str | None, dict[
     return name, None, defaults
 
 
+def check_removed_options(options: Mapping[str, Any]) -> None:
+    """Refuses the options of :data:`REMOVED_OPTIONS` by name (ValueError saying what replaces
+    them), and any other unknown name (TypeError, as an unexpected keyword argument)."""
+    for name in options:
+        if name in REMOVED_OPTIONS:
+            raise ValueError(f"{name}: {REMOVED_OPTIONS[name]}")
+    if options:
+        raise TypeError(f"make_config() got an unexpected keyword argument {next(iter(options))!r}")
+
+
 def _check_task_options(o: _Options) -> None:
     """Refuses the options of the other task (:data:`LANDING_OPTIONS`, :data:`HOVER_OPTIONS`)."""
     landing = o.given["task"] != "hover"
-    flags = ("privileged", "deck_motion", "batch_estimators", "flatten")
+    flags = ("privileged", "deck_motion", "flatten")
     given = {n: (o[n] or None) if n in flags else o[n] for n in (*LANDING_OPTIONS, *HOVER_OPTIONS)}
     wrong = [n for n in (HOVER_OPTIONS if landing else LANDING_OPTIONS) if given[n] is not None]
     if wrong:
@@ -564,13 +582,16 @@ def make_config(
     fused_params: FusedParams | None = None,
     privileged: bool = False,
     deck_motion: bool = False,
-    batch_estimators: bool = False,
     deck_forecast: bool | ForecastOptions | Mapping[str, Any] | None = False,
+    **removed: Any,
 ) -> DeckLandingConfig:
     """The resolved configuration of a deck task (module docstring). Options left at None take
-    ``task``'s default (:data:`TASK_DEFAULTS`). Raises TypeError / ValueError naming the option.
+    ``task``'s default (:data:`TASK_DEFAULTS`). Raises TypeError / ValueError naming the option
+    (a removed option, :data:`REMOVED_OPTIONS`: ValueError saying what replaces it).
     ``disturbances`` are deep-copied: every env gets its own."""
+    check_removed_options(removed)
     options = dict(locals())
+    del options["removed"]
     name, lvl, defaults = _task_and_level(task, level)
     o = _Options({**options, "task": name}, defaults)
     obs = check_observation_options(**{k: o[k] for k in OBSERVATION_OPTIONS})

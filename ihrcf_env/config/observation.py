@@ -11,7 +11,6 @@ from dataclasses import dataclass
 
 from ihrcf_env.config.sensors import VL53L1X
 from ihrcf_env.config.world import WorldConfig
-from ihrcf_env.core.batch.pipeline import BATCHED, batchable_names
 from ihrcf_env.core.calibration import Calibration, default_calibration_path
 from ihrcf_env.core.checks import check_bool, check_positive, describe
 from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedParams, check_estimator_names
@@ -52,9 +51,7 @@ class ObservationConfig:
     order; ``fused_params``: the fused filter's parameters (given, or :func:`fused_params_for_tof`
     of the ToF model and the task; None when raw); ``privileged`` / ``deck_motion``: the landing
     task's flat observation options; ``deck_forecast``: the options of the deck-motion forecast the
-    landing task's flat observation appends (None: off); ``batch_estimators``: run the estimators
-    through their batched form (:mod:`ihrcf_env.core.batch.pipeline`) with one row, the arithmetic
-    of a vector env's batched sub-envs."""
+    landing task's flat observation appends (None: off)."""
 
     raw: bool = False
     calibration: Calibration | None = None
@@ -65,7 +62,6 @@ class ObservationConfig:
     fused_params: FusedParams | None = None
     privileged: bool = False
     deck_motion: bool = False
-    batch_estimators: bool = False
     deck_forecast: ForecastOptions | None = None
 
 
@@ -120,7 +116,6 @@ def check_observation_options(
     fused_params: object = None,
     privileged: object = False,
     deck_motion: object = False,
-    batch_estimators: object = False,
     deck_forecast: object = None,
 ) -> ObservationConfig:
     """The wrapper options' type and range checks (no file read): an :class:`ObservationConfig`
@@ -152,17 +147,6 @@ def check_observation_options(
             "deck_forecast: the hover task's flat observation (flatten=True) has no forecast fields; "
             "use its Dict observation (flatten=False), where the forecast is obs['forecast']"
         )
-    batch = check_bool("batch_estimators", batch_estimators)
-    if batch and not batchable_names(names):
-        raise ValueError(
-            f"batch_estimators: the batched form covers the built-in estimators {sorted(BATCHED)} "
-            f"only, got {list(names)}"
-        )
-    if batch and isinstance(fused_params, FusedParams) and fused_params.deck_model != "kinematic":
-        raise ValueError(
-            f"batch_estimators: the batched fused filter has the kinematic deck model only, got "
-            f"fused_params.deck_model={fused_params.deck_model!r}"
-        )
     if is_raw:
         given = [
             n
@@ -171,7 +155,6 @@ def check_observation_options(
                 ("flatten", flat, False),
                 ("privileged", priv, False),
                 ("deck_motion", motion, False),
-                ("batch_estimators", batch, False),
                 ("deck_forecast", forecast, None),
                 ("calibration", calibration, None),
                 ("fused_params", fused_params, None),
@@ -189,7 +172,6 @@ def check_observation_options(
         fused_params=fused_params,
         privileged=priv,
         deck_motion=motion,
-        batch_estimators=batch,
         deck_forecast=forecast,
     )
 

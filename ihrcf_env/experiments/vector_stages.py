@@ -37,9 +37,7 @@ from threadpoolctl import threadpool_limits
 
 import ihrcf_env
 from ihrcf_env._warnings import older_version_allowed
-from ihrcf_env.core.batch import pipeline
-from ihrcf_env.core.batch.fused import BatchFused
-from ihrcf_env.core.batch.pipeline import BatchDeckPoseEstimator
+from ihrcf_env.core.estimators.pipeline import DeckPoseEstimator
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
 from ihrcf_env.envs.landing_v1 import DeckLandingV1Env
 from ihrcf_env.experiments.vector_speed import single_speed
@@ -51,7 +49,6 @@ from ihrcf_env.sim.batched.ranging import BatchedToF
 from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
 from ihrcf_env.vector import env as vector
 from ihrcf_env.vector.env import DeckLandingVectorEnv
-from ihrcf_env.vector.obs import BatchedObservations
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
 from ihrcf_env.wrappers.landing_obs import LandingObservation
 
@@ -95,31 +92,15 @@ STAGES: tuple[Stage, ...] = (
     ),
     Stage("task: each env's reset", PER_ENV, ((LandingObservation, "reset_raw"),)),
     Stage("estimators: each env's frame", PER_ENV, ((EstimatorStage, "prepare"),)),
-    Stage(
-        "estimators: ATDA candidates (cv2, per frame)", PER_ENV, ((BatchDeckPoseEstimator, "_candidates"),)
-    ),
-    Stage(
-        "estimators: IHRCF, ATDA choice, fused filter",
-        ARRAYS,
-        ((pipeline, "ihrcf_batch"), (pipeline, "pnp_choose"), (BatchFused, "update"), (BatchFused, "motion")),
-    ),
-    Stage(
-        "estimators: frames stacked, estimates per row",
-        PER_ENV,
-        ((BatchDeckPoseEstimator, "update"), (pipeline, "stack_frames"), (pipeline, "stack_atda_candidates")),
-    ),
+    Stage("estimators: each env's (IHRCF, ATDA, fused filter)", PER_ENV, ((DeckPoseEstimator, "update"),)),
     Stage("observation: each env's", PER_ENV, ((LandingObservation, "complete"),)),
     Stage(
-        "estimators and observation: each env's own (not batched)",
+        "observation: each env's step and reset (the rest)",
         PER_ENV,
         ((LandingObservation, "observe_step"), (LandingObservation, "reset")),
     ),
     Stage("info: stacked", PER_ENV, ((vector, "stack_infos"),)),
-    Stage(
-        "vector env: rows, autoreset, batching",
-        PER_ENV,
-        ((DeckLandingVectorEnv, "step"), (BatchedObservations, "run")),
-    ),
+    Stage("vector env: rows, autoreset", PER_ENV, ((DeckLandingVectorEnv, "step"),)),
 )
 
 

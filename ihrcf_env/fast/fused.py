@@ -1,6 +1,6 @@
 """The IMU-fused deck-pose filter for one environment: the port of
-:class:`ihrcf_env.core.batch.fused.BatchFused` (one row) and its measurement step
-(``core.batch.fused_measure.measure``): time checks, bad IMU samples, timeouts, the IMM
+:class:`ihrcf_env.core.estimators.fused.FusedEstimator` (one filter per environment, its reasons as
+the codes of :mod:`ihrcf_env.core.estimators.fused_reasons`): time checks, bad IMU samples, timeouts, the IMM
 prediction on the IMU, IHRCF and ATDA with the filter's flip prior, the gated sequential blocks in
 the single filter's order, the rejection counters, the range-noise and range-offset estimates, the
 position reseed at agreeing measurements, the numerical reset, the delay compensation and the
@@ -21,9 +21,9 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from ihrcf_env.core.batch import fused_result as fr
 from ihrcf_env.core.calibration.tables import RangePixelTable
 from ihrcf_env.core.constants import GRAVITY
+from ihrcf_env.core.estimators import fused_reasons as fr
 from ihrcf_env.core.estimators.fused_params import FusedParams
 from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.rig import SensorRig
@@ -72,8 +72,11 @@ class Bank(NamedTuple):
 
 
 class FusedOutput(NamedTuple):
-    """The filter's output (:class:`~ihrcf_env.core.batch.fused_result.BatchFusedOutput`'s arrays
-    for one environment)."""
+    """The filter's output for one environment: the :class:`PoseEstimate` of
+    :meth:`FusedEstimator.update <ihrcf_env.core.estimators.fused.FusedEstimator.update>` and its
+    ``motion()`` as arrays, and its reason as codes (``outer`` / ``inner`` of
+    :mod:`ihrcf_env.core.estimators.fused_reasons`, IHRCF's and ATDA's of
+    :mod:`ihrcf_env.core.estimators.reasons`) with the numbers the templates need."""
 
     position: Array
     euler: Array
@@ -94,8 +97,8 @@ class FusedOutput(NamedTuple):
 
 
 class FusedState(NamedTuple):
-    """The filter's state (:class:`~ihrcf_env.core.batch.fused.BatchFused`'s per-row arrays) and
-    its last output."""
+    """The filter's state (the :class:`~ihrcf_env.core.estimators.fused.FusedEstimator`'s as arrays)
+    and its last output."""
 
     pos: Bank
     att: Bank
@@ -117,8 +120,9 @@ class FusedState(NamedTuple):
 
 
 class FusedFrame(NamedTuple):
-    """One sensor frame (:class:`~ihrcf_env.core.batch.fused_frames.BatchFrames`'s fields for one
-    environment, without the reason text)."""
+    """One sensor frame (the fields of a :class:`~ihrcf_env.core.estimators.base.SensorFrame` as
+    arrays, without the reason text: ``detected`` for corners present, ``imu_present`` /
+    ``arrival_present`` for the IMU samples, unknown times NaN)."""
 
     time: Array
     detected: Array
@@ -298,7 +302,8 @@ def _measure(
     R_wb: Array,
     cands: Candidates | None,
 ) -> tuple[FusedState, Array, Array, Array, Array]:
-    """``measure`` of core.batch.fused_measure: (state, inner, ihrcf code, ihrcf RMS, ATDA code)."""
+    """The frame's measurement step (``FusedEstimator._measure``): (state, inner, ihrcf code,
+    ihrcf RMS, ATDA code)."""
     c = setup.consts
     p = c.params
     pos, att = st.pos, st.att

@@ -1,8 +1,9 @@
 """The fused filter's measurement blocks for one environment: the port of
-:class:`ihrcf_env.core.batch.fused_blocks.BlocksBatch` (ATDA's and IHRCF's attitude and position
-measurements with their covariances in the filter's world axes, the refit on the filtered deck
-normal and its yaw), of the IMU sample (:func:`ihrcf_env.core.batch.fused.imu_batch`) and of the
-range-noise and range-offset estimates (``core.batch.fused_measure``).
+:class:`ihrcf_env.core.estimators.fused_measurements.MeasurementBlocks` (ATDA's and IHRCF's
+attitude and position measurements with their covariances in the filter's world axes, the refit
+on the filtered deck normal and its yaw), of the IMU sample
+(:func:`ihrcf_env.core.estimators.fused_delay.imu_sample`) and of the range-noise and
+range-offset estimates of :class:`~ihrcf_env.core.estimators.fused.FusedEstimator`.
 
 Configuration is host-side (:func:`fused_consts`: the parameters, the rig, the plane-fit shapes
 per set of used sensors); estimates and measurements are arrays. Frames: body (world from body
@@ -19,8 +20,8 @@ import numpy as np
 from jax import Array
 from numpy.typing import NDArray
 
-from ihrcf_env.core.batch import fused_result as fr
 from ihrcf_env.core.constants import GRAVITY
+from ihrcf_env.core.estimators import fused_reasons as fr
 from ihrcf_env.core.estimators.fused_measurements import _plane_shape
 from ihrcf_env.core.estimators.fused_params import FusedParams
 from ihrcf_env.core.frames import R_BODY_CAM
@@ -73,8 +74,8 @@ class FusedConsts(NamedTuple):
 
 
 def fused_consts(params: FusedParams, rig: SensorRig, tag_size: float, max_residual: float) -> FusedConsts:
-    """The :class:`FusedConsts` of a configuration (as :class:`~ihrcf_env.core.batch.fused.BatchFused`
-    derives them)."""
+    """The :class:`FusedConsts` of a configuration (as
+    :class:`~ihrcf_env.core.estimators.fused.FusedEstimator` derives them)."""
     from scipy.stats import chi2
 
     xy = np.asarray(rig.sensor_xy_cam, dtype=np.float64)

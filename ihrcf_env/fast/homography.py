@@ -1,5 +1,5 @@
 """The homography of four exact correspondences (Heckbert's square-to-quad closed form, as
-:func:`ihrcf_env.core.batch.geometry.homography4_batch`), its application to points, and the
+:func:`ihrcf_env.core.geometry.homography_from_points` of four points), its application to points, and the
 scale-invariant collinearity test of :func:`ihrcf_env.core.geometry.collinear`, for one frame."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """IHRCF (the deck pose from the tag's corners and the four ranges) for one frame: the port of
-:func:`ihrcf_env.core.batch.ihrcf.ihrcf_measure_batch`, with the same checks in the same order
-(the first failure gives the reason code of :data:`ihrcf_env.core.batch.result.REASONS`).
+:func:`ihrcf_env.core.estimators.ihrcf.ihrcf_estimate`, with the same checks in the same order
+(the first failure gives the reason code of :data:`ihrcf_env.core.estimators.reasons.REASONS`).
 
 Frames: pixels (OpenCV), camera (OpenCV), body (``R_BODY_CAM``); the pose is the deck in the body
 frame (``R_body_deck``, deck origin in m).
@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from ihrcf_env.core.batch import result as rs
+from ihrcf_env.core.estimators import reasons as rs
 from ihrcf_env.core.estimators.base import DEGENERATE_REL_TOL
 from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.geometry import quad_is_degenerate

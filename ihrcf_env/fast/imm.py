@@ -1,5 +1,5 @@
 """Interacting multiple models for one environment: the filter bank of the fused estimator
-(:class:`ihrcf_env.core.estimators.imm.Imm`, batched in :class:`ihrcf_env.core.batch.imm.BatchImm`):
+(the port of :class:`ihrcf_env.core.estimators.imm.Imm`):
 m constant-acceleration models of three values (positions, or angles wrapped to (-pi, pi]) that
 differ in their acceleration drift, mixed through a Markov switch.
 

@@ -1,6 +1,7 @@
-"""Closed-form IPPE for a square tag (Collins & Bartoli 2014) for one frame: the port of
-:mod:`ihrcf_env.core.batch.ippe` (OpenCV's pinhole camera with the (k1, k2, p1, p2, k3) model, the
-fixed-point undistortion, both IPPE poses ``X_cam = R X_marker + t``)."""
+"""Closed-form IPPE for a square tag (Collins & Bartoli 2014) for one frame: OpenCV's
+``SOLVEPNP_IPPE_SQUARE`` as ATDA calls it (:mod:`ihrcf_env.core.estimators.atda`): the pinhole
+camera with the (k1, k2, p1, p2, k3) model, the fixed-point undistortion, both IPPE poses
+``X_cam = R X_marker + t``."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """``cv2.solvePnPRefineLM``'s Levenberg-Marquardt for one pose, with a fixed number of iterations:
-the port of :func:`ihrcf_env.core.batch.cvlm.refine_cv_lm` (its parametrisation ``p = (rvec,
-tvec)``, residuals and Jacobian of ``projectPoints``, damping, geodesic acceleration and stopping
+the port of OpenCV's algorithm (:mod:`ihrcf_env.core.estimators.cv_lm`: its parametrisation
+``p = (rvec, tvec)``, residuals and Jacobian of ``projectPoints``, damping, geodesic acceleration and stopping
 rules). The loop always runs ``max_iter`` steps under ``lax.scan``; once a stopping rule fires
 the pose is frozen, so the result is the stopping algorithm's. The damped normal equations are
 solved by an unrolled Cholesky factorisation (cv2 uses an SVD): the results agree with cv2's to
@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array, lax
 
-from ihrcf_env.core.batch import cvlm
+from ihrcf_env.core.estimators import cv_lm as cvlm
 
 __all__ = [
     "LMResult",

@@ -35,13 +35,13 @@ import numpy as np
 from jax import Array, tree_util
 
 from ihrcf_env.config.landing import DeckLandingConfig
-from ihrcf_env.core.batch import fused_result as fr
-from ihrcf_env.core.batch import result as rs
-from ihrcf_env.core.batch.pipeline import BATCHED
-from ihrcf_env.core.batch.pnp import MAX_LM_ITER
 from ihrcf_env.core.calibration import Calibration
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.estimators import FusedParams
+from ihrcf_env.core.estimators import fused_reasons as fr
+from ihrcf_env.core.estimators import reasons as rs
+from ihrcf_env.core.estimators.cv_lm import MAX_ITER as MAX_LM_ITER
+from ihrcf_env.core.estimators.registry import BUILTIN_ESTIMATORS
 from ihrcf_env.core.landing_layout import (
     GROUND_TRUTH,
     MAX_AGE,
@@ -136,8 +136,8 @@ class ObserveParams:
 class EstimateInfo(NamedTuple):
     """One estimate as the env's ``info`` shows it (the estimate shown this step).
 
-    ``valid``; ``code``: the reason code (IHRCF and ATDA: :data:`ihrcf_env.core.batch.result.REASONS`;
-    fused: the outer code of :data:`ihrcf_env.core.batch.fused_result.OUTER`), 0 when valid;
+    ``valid``; ``code``: the reason code (IHRCF and ATDA: :data:`ihrcf_env.core.estimators.reasons.REASONS`;
+    fused: the outer code of :data:`ihrcf_env.core.estimators.fused_reasons.OUTER`), 0 when valid;
     ``position`` (3,) m and ``euler`` (3,) rad of the deck in the body frame (zeros when invalid);
     ``age`` (s) since the exposure of the frame behind it (NaN before the first frame);
     ``residual``; ``status``: the frame's tag status (``tag_status``; :data:`NO_FRAME_STATUS`
@@ -230,10 +230,11 @@ def observe_params(config: DeckLandingConfig, lm_iterations: int = MAX_LM_ITER) 
             "deck_forecast: the deck-motion forecast block is not available in the JAX observation"
         )
     names = tuple(obs.estimators)
-    unknown = [n for n in names if n not in BATCHED]
+    available = sorted(BUILTIN_ESTIMATORS)  # the JAX observation ports every built-in estimator
+    unknown = [n for n in names if n not in available]
     if unknown:
         raise ValueError(
-            f"estimators: {unknown} not available in the JAX observation (available: {sorted(BATCHED)})"
+            f"estimators: {unknown} not available in the JAX observation (available: {available})"
         )
     if world.camera is None:
         raise ValueError("camera: the landing observation needs a camera")

@@ -1,5 +1,5 @@
 """The deck plane through the ToF touch points and its depth above camera-frame XY: the ports of
-:func:`ihrcf_env.core.batch.geometry.fit_plane_batch` and ``plane_z_batch`` for one frame (camera
+:func:`ihrcf_env.core.geometry.fit_plane` (on the used points) and ``plane_z`` for one frame (camera
 frame, m)."""
 
 from __future__ import annotations

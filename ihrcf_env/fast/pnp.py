@@ -1,7 +1,7 @@
 """ATDA's square-tag PnP for one frame: both closed-form IPPE poses polished by the
 fixed-iteration LM (:mod:`.lm`), then ATDA's choice (the lower RMS reprojection error, or of the
 two the one nearer a prior rotation when their errors are within ``AMBIGUITY_RATIO``): the port
-of :func:`ihrcf_env.core.batch.pnp.pnp_candidates` and ``pnp_choose``. Poses: the deck in the
+of :func:`ihrcf_env.core.estimators.atda.atda_candidates` and ``atda_choose``. Poses: the deck in the
 body frame (m, rad); errors: RMS px."""
 
 from __future__ import annotations
@@ -12,9 +12,11 @@ import jax
 import jax.numpy as jnp
 from jax import Array
 
-from ihrcf_env.core.batch import result as rs
-from ihrcf_env.core.batch.pnp import AMBIGUITY_RATIO, MAX_LM_ITER, R_MARKER_DECK, UNDISTORT_ITERATIONS
+from ihrcf_env.core.estimators import reasons as rs
+from ihrcf_env.core.estimators.atda import AMBIGUITY_RATIO, R_MARKER_DECK
 from ihrcf_env.core.estimators.base import DEGENERATE_REL_TOL
+from ihrcf_env.core.estimators.cv_lm import MAX_ITER as MAX_LM_ITER
+from ihrcf_env.core.estimators.cv_lm import UNDISTORT_ITERATIONS
 from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.fast.homography import collinear
 from ihrcf_env.fast.ihrcf import Pose, assemble

@@ -1,5 +1,5 @@
 """Least-squares rigid transform ``Q ~ R P + t`` (Kabsch without scale, det +1): the port of
-:func:`ihrcf_env.core.batch.geometry.rigid_fit_batch` for one point set, the SVD by one-sided
+:func:`ihrcf_env.core.geometry.rigid_fit` for one point set, the SVD by one-sided
 Jacobi sweeps."""
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
 """The range -> touch-pixel table (:class:`~ihrcf_env.core.calibration.tables.RangePixelTable`) as
 arrays, and its lookup for one frame: the same cubic pieces, clamping and flags as
-:class:`ihrcf_env.core.batch.tables.BatchTable` (m in, px out)."""
+:meth:`RangePixelTable.__call__ <ihrcf_env.core.calibration.tables.RangePixelTable.__call__>`
+(m in, px out)."""
 
 from __future__ import annotations
 

@@ -18,7 +18,7 @@ Both fly several :class:`Flight` s (seeds with their pilot) as one queue
 share a policy, together, so the flyers wait for the slowest episode once instead of twice.
 
 Each episode of a :class:`VectorFlyer` is the one :func:`fly` gives in a single env made with the
-vector env's options (its ``batch_estimators`` included), bit for bit. Neither needs PyTorch.
+vector env's options, bit for bit. Neither needs PyTorch.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ from ihrcf_env.control.policies import LANDING_CONFIGS, V1_LANDING_CONFIG, Scrip
 from ihrcf_env.core.checks import check_int
 from ihrcf_env.core.threads import one_blas_thread
 from ihrcf_env.rl.envs import make_env
-from ihrcf_env.vector.checks import MAX_ENVS, resolve_batch
+from ihrcf_env.vector.checks import MAX_ENVS
 from ihrcf_env.vector.info import unbatch_info
 
 
@@ -202,19 +202,17 @@ class Pool:
 
 # --- one vector env -----------------------------------------------------------------------------
 class _VectorQueue:
-    """A native vector env of ``num_envs`` envs in this process (estimators batched as
-    ``batch_estimators`` says) with an expert per env, flying queues of jobs."""
+    """A native vector env of ``num_envs`` envs in this process with an expert per env, flying
+    queues of jobs."""
 
-    def __init__(
-        self, env_id: str, env_kw: dict[str, Any], num_envs: int, batch_estimators: bool, commit_below: float
-    ) -> None:
+    def __init__(self, env_id: str, env_kw: dict[str, Any], num_envs: int, commit_below: float) -> None:
         probe = make_env(env_id, "projected", **env_kw)
         try:
             self._experts = [make_expert(probe, commit_below) for _ in range(num_envs)]
             self._size = int(probe.observation_space.shape[0])  # type: ignore[index]
         finally:
             probe.close()
-        options = {"camera_model": "projected", **env_kw, "batch_estimators": batch_estimators}
+        options = {"camera_model": "projected", **env_kw}
         with older_version_allowed():
             self._vec: Any = gym.make_vec(env_id, num_envs=num_envs, **options)  # seeds as a list
         self.num_envs = num_envs
@@ -282,11 +280,9 @@ class _VectorQueue:
         self._vec.close()
 
 
-def init_vector_worker(
-    env_id: str, env_kw: dict[str, Any], num_envs: int, batch_estimators: bool, commit_below: float
-) -> None:
+def init_vector_worker(env_id: str, env_kw: dict[str, Any], num_envs: int, commit_below: float) -> None:
     """This process's vector env and experts for :func:`fly_share`."""
-    _WORKER["queue"] = _VectorQueue(env_id, env_kw, num_envs, batch_estimators, commit_below)
+    _WORKER["queue"] = _VectorQueue(env_id, env_kw, num_envs, commit_below)
 
 
 def fly_share(queue: Sequence[Job]) -> list[Episode]:
@@ -299,22 +295,20 @@ class VectorFlyer:
     """Episodes flown by native vector envs, an expert per env: one vector env of ``num_envs``
     envs in this process, or with ``workers`` > 1 one of ``num_envs // workers`` envs in each of
     ``workers`` processes, which fly every ``workers``-th job of a queue with their own experts and
-    pilots (module docstring). ``batch_estimators`` is decided for ``num_envs`` envs."""
+    pilots (module docstring)."""
 
     def __init__(
         self, env_id: str, env_kw: dict[str, Any], num_envs: int, workers: int, commit_below: float
     ) -> None:
         n = check_int("num_envs", num_envs, low=1, high=MAX_ENVS)
         w = check_int("workers", workers, low=1, high=n)
-        opts = {"camera_model": "projected", **env_kw}
-        batch = resolve_batch(n, opts.pop("batch_estimators", None), opts)
         self.num_envs, self.workers = n, w
         self._local: _VectorQueue | None = None
         self._ex: cf.ProcessPoolExecutor | None = None
         if w == 1:
-            self._local = _VectorQueue(env_id, env_kw, n, batch, commit_below)
+            self._local = _VectorQueue(env_id, env_kw, n, commit_below)
         else:
-            self._ex = start_processes(w, init_vector_worker, (env_id, env_kw, n // w, batch, commit_below))
+            self._ex = start_processes(w, init_vector_worker, (env_id, env_kw, n // w, commit_below))
 
     def fly(
         self, seeds: Sequence[int], policy: GruPolicy | None, noise: float, label: bool = True

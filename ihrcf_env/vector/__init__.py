@@ -1,14 +1,14 @@
 """The landing tasks' Gymnasium vector envs: ``gym.make_vec(id, num_envs=N)`` (and ``workers=K``).
 
 * :class:`DeckLandingVectorEnv` (:mod:`ihrcf_env.vector.env`): N envs in this process, stepped
-  together (their estimators batched from :data:`BATCH_FROM` envs on, their worlds advanced in one
+  together (each env's observation through its own estimators; their worlds advanced in one
   batched step with ``physics="numpy"``);
 * :class:`WorkerVectorEnv` (:mod:`ihrcf_env.vector.workers`): N envs over K worker processes, each
   holding a ``DeckLandingVectorEnv`` of its share;
 * :func:`make_landing_v1` / :func:`make_landing_v2`: the ids' ``vector_entry_point`` (``workers``
   picks the kind);
 * :mod:`ihrcf_env.vector.checks` (the arguments checked whole), :mod:`ihrcf_env.vector.info`
-  (the vector ``info``), :mod:`ihrcf_env.vector.obs` (the batched observation stage).
+  (the vector ``info``).
 """
 
 from __future__ import annotations
@@ -18,13 +18,12 @@ from typing import Any
 from gymnasium.vector import VectorEnv
 
 from ihrcf_env.core.checks import check_int
-from ihrcf_env.vector.checks import BATCH_FROM, MAX_ENVS
+from ihrcf_env.vector.checks import MAX_ENVS
 from ihrcf_env.vector.env import DeckLandingVectorEnv
 from ihrcf_env.vector.info import stack_infos, unbatch_info
 from ihrcf_env.vector.workers import MAX_WORKERS, WorkerError, WorkerVectorEnv
 
 __all__ = [
-    "BATCH_FROM",
     "MAX_ENVS",
     "MAX_WORKERS",
     "DeckLandingVectorEnv",
@@ -43,7 +42,7 @@ def make_vector_env(
 ) -> VectorEnv:
     """The vector env of ``num_envs`` envs of ``env_id``: PyBullet envs in this process
     (``workers=1``) or over ``workers`` processes; ``options`` as ``gym.make`` takes them (and
-    ``autoreset_mode``, ``batch_estimators``). ``backend="jax"``: the compiled JAX step
+    ``autoreset_mode``). ``backend="jax"``: the compiled JAX step
     (:mod:`ihrcf_env.vector.jax_make`; needs the ``[jax]`` extra; also ``seeding``, ``dtype``)."""
     if backend == "jax":
         if workers != 1:

@@ -15,12 +15,9 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
-from ihrcf_env.core.batch.pipeline import batchable_names
-from ihrcf_env.core.checks import check_bool, check_int
-from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS
+from ihrcf_env.core.checks import check_int
 
 __all__ = [
-    "BATCH_FROM",
     "MAX_ENVS",
     "UNSUPPORTED_OPTIONS",
     "check_actions",
@@ -28,7 +25,6 @@ __all__ = [
     "check_env_mask",
     "check_options",
     "env_seeds",
-    "resolve_batch",
     "rows_text",
     "split_reset_mask",
     "time_limit",
@@ -36,8 +32,6 @@ __all__ = [
 
 #: Largest ``num_envs`` of one process (each env holds a physics client).
 MAX_ENVS = 1024
-#: Fewest envs whose estimators run as one batch by default (below, a batch costs more than it saves).
-BATCH_FROM = 8
 #: Options the vector env does not take (a GUI is one per process; the vector env does not render).
 UNSUPPORTED_OPTIONS = ("render_mode",)
 #: Most rows an error message lists one by one.
@@ -110,20 +104,6 @@ def split_reset_mask(
         return None, options
     rest = {k: v for k, v in options.items() if k != "reset_mask"}
     return check_env_mask("options['reset_mask']", options["reset_mask"], n), rest or None
-
-
-def resolve_batch(n: int, batch_estimators: object, options: dict[str, Any]) -> bool:
-    """Whether a vector env of ``n`` envs with these ``options`` runs its estimators as one batch:
-    ``batch_estimators`` when given (a bool), else from :data:`BATCH_FROM` envs on when its
-    estimators have a batched form (and the envs are not raw)."""
-    if batch_estimators is not None:
-        return check_bool("batch_estimators", batch_estimators)
-    names = options.get("estimators", DEFAULT_ESTIMATORS)
-    try:
-        names = tuple(names)
-    except TypeError:
-        return False  # the env's own checks name the bad option
-    return n >= BATCH_FROM and not options.get("raw", False) and batchable_names(names)
 
 
 def check_autoreset_mode(autoreset_mode: object) -> AutoresetMode:

@@ -16,12 +16,10 @@ calls, the checks of its inputs (whole, before any env steps). A step runs in th
 task's :meth:`~ihrcf_env.envs.deck_landing.DeckLandingEnv.begin_step` (the action handed over),
 the worlds advanced (one at a time, or with ``physics="numpy"`` all in one batched physics step),
 every task's :meth:`~ihrcf_env.envs.deck_landing.DeckLandingEnv.end_step` (sensing, task rules,
-info); then the observations.
-From :data:`~ihrcf_env.vector.checks.BATCH_FROM` envs on, their estimators run as one batch
-(:mod:`ihrcf_env.vector.obs`; ``batch_estimators=True`` / ``False`` forces it either way). Sub-env
-``i`` of ``reset(seed=s)`` is the single env reset with seed ``s + i``, made with
-``batch_estimators`` as the vector env decided it: it reproduces ``gym.make(id,
-batch_estimators=..., **options)`` step for step, bit for bit.
+info); then the observations, each env's through its own observation wrapper and estimators.
+Sub-env ``i`` of ``reset(seed=s)`` is the single env reset with seed ``s + i``: it reproduces
+``gym.make(id, **options)`` step for step, bit for bit. (The batched path of the estimators is the
+JAX backend, ``gym.make_vec(id, num_envs, backend="jax")``.)
 """
 
 from __future__ import annotations
@@ -46,17 +44,28 @@ from ihrcf_env.vector.checks import (
     check_env_mask,
     check_options,
     env_seeds,
-    resolve_batch,
     split_reset_mask,
     time_limit,
 )
 from ihrcf_env.vector.info import stack_infos
-from ihrcf_env.vector.obs import Row, StepResult, batched_observations
 from ihrcf_env.wrappers.landing_obs import LandingObservation
 
-__all__ = ["DeckLandingVectorEnv", "SubEnv", "build_env"]
+__all__ = ["DeckLandingVectorEnv", "Row", "StepResult", "SubEnv", "build_env"]
 
 StepReturn = tuple[NDArray[Any], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]
+#: One task's step results (the raw observation, reward, terminated, truncated, info), as
+#: :meth:`~ihrcf_env.envs.deck_landing.DeckLandingEnv.end_step` returns them.
+StepResult = tuple[dict[str, Any], float, bool, bool, dict[str, Any]]
+
+
+class Row(NamedTuple):
+    """One env's results of a vector step (a reset: reward 0, not ended)."""
+
+    obs: NDArray[np.float32]
+    reward: float
+    terminated: bool
+    truncated: bool
+    info: dict[str, Any]
 
 
 class SubEnv(NamedTuple):
@@ -101,7 +110,6 @@ class DeckLandingVectorEnv(VectorEnv):
         env_id: str,
         num_envs: int = 1,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-        batch_estimators: bool | None = None,
         max_episode_steps: int | None = None,
         disable_env_checker: bool | None = None,
         **options: Any,
@@ -109,7 +117,6 @@ class DeckLandingVectorEnv(VectorEnv):
         self._subs: list[SubEnv] = []
         self._closed_envs = True
         n = check_int("num_envs", num_envs, low=1, high=MAX_ENVS)
-        batch = resolve_batch(n, batch_estimators, options)
         self.autoreset_mode = check_autoreset_mode(autoreset_mode)
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         #: the episodes' step limit (None: none)
@@ -117,7 +124,7 @@ class DeckLandingVectorEnv(VectorEnv):
         check_options(options)
         self._closed_envs = False
         try:
-            self._subs.append(build_env(env_id, {**options, "batch_estimators": batch}))
+            self._subs.append(build_env(env_id, options))
             # the others share the first one's resolved config: validated and loaded once
             shared = {"config": self._subs[0].task.config}
             if "calibration" in options:
@@ -138,19 +145,9 @@ class DeckLandingVectorEnv(VectorEnv):
         self._autoreset = np.zeros(n, dtype=bool)
         self._elapsed = np.zeros(n, dtype=np.int64)  # steps of each env's episode
         self._numpy_physics = self._subs[0].task.config.world.physics == "numpy"
-        #: the batched observation stage (None: each env's own wrapper)
-        self._batched = batched_observations([s.wrapper for s in self._subs]) if batch else None
-        if batch and self._batched is None:
-            self.close_extras()
-            raise ValueError("batch_estimators: these envs' observation cannot be batched (see vector.obs)")
         self._was_reset = False
         #: each env's last observation (the rows a partial reset leaves)
         self._obs: list[Any] = [None] * n
-
-    @property
-    def batch_estimators(self) -> bool:
-        """True when the envs' estimators run as one batch (False: each env's own)."""
-        return self._batched is not None
 
     @property
     def envs(self) -> tuple[gym.Env, ...]:
@@ -264,8 +261,6 @@ class DeckLandingVectorEnv(VectorEnv):
         ``reset_rows``, reset here (env ``i`` with ``seeds[i]``, ``options``); row -> :class:`Row`."""
         self._elapsed[reset_rows] = 0
         self._autoreset[reset_rows] = False
-        if self._batched is not None:
-            return self._batched.run(stepped, reset_rows, seeds, options)
         out: dict[int, Row] = {}
         for i, result in stepped.items():
             wrapper = self._subs[i].wrapper

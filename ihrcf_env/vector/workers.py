@@ -45,7 +45,6 @@ from ihrcf_env.vector.checks import (
     check_env_mask,
     check_options,
     env_seeds,
-    resolve_batch,
     split_reset_mask,
     time_limit,
 )
@@ -213,7 +212,7 @@ def check_env_options(env_id: str, options: dict[str, Any]) -> None:
 
 class WorkerVectorEnv(VectorEnv):
     """``num_envs`` envs of ``env_id`` over ``workers`` processes (module docstring); ``options``
-    as for ``gym.make`` (and ``autoreset_mode``, ``batch_estimators``, ``max_episode_steps``)."""
+    as for ``gym.make`` (and ``autoreset_mode``, ``max_episode_steps``)."""
 
     def __init__(
         self,
@@ -221,7 +220,6 @@ class WorkerVectorEnv(VectorEnv):
         num_envs: int,
         workers: int,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-        batch_estimators: bool | None = None,
         max_episode_steps: int | None = None,
         disable_env_checker: bool | None = None,
         **options: Any,
@@ -233,16 +231,14 @@ class WorkerVectorEnv(VectorEnv):
         self.sizes = check_shares(num_envs, workers)
         n, k = sum(self.sizes), len(self.sizes)
         # the in-process env's checks, here, before any worker starts
-        batch = resolve_batch(n, batch_estimators, options)
         mode = check_autoreset_mode(autoreset_mode)
         #: the episodes' step limit (None: none)
         self.max_episode_steps = time_limit(env_id, max_episode_steps)
         check_options(options)
-        check_env_options(env_id, {**options, "batch_estimators": batch})
+        check_env_options(env_id, options)
         worker_options = {
             **options,
             "autoreset_mode": mode,
-            "batch_estimators": batch,  # as one vector env of N envs decides it
             "max_episode_steps": -1 if self.max_episode_steps is None else self.max_episode_steps,
         }
         self.offsets = np.cumsum([0, *self.sizes])

@@ -68,7 +68,6 @@ from numpy.typing import NDArray
 from ihrcf_env.config.landing import DeckLandingConfig
 from ihrcf_env.config.make import make_config
 from ihrcf_env.config.observation import ObservationConfig, resolve_observation
-from ihrcf_env.core.batch.pipeline import BatchDeckPoseEstimator
 from ihrcf_env.core.calibration import Calibration
 from ihrcf_env.core.constants import GRAVITY
 from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedEstimator, FusedParams, PoseEstimate
@@ -143,9 +142,6 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         deck_forecast: append the deck-motion forecast (module docstring; True, or a
             :class:`~ihrcf_env.core.forecast.ForecastOptions` or a dict of its fields; needs the
             ``fused`` estimator); default False.
-        batch_estimators: run the estimators through their batched form with one row
-            (:class:`~ihrcf_env.core.batch.pipeline.BatchDeckPoseEstimator`): the same numbers as a
-            vector env's batched sub-env, bit for bit; default False.
         observation: the resolved :class:`~ihrcf_env.config.observation.ObservationConfig` (as
             :func:`~ihrcf_env.config.make.make_config` makes it); given, the options above are not
             read again (``calibration`` only for the spec). Otherwise the options are resolved once
@@ -166,7 +162,6 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         fused_params: FusedParams | None = None,
         privileged: bool = False,
         deck_motion: bool = False,
-        batch_estimators: bool = False,
         deck_forecast: bool | ForecastOptions | Mapping[str, Any] | None = False,
         *,
         observation: ObservationConfig | None = None,
@@ -183,7 +178,6 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
                 fused_params=fused_params,
                 privileged=privileged,
                 deck_motion=deck_motion,
-                batch_estimators=batch_estimators,
                 deck_forecast=deck_forecast,
             )
         fc_opts = opts.deck_forecast
@@ -196,7 +190,6 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             fused_params=fused_params if observation is None else opts.fused_params,
             privileged=opts.privileged,
             deck_motion=opts.deck_motion,
-            batch_estimators=opts.batch_estimators,
             **recorded,
         )
         gym.Wrapper.__init__(self, env)
@@ -212,10 +205,6 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.deck_motion = opts.deck_motion
         fused_source = self.stage.sources.get("fused")
         self._fused = fused_source if opts.deck_motion and isinstance(fused_source, FusedEstimator) else None
-        #: the estimators' batched form with one row (``batch_estimators=True``), else None
-        self.batch: BatchDeckPoseEstimator | None = None
-        if opts.batch_estimators:
-            self.batch = BatchDeckPoseEstimator(1, self.stage.estimator.config, names)
         #: the deck-motion forecast (``deck_forecast``), else None
         self.forecast: ForecastFeed | None = None
         if opts.deck_forecast is not None:
@@ -263,8 +252,6 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if self.forecast is not None:
             self.forecast.reset()
         self.stage.reset()
-        if self.batch is not None:
-            self.batch.reset()
         return self.env.reset(seed=seed, options=options)
 
     def take_step(
@@ -297,13 +284,6 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     def _flatten(self, raw: Mapping[str, Any], info: dict[str, Any]) -> NDArray[np.float32]:
         frame = self.stage.prepare(raw)
-        if self.batch is not None:  # the vector env's arithmetic, one row
-            estimates = None if frame is None else self.batch.update([frame])[0]
-            motion = None
-            if self.deck_motion:
-                velocity, rate, defined = self.batch.motion()
-                motion = (velocity[0].copy(), rate[0].copy()) if defined[0] else None
-            return self.complete(raw, info, estimates, motion)
         estimates = None if frame is None else self.stage.estimator.update(frame)
         motion = self._fused.motion() if self._fused is not None else None
         return self.complete(raw, info, estimates, motion)

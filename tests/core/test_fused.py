@@ -850,13 +850,6 @@ def test_oscillator_deck_model_on_a_still_deck() -> None:
     assert est.motion() is not None and est._pos is not None and est._pos.X.shape[1] == 15
 
 
-def test_oscillator_deck_model_is_refused_by_the_batched_filter() -> None:
-    from ihrcf_env.core.batch.fused import BatchFused
-
-    with pytest.raises(ValueError, match="deck_model"):
-        BatchFused(1, touch_pixels, RIG, TAG, K, params=FusedParams(deck_model="oscillator"))
-
-
 def test_oscillator_transition_reduces_to_the_kinematic_model_and_has_the_stated_level() -> None:
     from ihrcf_env.core.estimators.imm import Imm as _Imm
     from ihrcf_env.core.estimators.imm_deck import oscillator_transition
@@ -931,10 +924,8 @@ def test_set_deck_oscillation_centres_the_banks_on_identified_dynamics() -> None
     np.testing.assert_allclose(est._pos.periods, bank)
 
 
-def test_observation_options_refuse_the_oscillator_with_batched_estimators() -> None:
+def test_observation_options_take_the_oscillator() -> None:
     from ihrcf_env.config.observation import check_observation_options
 
     osc = FusedParams(deck_model="oscillator")
     assert check_observation_options(fused_params=osc).fused_params is osc
-    with pytest.raises(ValueError, match=r"batch_estimators.*deck_model='oscillator'"):
-        check_observation_options(fused_params=osc, batch_estimators=True)

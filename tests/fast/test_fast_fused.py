@@ -1,10 +1,13 @@
-"""The fused filter (ihrcf_env.fast.fused) against BatchFused over the histories of
-tests/core/test_batch_fused.py (held frames, resets, lost tags, outliers, bad IMU samples, late
-frames), float64."""
+"""The fused filter (ihrcf_env.fast.fused) against the single filter
+(ihrcf_env.core.estimators.fused.FusedEstimator), env by env, over the histories of
+tests/core/fused_history.py (held frames, resets, lost tags, outliers, bad IMU samples, late
+frames), float64: the same validity and reason text (the codes' text), the outputs within 1e-8."""
 
 from __future__ import annotations
 
+import math
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import jax
@@ -13,17 +16,18 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "core"))
-from test_batch_fused import STEPS, history  # noqa: E402
+from fused_history import STEPS, history  # noqa: E402
 from test_fused import RIG, TAG, K  # noqa: E402
 
-from ihrcf_env.core.batch.fused import BatchFused  # noqa: E402
-from ihrcf_env.core.batch.fused_frames import stack_atda_candidates, stack_frames  # noqa: E402
 from ihrcf_env.core.calibration.tables import RangePixelTable  # noqa: E402
-from ihrcf_env.core.estimators import FusedParams  # noqa: E402
-from ihrcf_env.core.estimators.atda import atda_candidates  # noqa: E402
+from ihrcf_env.core.estimators import FusedEstimator, FusedParams, SensorFrame  # noqa: E402
+from ihrcf_env.core.estimators import fused_reasons as fr  # noqa: E402
+from ihrcf_env.core.estimators import reasons as rs  # noqa: E402
+from ihrcf_env.core.estimators.atda import Candidate, atda_candidates  # noqa: E402
 from ihrcf_env.fast.fused import FusedFrame, fused_init, fused_reset, fused_setup, fused_update  # noqa: E402
 from ihrcf_env.fast.pnp import Candidates  # noqa: E402
 
+MAX_RESIDUAL = 0.01  # fused_setup's and FusedEstimator's default
 XY = RIG.sensor_xy_cam
 
 
@@ -44,16 +48,77 @@ CONFIGS = {
     "ihrcf_only": (FusedParams(use_atda_position=False), None),
     "v2": (FusedParams(reseed_agreeing=True, range_offset_sigma=0.00125, drop_lost_track=True), K),
 }
-FIELDS = ("position", "euler", "rotation", "residual", "velocity", "normal_rate")
-CODES = ("valid", "outer", "inner", "ihrcf_code", "atda_code", "motion_valid")
 
 
-def _frame(b) -> FusedFrame:
-    return FusedFrame(
-        b.time, b.detected, b.corners, b.ranges, b.ranges_valid, b.ranges_time, b.imu_present,
-        b.quaternion, b.angular_velocity, b.specific_force, b.arrival_time, b.arrival_present,
-        b.arrival_quaternion, b.arrival_angular_velocity, b.arrival_specific_force,
-    )  # fmt: skip
+def stack(frames: Sequence[SensorFrame | None]) -> tuple[FusedFrame, list[str]]:
+    """The :class:`FusedFrame` arrays of one frame per env (None: the env is not stepped) and the
+    frames' reasons for an undetected tag."""
+    n = len(frames)
+    time, ranges_time, arrival_time = np.full(n, math.nan), np.full(n, math.nan), np.full(n, math.nan)
+    detected, corners = np.zeros(n, bool), np.zeros((n, 4, 2))
+    ranges, valid = np.zeros((n, 4)), np.zeros((n, 4), bool)
+    imu_p, arr_p = np.zeros(n, bool), np.zeros(n, bool)
+    q, w, f = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)), np.zeros((n, 3)), np.zeros((n, 3))
+    aq, aw, af = q.copy(), w.copy(), f.copy()
+    reasons = [rs.REASONS[rs.NOT_DETECTED]] * n
+    for k, x in enumerate(frames):
+        if x is None:
+            continue
+        time[k], ranges_time[k], arrival_time[k] = x.time, x.ranges_time, x.arrival_time
+        if x.corners is not None:
+            detected[k], corners[k] = True, x.corners
+        reasons[k] = x.corners_reason if x.corners is None else ""
+        ranges[k], valid[k] = x.ranges, x.ranges_valid
+        if x.imu is not None:
+            imu_p[k] = True
+            q[k], w[k], f[k] = x.imu.quaternion, x.imu.angular_velocity, x.imu.specific_force
+        if x.arrival_imu is not None:
+            arr_p[k] = True
+            a = x.arrival_imu
+            aq[k], aw[k], af[k] = a.quaternion, a.angular_velocity, a.specific_force
+    frame = FusedFrame(
+        time, detected, corners, ranges, valid, ranges_time, imu_p, q, w, f, arrival_time, arr_p, aq, aw, af
+    )
+    return frame, reasons
+
+
+def candidates(results: Sequence[list[Candidate] | str]) -> Candidates:
+    """ATDA's candidates (atda_candidates: up to two, or the reason there are none) as arrays: the
+    JAX filter then chooses among the single ATDA's own poses."""
+    n = len(results)
+    rot, pos = np.tile(np.eye(3), (n, 2, 1, 1)), np.zeros((n, 2, 3))
+    err, usable, code = np.full((n, 2), np.inf), np.zeros((n, 2), bool), np.zeros(n, np.int8)
+    for k, res in enumerate(results):
+        if isinstance(res, str):
+            code[k] = rs.REASONS.index(res)
+            continue
+        for s, (e, R, p) in enumerate(res[:2]):
+            err[k, s], rot[k, s], pos[k, s], usable[k, s] = e, R, p, True
+    return Candidates(rot, pos, err, usable, code)
+
+
+def reason(o, e: int, corners_reason: str, params: FusedParams) -> str:
+    """The reason text of env ``e``'s output ``o`` (its codes and numbers, the frame's reason for an
+    undetected tag), written with the templates of ihrcf_env.core.estimators.fused_reasons."""
+    c = int(o.outer[e])
+    if c == fr.OK:
+        return ""
+    ic, a = int(o.inner[e]), int(o.atda_code[e])
+    ihrcf = rs.reason_text(int(o.ihrcf_code[e]), float(o.ihrcf_rms[e]), MAX_RESIDUAL)
+    inner = fr.INNER[ic].format(
+        corners=corners_reason,
+        t=float(o.inner_num[e]),
+        timeout=params.lost_timeout,
+        ihrcf=ihrcf if ic in (fr.BOTH_FAILED, fr.IHRCF_FAILED) else "",
+        atda="ATDA not used" if a == fr.ATDA_NOT_USED else rs.REASONS[a],
+    )
+    if c in (fr.NOT_INITIALISED, fr.POSITION_NOT_INITIALISED):
+        return fr.OUTER[c].format(inner=inner or "no measurement yet")
+    x, y = (float(v) for v in o.outer_num[e])
+    text = fr.OUTER[c].format(a=x, b=y)
+    if c in (fr.CONVERGING_UPDATES, fr.CONVERGING_POSITION, fr.CONVERGING_ANGLE) and inner:
+        text += f" ({inner})"
+    return text
 
 
 #: Configurations whose compile is left to the slow run (``pytest -m slow``, in CI after the default run).
@@ -63,11 +128,11 @@ SLOW = ("options", "ihrcf_only")
 @pytest.mark.parametrize(
     "config", [pytest.param(c, marks=pytest.mark.slow) if c in SLOW else c for c in CONFIGS]
 )
-def test_fused_matches_batch_fused(config: str) -> None:
+def test_fused_matches_the_single_filters(config: str) -> None:
     params, Km = CONFIGS[config]
     n = 6
     hist = [history(e) for e in range(n)]
-    ref = BatchFused(n, TABLE, RIG, TAG, Km, params=params)
+    singles = [FusedEstimator(TABLE, RIG, TAG, Km, params=params) for _ in range(n)]
     setup = fused_setup(TABLE, RIG, TAG, Km, params=params)
     traces = []
 
@@ -78,43 +143,54 @@ def test_fused_matches_batch_fused(config: str) -> None:
 
     step = jax.jit(jax.vmap(one))
     st = jax.vmap(lambda _: fused_init(setup))(jnp.arange(n))
-    worst, valid_rows, outers = 0.0, 0, set()
+    worst, valid_rows, outers, reasons_seen = 0.0, 0, set(), set()
     for k in range(STEPS):
         resets = np.array([k in hist[e][1] for e in range(n)])
-        ref.reset(resets)
+        for e in np.flatnonzero(resets):
+            singles[e].reset()
         row = [hist[e][0][k] for e in range(n)]
         active = np.array([f is not None for f in row])
-        cands = stack_atda_candidates(
-            [
-                atda_candidates(f.corners, Km, None, TAG, RIG)
-                if (f is not None and f.corners is not None and Km is not None)
-                else "tag not found"
-                for f in row
-            ]
-        )
-        frames = stack_frames(row)
-        out = ref.update(frames, active, cands)
-        st = step(
-            st,
-            _frame(frames),
-            active,
-            resets,
-            Candidates(cands.rotation, cands.position, cands.error, cands.usable, cands.code),
-        )
-        o = st.out
-        for name in CODES:
-            assert np.array_equal(np.asarray(getattr(o, name)), getattr(out, name)), (config, k, name)
-        for name in FIELDS:
-            d = float(np.max(np.abs(np.asarray(getattr(o, name)) - getattr(out, name))))
-            worst = max(worst, d)
-            assert d < 1e-8, (config, k, name, d)
-        assert np.max(np.abs(np.exp(0.5 * np.asarray(st.log_var)) - ref.range_sigma)) < 1e-10
-        valid_rows += int(out.valid.sum())
-        outers.update(out.outer.tolist())
-    print(f"{config}: max |fast - batched| = {worst:.3g} over {valid_rows} valid outputs")
+        cands = [
+            atda_candidates(f.corners, Km, None, TAG, RIG)
+            if (f is not None and f.corners is not None and Km is not None)
+            else rs.REASONS[rs.NOT_DETECTED]
+            for f in row
+        ]
+        frame, corners_reason = stack(row)
+        st = step(st, frame, active, resets, candidates(cands))
+        o = jax.tree_util.tree_map(np.asarray, st.out)
+        sigma = np.exp(0.5 * np.asarray(st.log_var))
+        for e in np.flatnonzero(active):
+            s = singles[e].update(row[e])
+            assert s.valid == bool(o.valid[e]), (config, k, e, s.reason)
+            assert s.reason == reason(o, e, corners_reason[e], params), (config, k, e)
+            reasons_seen.add(s.reason)
+            diff = max(
+                float(np.max(np.abs(s.position - o.position[e]))),
+                float(np.max(np.abs(s.euler - o.euler[e]))),
+                float(np.max(np.abs(s.rotation - o.rotation[e]))),
+                abs(s.residual - float(o.residual[e])),
+            )
+            m = singles[e].motion()
+            assert (m is not None) == bool(o.motion_valid[e]), (config, k, e)
+            if m is not None:
+                diff = max(
+                    diff,
+                    float(np.max(np.abs(m[0] - o.velocity[e]))),
+                    float(np.max(np.abs(m[1] - o.normal_rate[e]))),
+                )
+            assert diff < 1e-8, (config, k, e, diff)
+            worst = max(worst, diff)
+            assert abs(sigma[e] - singles[e].range_sigma) < 1e-10
+            valid_rows += s.valid
+            outers.add(int(o.outer[e]))
+    print(f"{config}: max |fast - single| = {worst:.3g} over {valid_rows} valid outputs")
     assert len(traces) == 1
     assert valid_rows > n * STEPS * 0.4
     assert len(outers) >= 5
+    text = " | ".join(reasons_seen)
+    for part in ("tag lost for", "tag occluded", "time went backwards", "converging: ", "not initialised"):
+        assert part in text, part
 
 
 def test_range_only_update_is_refused() -> None:

@@ -1,18 +1,21 @@
 """IHRCF and its geometry (ihrcf_env.fast.homography / plane / rigid / table / ihrcf) against the
-numpy batched estimator (ihrcf_env.core.batch), float64: the same reason codes row by row, the
-poses within 1e-9 relative."""
+single-frame reference (ihrcf_env.core.estimators.ihrcf, ihrcf_env.core.geometry and the
+RangePixelTable lookup), frame by frame, float64: the reason code of every frame names the
+reference's reason text (ihrcf_env.core.estimators.reasons), the poses agree within 1e-9
+relative."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
+import pytest
 
-from ihrcf_env.core.batch import result as rs
-from ihrcf_env.core.batch.geometry import fit_plane_batch, homography4_batch, rigid_fit_batch
-from ihrcf_env.core.batch.ihrcf import ihrcf_measure_batch
-from ihrcf_env.core.batch.tables import BatchTable
+from ihrcf_env.core import geometry
 from ihrcf_env.core.calibration.tables import RangePixelTable
+from ihrcf_env.core.estimators import reasons as rs
+from ihrcf_env.core.estimators.base import TAG_NOT_FOUND
+from ihrcf_env.core.estimators.ihrcf import ihrcf_corners, ihrcf_estimate
 from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.rig import SensorRig, intrinsics_from_fov, tag_corners_deck
 from ihrcf_env.fast.homography import homography4
@@ -83,25 +86,60 @@ def edge_cases(corners, ranges, valid, detected):
     valid[9] = False
 
 
+MAX_RESIDUAL = 0.01  # ihrcf_setup's default
+
+
+def reference(c, r, v, d):
+    """The single-frame IHRCF of every frame: (codes (n,), rotations, positions, eulers, residuals,
+    fit RMS (n,): the rigid fit's RMS behind a residual failure, else 0). The code of a frame is the
+    index of its reason text in REASONS (the residual template matched by its filled text)."""
+    n = len(c)
+    code = np.zeros(n, dtype=int)
+    R, p, e = np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 3)), np.zeros((n, 3))
+    res, rms = np.zeros(n), np.zeros(n)
+    model = tag_corners_deck(TAG)
+    for i in range(n):
+        if not d[i]:
+            code[i] = rs.NOT_DETECTED
+            continue
+        est = ihrcf_estimate(c[i], r[i], v[i], TABLE, RIG, TAG, MAX_RESIDUAL)
+        if est.valid:
+            R[i], p[i], e[i], res[i] = est.rotation, est.position, est.euler, est.residual
+            continue
+        if est.reason.startswith("fit residual"):
+            corners = ihrcf_corners(c[i], r[i], v[i], TABLE, RIG)
+            assert not isinstance(corners, str)
+            rms[i] = geometry.rigid_fit(model, corners.corners_cam)[2]
+            code[i] = rs.FIT_RESIDUAL
+            assert rs.reason_text(code[i], rms[i], MAX_RESIDUAL) == est.reason
+        else:
+            assert est.reason in rs.REASONS, est.reason
+            code[i] = rs.REASONS.index(est.reason)
+    return code, R, p, e, res, rms
+
+
 def compare(seed: int, n: int, edges: bool) -> float:
     c, r, v, d = frames(seed, n)
     if edges:
         edge_cases(c, r, v, d)
-    want = ihrcf_measure_batch(c, r, v, d, TABLE, RIG, TAG).poses
+    code, R, p, e, res, rms = reference(c, r, v, d)
     got = IHRCF(c, r, v, d)
-    assert np.array_equal(np.asarray(got.code), want.code), np.flatnonzero(np.asarray(got.code) != want.code)
-    assert np.array_equal(np.asarray(got.valid), want.valid)
+    assert np.array_equal(np.asarray(got.code), code), np.flatnonzero(np.asarray(got.code) != code)
+    assert np.array_equal(np.asarray(got.valid), code == rs.OK)
+    for i in np.flatnonzero(code == rs.FIT_RESIDUAL):  # the same text, the RMS filled in
+        text = rs.reason_text(int(got.code[i]), float(got.fit_rms[i]), MAX_RESIDUAL)
+        assert text == rs.reason_text(code[i], rms[i], MAX_RESIDUAL)
     err = max(
-        rel_err(got.rotation, want.rotation),
-        rel_err(got.position, want.position),
-        rel_err(got.euler, want.euler),
-        rel_err(got.residual, want.residual, floor=1e-3),
-        rel_err(got.fit_rms, want.fit_rms, floor=1e-3),
+        rel_err(got.rotation, R),
+        rel_err(got.position, p),
+        rel_err(got.euler, e),
+        rel_err(got.residual, res, floor=1e-3),
+        rel_err(got.fit_rms, rms, floor=1e-3),
     )
     return err
 
 
-def test_ihrcf_matches_batched_estimator() -> None:
+def test_ihrcf_matches_the_single_frame_estimator() -> None:
     err = compare(0, N, edges=False)
     assert err < 1e-9
 
@@ -109,20 +147,43 @@ def test_ihrcf_matches_batched_estimator() -> None:
 def test_ihrcf_failure_codes_match() -> None:
     c, r, v, d = frames(1, N)
     edge_cases(c, r, v, d)
-    want = ihrcf_measure_batch(c, r, v, d, TABLE, RIG, TAG).poses
-    codes = set(want.code[:10].tolist())
-    assert {rs.NOT_DETECTED, rs.NONFINITE_CORNERS, rs.FEW_RANGES, rs.OUTSIDE_TABLE} <= codes
+    code = reference(c, r, v, d)[0]
+    codes = set(code[:10].tolist())
+    assert {rs.NOT_DETECTED, rs.NONFINITE_CORNERS, rs.FEW_RANGES, rs.OUTSIDE_TABLE, rs.FIT_RESIDUAL} <= codes
     assert compare(1, N, edges=True) < 1e-9
+
+
+def test_reason_texts() -> None:
+    assert rs.REASONS[rs.OK] == "" and rs.REASONS[rs.NOT_DETECTED] == TAG_NOT_FOUND
+    assert len(set(rs.REASONS)) == len(rs.REASONS) == rs.TAG_BEHIND + 1
+    assert rs.reason_text(rs.FIT_RESIDUAL, 0.02, 0.01) == "fit residual 0.02 m > 0.01 m"
 
 
 def test_table_lookup_matches() -> None:
     rng = np.random.default_rng(3)
     r = rng.uniform(0.2, 3.2, (200, 4))
     r[0] = [np.nan, 0.3, 3.0, 0.1]
-    want_uv, want_in = BatchTable(TABLE)(r)
+    want = [TABLE(row) for row in r]
+    want_uv, want_in = np.array([w[0] for w in want]), np.array([w[1] for w in want])
     uv, inside = LOOKUP(r)
-    assert np.array_equal(np.asarray(inside), want_in)
+    assert np.array_equal(np.asarray(inside), want_in) and not want_in.all() and want_in.any()
     assert rel_err(uv, want_uv) < 1e-12
+
+
+#: The geometry kernels' ValueError texts -> the array kernels' error codes.
+HOMOGRAPHY_CODES = {
+    "degenerate point configuration: homography is not unique": 1,
+    "homography has H[2, 2] = 0 and cannot be normalised": 2,
+}
+PLANE_CODES = {"points are all coincident: plane undefined": 1, "points are collinear: plane undefined": 2}
+
+
+def _single(fn, codes, *args):
+    """(fn(*args), 0), or (None, the code of its ValueError)."""
+    try:
+        return fn(*args), 0
+    except ValueError as e:
+        return None, codes[str(e)]
 
 
 def test_homography_matches_including_degenerate() -> None:
@@ -131,11 +192,16 @@ def test_homography_matches_including_degenerate() -> None:
     dst = rng.uniform(0, 500, (128, 4, 2))
     src[0] = [[0, 0], [1, 1], [2, 2], [0, 1]]  # three collinear
     src[1, 3] = src[1, 2]  # coincident
-    want_H, want_code = homography4_batch(src, dst)
+    want = [
+        _single(geometry.homography_from_points, HOMOGRAPHY_CODES, s, t)
+        for s, t in zip(src, dst, strict=True)
+    ]
+    want_code = np.array([w[1] for w in want])
     H, code = HOMOGRAPHY(src, dst)
     assert np.array_equal(np.asarray(code), want_code) and want_code[:2].tolist() == [1, 1]
     ok = want_code == 0
-    assert rel_err(np.asarray(H)[ok], want_H[ok], floor=1e-6) < 1e-9
+    want_H = np.array([w[0] for w in want if w[1] == 0])
+    assert rel_err(np.asarray(H)[ok], want_H, floor=1e-6) < 1e-9
 
 
 def test_plane_fit_matches_including_degenerate() -> None:
@@ -151,11 +217,22 @@ def test_plane_fit_matches_including_degenerate() -> None:
     pts[3, 1] = [5.0, 0.0, 1.0]  # a vertical plane through the x axis
     pts[3, :, 1] = 0.0
     use[3] = True
-    want_n, want_d, want_code = fit_plane_batch(pts, use)
+    want_code = np.zeros(128, dtype=int)
+    want_n, want_d = np.tile([0.0, 0.0, 1.0], (128, 1)), np.zeros(128)
+    for i in range(128):
+        if use[i].sum() < 3:  # the reference needs three points (IHRCF checks the count first)
+            want_code[i] = 3
+            continue
+        fit, want_code[i] = _single(geometry.fit_plane, PLANE_CODES, pts[i][use[i]])
+        if fit is not None:
+            want_n[i], want_d[i] = fit
     n, d, code = PLANE(pts, use)
     assert np.array_equal(np.asarray(code), want_code)
     assert {1, 2, 3} <= set(want_code.tolist())
-    assert rel_err(n, want_n) < 1e-9 and rel_err(d, want_d) < 1e-9
+    ok = want_code == 0
+    assert rel_err(np.asarray(n)[ok], want_n[ok]) < 1e-9 and rel_err(np.asarray(d)[ok], want_d[ok]) < 1e-9
+    with pytest.raises(ValueError, match="parallel to the z axis"):  # the vertical plane: no z
+        geometry.plane_z(want_n[3], want_d[3], XY)
 
 
 def test_rigid_fit_matches() -> None:
@@ -163,10 +240,14 @@ def test_rigid_fit_matches() -> None:
     P = tag_corners_deck(TAG)
     R = rotations(rng, 128, 3.0)
     Q = np.einsum("nij,kj->nki", R, P) + rng.normal(size=(128, 1, 3)) + rng.normal(0, 1e-3, (128, 4, 3))
-    want = rigid_fit_batch(P, Q)
+    want = [geometry.rigid_fit(P, q) for q in Q]
     got = RIGID(P, Q)
-    for g, w in zip(got, want, strict=True):
-        assert rel_err(g, w, floor=1e-3) < 1e-9
+    assert np.asarray(got[3]).all()
+    for k in range(3):
+        w = np.array([x[k] for x in want])
+        assert rel_err(got[k], w, floor=1e-3) < 1e-9
+    with pytest.raises(ValueError, match="collinear or coincident"):
+        geometry.rigid_fit(np.zeros((4, 3)), Q[0])
     assert not np.asarray(RIGID(np.zeros((4, 3)), Q)[3]).any()  # coincident P: no rotation
 
 

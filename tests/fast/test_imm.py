@@ -1,6 +1,7 @@
-"""The IMM bank (ihrcf_env.fast.imm) against core.batch.imm.BatchImm, float64: a sequence of
-predictions (with and without an input), gated 3-value and 1-value updates and scalar updates
-along a direction, for positions and for angles (wrapped near +-pi)."""
+"""The IMM bank (ihrcf_env.fast.imm) against the single filter (ihrcf_env.core.estimators.imm.Imm),
+one filter per row, float64: a sequence of predictions (with and without an input), gated 3-value
+and 1-value updates and scalar updates along a direction, for positions and for angles (wrapped
+near +-pi)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from ihrcf_env.core.batch.imm import BatchImm
+from ihrcf_env.core.estimators.imm import Imm
 from ihrcf_env.fast import imm
 
 from .fast_helpers import rel_err
@@ -47,7 +48,7 @@ RUN = {a: _run(a) for a in (False, True)}
 
 
 @pytest.mark.parametrize("angles", [False, True])
-def test_sequence_matches_batch_imm(angles: bool) -> None:
+def test_sequence_matches_the_single_imm(angles: bool) -> None:
     rng = np.random.default_rng(int(angles))
     scale = 3.1 if angles else 1.0
     z3 = rng.uniform(-scale, scale, (N, 5, 3))
@@ -65,29 +66,32 @@ def test_sequence_matches_batch_imm(angles: bool) -> None:
     u[::3, 2] = np.nan  # no input
     st, (oks, d2s), xc, sig = RUN[angles](z3, z1, zs, h, var, R3, gate, dts, u)
 
-    ref = BatchImm(N, ARGS["sigmas"], ARGS["drifts"], ARGS["q_white"], ARGS["switch_time"], angles)
-    i = np.arange(N)
-    ref.start(i, np.zeros(N))
-    ref.reseed(i, z3[:, 0], R3, 0.3)
-    want_ok, want_d2 = [], []
-    for k in range(4):
-        ref.predict(i, dts[:, k], u[:, k])
-        for ok, d2 in (
-            ref.update(i, z3[:, k + 1], (0, 3), R3, gate),
-            ref.update(i, z1[:, k], (2, 3), R3[:, 2:3, 2:3], gate),
-            ref.update_along(i, zs[:, k], h, var, gate),
-        ):
-            want_ok.append(ok)
-            want_d2.append(d2)
+    want_ok, want_d2 = np.zeros((12, N), dtype=bool), np.zeros((12, N))
+    refs = []
+    for i in range(N):
+        ref = Imm(ARGS["sigmas"], ARGS["drifts"], ARGS["q_white"], ARGS["switch_time"], 0.0, angles)
+        ref.reseed(z3[i, 0], R3[i], 0.3)
+        g = float(gate[i])
+        for k in range(4):
+            ref.predict(float(dts[i, k]), u[i, k] if np.isfinite(u[i, k]).all() else None)
+            for j, (ok, d2) in enumerate(
+                (
+                    ref.update(z3[i, k + 1], (0, 3), R3[i], g),
+                    ref.update(z1[i, k], (2, 3), R3[i, 2:3, 2:3], g),
+                    ref.update_along(float(zs[i, k]), h[i], float(var[i]), g),
+                )
+            ):
+                want_ok[3 * k + j, i], want_d2[3 * k + j, i] = ok, d2
+        refs.append(ref)
     got_ok = np.asarray(oks).T  # (updates, N), in the order of the frames' updates
-    assert np.array_equal(got_ok, np.stack(want_ok))
+    assert np.array_equal(got_ok, want_ok)
     assert 0.1 < got_ok.mean() < 0.95  # accepted and rejected measurements both
-    g, w = np.asarray(d2s).T, np.stack(want_d2)
+    g, w = np.asarray(d2s).T, want_d2
     assert np.array_equal(np.isinf(g), np.isinf(w))
     fin = np.isfinite(w)
     assert rel_err(g[fin], w[fin]) < 1e-9
-    assert rel_err(st.X, ref.X) < 1e-9
-    assert rel_err(st.Ps, ref.Ps) < 1e-9
-    assert rel_err(st.mu, ref.mu) < 1e-9
-    assert rel_err(xc, ref.x(i)) < 1e-9
-    assert rel_err(sig, ref.value_sigma(i)) < 1e-9
+    assert rel_err(st.X, np.stack([r.X for r in refs])) < 1e-9
+    assert rel_err(st.Ps, np.stack([r.Ps for r in refs])) < 1e-9
+    assert rel_err(st.mu, np.stack([r.mu for r in refs])) < 1e-9
+    assert rel_err(xc, np.stack([r.x for r in refs])) < 1e-9
+    assert rel_err(sig, np.array([r.value_sigma() for r in refs])) < 1e-9

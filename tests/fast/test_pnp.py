@@ -1,13 +1,13 @@
-"""ATDA's PnP (ihrcf_env.fast.ippe / lm / pnp) against the numpy batched twins (core.batch.ippe,
-core.batch.cvlm, core.batch.pnp) and OpenCV's solvePnPRefineLM, float64.
+"""ATDA's PnP (ihrcf_env.fast.ippe / lm / pnp) against the single-frame reference, frame by frame:
+OpenCV's IPPE_SQUARE (cv2.solvePnPGeneric), cv2.solvePnPRefineLM, ATDA's candidates and choice
+(ihrcf_env.core.estimators.atda.atda_candidates, atda_choose), float64.
 
 IPPE is closed form: within 1e-9 relative. The LM follows cv2's algorithm with another linear
-solver (Cholesky, where the numpy twin uses Gauss-Jordan and cv2 an SVD) and a geodesic step that
-divides by H_GEO^2 = 1e-8, which magnifies rounding; cv2 stops on a relative energy decrease of
-1e-6 or after 20 steps, well before the minimum is reached to rounding, so a rounding-level
-difference on the way moves the stopping point: the poses agree with cv2's and the numpy twin's
-within POSE_TOL (rad of the rotation vector, m) and the RMS errors within ERR_TOL px (the numpy
-twin is as far from cv2 itself)."""
+solver (Cholesky, where cv2 uses an SVD) and a geodesic step that divides by H_GEO^2 = 1e-8,
+which magnifies rounding; cv2 stops on a relative energy decrease of 1e-6 or after 20 steps, well
+before the minimum is reached to rounding, so a rounding-level difference on the way moves the
+stopping point: the poses agree with cv2's within POSE_TOL (rad of the rotation vector, m) and the
+RMS errors within ERR_TOL px."""
 
 from __future__ import annotations
 
@@ -16,16 +16,10 @@ import math
 import cv2
 import numpy as np
 
-from ihrcf_env.core.batch import result as rs
-from ihrcf_env.core.batch.cvlm import refine_cv_lm, rodrigues_vector
-from ihrcf_env.core.batch.ippe import ippe_square as np_ippe
-from ihrcf_env.core.batch.ippe import marker_points
-from ihrcf_env.core.batch.ippe import project as np_project
-from ihrcf_env.core.batch.ippe import undistort as np_undistort
-from ihrcf_env.core.batch.pnp import pnp_candidates as np_candidates
-from ihrcf_env.core.batch.pnp import pnp_choose as np_choose
+from ihrcf_env.core.estimators import reasons as rs
+from ihrcf_env.core.estimators.atda import atda_candidates, atda_choose
 from ihrcf_env.core.rig import SensorRig, intrinsics_from_fov
-from ihrcf_env.fast.ippe import ippe_square, undistort
+from ihrcf_env.fast.ippe import ippe_square, marker_points, undistort
 from ihrcf_env.fast.lm import refine_lm
 from ihrcf_env.fast.pnp import pnp_candidates, pnp_choose
 from ihrcf_env.vector.jax_landing import LM_ITERATIONS
@@ -39,7 +33,7 @@ N = 256
 K = intrinsics_from_fov(640, 480, math.radians(60))
 DIST = np.array([-0.08, 0.02, 1e-3, -5e-4, 0.0])
 RIG = SensorRig()
-OBJ = marker_points(TAG)
+OBJ = np.asarray(marker_points(TAG))
 CAM = RIG.camera_position_array
 
 IPPE = Counted(lambda px: ippe_square(undistort(K, DIST, px, 5), TAG))
@@ -48,64 +42,108 @@ CANDS = Counted(lambda c, d: pnp_candidates(c, d, K, DIST, TAG, CAM))
 CHOOSE = Counted(pnp_choose)
 
 
+def project(X: np.ndarray) -> np.ndarray:
+    """Pixels (n, 4, 2) of camera-frame points X (n, 4, 3) (cv2.projectPoints)."""
+    z = np.zeros(3)
+    return np.array([cv2.projectPoints(x, z, z, K, DIST)[0].reshape(4, 2) for x in X])
+
+
 def frames(seed: int, n: int = N, noise_px: float = 0.5):
     """Tag corners (marker order) of tags in front of the camera, distorted, with pixel noise."""
     rng = np.random.default_rng(seed)
     R = rotations(rng, n, 0.6)
     t = np.column_stack([rng.uniform(-0.3, 0.3, (n, 2)), rng.uniform(0.6, 3.0, n)])
     X = np.einsum("nij,kj->nki", R, OBJ) + t[:, None, :]
-    px, _ = np_project(K, DIST, X)
+    px = project(X)
     return px + rng.normal(0.0, noise_px, px.shape)
 
 
-def test_ippe_matches_numpy() -> None:
+def test_undistort_matches_cv2() -> None:
     px = frames(0)
-    xn = np_undistort(K, DIST, px, 5)
-    R_want, t_want, ok_want = np_ippe(xn, TAG)
-    R, t, ok = IPPE(px)
-    assert np.array_equal(np.asarray(ok), ok_want) and ok_want.all()
-    assert rel_err(R, R_want) < 1e-9
-    assert rel_err(t, t_want) < 1e-9
+    want = cv2.undistortPoints(px.reshape(-1, 1, 2), K, DIST).reshape(px.shape)  # 5 iterations
+    got = Counted(lambda p: undistort(K, DIST, p, 5))(px)
+    assert rel_err(got, want) < 1e-9
 
 
-def test_lm_matches_numpy_twin_and_cv2() -> None:
-    px = frames(1)
-    R0, t0, _ = np_ippe(np_undistort(K, DIST, px, 5), TAG)
-    r0 = rodrigues_vector(R0[:, 0])
-    r_want, t_want, e_want, it_want = refine_cv_lm(K, DIST, r0, t0[:, 0], OBJ, px)
-    got = LM(r0, t0[:, 0], px)
-    assert rel_err(got.rvec, r_want) < POSE_TOL
-    assert rel_err(got.tvec, t_want) < POSE_TOL
-    assert rel_err(np.sqrt(np.asarray(got.energy) / 4), np.sqrt(e_want / 4)) < ERR_TOL
-    assert np.mean(np.asarray(got.iterations) == it_want) > 0.95
-    # most rows stop early on the same step: there the poses agree far more closely
-    close = np.abs(np.asarray(got.rvec) - r_want).max(axis=1) < 1e-6
-    assert close.mean() > 0.9
-    worst = 0.0
-    for i in range(0, N, 4):
-        r_cv, t_cv = cv2.solvePnPRefineLM(
-            OBJ, px[i].reshape(4, 1, 2), K, DIST, r0[i].reshape(3, 1).copy(), t0[i, 0].reshape(3, 1).copy()
+def test_ippe_matches_cv2() -> None:
+    """Each of cv2's IPPE_SQUARE solutions (of the distorted corners) is one of the two poses."""
+    px = frames(0)
+    R, t, ok = (np.asarray(a) for a in IPPE(px))
+    assert ok.all()
+    worst, pairs = 0.0, 0
+    for i in range(N):
+        _, rvecs, tvecs, _ = cv2.solvePnPGeneric(
+            OBJ, px[i].reshape(4, 1, 2), K, DIST, flags=cv2.SOLVEPNP_IPPE_SQUARE
         )
-        worst = max(worst, rel_err(got.rvec[i], r_cv.ravel()), rel_err(got.tvec[i], t_cv.ravel()))
-    assert worst < POSE_TOL
+        for rv, tv in zip(rvecs, tvecs, strict=True):
+            Rc, tc = cv2.Rodrigues(rv)[0], tv.ravel()
+            worst = max(worst, min(max(rel_err(R[i, s], Rc), rel_err(t[i, s], tc)) for s in (0, 1)))
+            pairs += 1
+    assert pairs == 2 * N
+    assert worst < 1e-9
 
 
-def test_candidates_and_choice_match_numpy() -> None:
+def _start(px: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """IPPE's first pose of each frame as the LM's start: rotation vectors (cv2.Rodrigues), translations."""
+    R0, t0, _ = IPPE(px)
+    r0 = np.array([cv2.Rodrigues(np.asarray(R))[0].ravel() for R in np.asarray(R0)[:, 0]])
+    return r0, np.asarray(t0)[:, 0]
+
+
+def test_lm_matches_cv2() -> None:
+    px = frames(1)
+    r0, t0 = _start(px)
+    got = LM(r0, t0, px)
+    r_cv, t_cv, e_cv = np.zeros((N, 3)), np.zeros((N, 3)), np.zeros(N)
+    for i in range(N):
+        r, t = cv2.solvePnPRefineLM(OBJ, px[i].reshape(4, 1, 2), K, DIST, r0[i].reshape(3, 1).copy(),
+                                    t0[i].reshape(3, 1).copy())  # fmt: skip
+        r_cv[i], t_cv[i] = r.ravel(), t.ravel()
+        e = cv2.projectPoints(OBJ, r, t, K, DIST)[0].reshape(4, 2) - px[i]
+        e_cv[i] = float(np.sum(e * e))
+    assert rel_err(got.rvec, r_cv) < POSE_TOL
+    assert rel_err(got.tvec, t_cv) < POSE_TOL
+    assert rel_err(np.sqrt(np.asarray(got.energy) / 4), np.sqrt(e_cv / 4)) < ERR_TOL
+    assert np.all(np.asarray(got.iterations) >= 1) and np.all(np.asarray(got.iterations) <= 20)
+    # most rows stop on the same step as cv2: there the poses agree far more closely
+    close = np.abs(np.asarray(got.rvec) - r_cv).max(axis=1) < 1e-6
+    assert close.mean() > 0.9
+
+
+def _reference(c: np.ndarray, det: np.ndarray) -> list:
+    """ATDA's candidates of every frame (the reason text where there are none)."""
+    return [
+        atda_candidates(c[i], K, DIST, TAG, RIG) if det[i] else rs.REASONS[rs.NOT_DETECTED]
+        for i in range(len(c))
+    ]
+
+
+def test_candidates_and_choice_match_atda() -> None:
     c = frames(2)
     det = np.ones(N, dtype=bool)
     det[0] = False
     c[1, 0] = np.nan
     c[2] = [[10.0, 10.0], [20.0, 20.0], [30.0, 30.0], [40.0, 41.0]]  # collinear
-    want = np_candidates(c, det, K, DIST, TAG, RIG)
+    want = _reference(c, det)
+    code = np.array([rs.REASONS.index(w) if isinstance(w, str) else rs.OK for w in want])
     got = CANDS(c, det)
-    assert np.array_equal(np.asarray(got.code), want.code)
-    assert want.code[:3].tolist() == [rs.NOT_DETECTED, rs.NONFINITE_CORNERS, rs.DEGENERATE_TAG]
-    assert np.array_equal(np.asarray(got.usable), want.usable)
-    u = want.usable.all(axis=1)
+    assert np.array_equal(np.asarray(got.code), code)
+    assert code[:3].tolist() == [rs.NOT_DETECTED, rs.NONFINITE_CORNERS, rs.DEGENERATE_TAG]
+    usable = np.array([[not isinstance(w, str) and s < len(w) for s in (0, 1)] for w in want])
+    assert np.array_equal(np.asarray(got.usable), usable)
+    u = usable.all(axis=1)
+    assert u.sum() > N - 10
+    w_err = np.array([[w[s][0] for s in (0, 1)] if ok else [0.0, 0.0] for w, ok in zip(want, u, strict=True)])
+    w_rot = np.array(
+        [[w[s][1] for s in (0, 1)] if ok else np.zeros((2, 3, 3)) for w, ok in zip(want, u, strict=True)]
+    )
+    w_pos = np.array(
+        [[w[s][2] for s in (0, 1)] if ok else np.zeros((2, 3)) for w, ok in zip(want, u, strict=True)]
+    )
     # two candidates with errors within ERR_TOL may come out in either order (one minimum twice)
-    tie = np.abs(want.error[:, 0] - want.error[:, 1]) < ERR_TOL
-    for name in ("rotation", "position", "error"):
-        g, w = np.asarray(getattr(got, name)), getattr(want, name)
+    tie = np.abs(w_err[:, 0] - w_err[:, 1]) < ERR_TOL
+    for name, w in (("rotation", w_rot), ("position", w_pos), ("error", w_err)):
+        g = np.asarray(getattr(got, name))
         d = np.abs(g - w).reshape(N, -1).max(axis=1)
         d_swapped = np.abs(g[:, ::-1] - w).reshape(N, -1).max(axis=1)
         d = np.where(tie, np.minimum(d, d_swapped), d)
@@ -113,12 +151,19 @@ def test_candidates_and_choice_match_numpy() -> None:
     rng = np.random.default_rng(3)
     prior = rotations(rng, N, 3.0)
     has = rng.random(N) > 0.3
-    prior[:64] = want.rotation[:64, 1]  # priors at the second candidate: near-ties go its way
-    chosen_want = np_choose(want, prior, has)
+    prior[:64] = np.where(u[:64, None, None], w_rot[:64, 1], prior[:64])  # near the second candidate
     chosen = CHOOSE(got, prior, has)
-    assert np.array_equal(np.asarray(chosen.code), chosen_want.code)
-    assert rel_err(chosen.rotation, chosen_want.rotation) < POSE_TOL
-    assert rel_err(chosen.position, chosen_want.position) < POSE_TOL
+    assert np.array_equal(np.asarray(chosen.code), code)
+    assert np.array_equal(np.asarray(chosen.valid), code == rs.OK)
+    second = 0
+    for i in np.flatnonzero(code == rs.OK):
+        ref = atda_choose(want[i], prior[i] if has[i] else None)
+        assert ref.valid
+        assert rel_err(chosen.rotation[i], ref.rotation) < POSE_TOL, i
+        assert rel_err(chosen.position[i], ref.position) < POSE_TOL, i
+        assert abs(float(chosen.residual[i]) - ref.residual) < ERR_TOL, i
+        second += not np.allclose(ref.rotation, w_rot[i, 0])
+    assert second > 10  # the prior decided some near-ties
 
 
 def test_compiled_once() -> None:

@@ -117,7 +117,7 @@ def test_a_run_flown_by_the_vector_env_logs_the_same_rounds(tmp_path: Path, rec:
     options, so the logged samples and landings agree with a single-env run."""
     base = {
         "env_id": "ihrcf_env/DeckLanding-v2",
-        "env_kw": {"level": "calm", "max_episode_steps": 30, "batch_estimators": False},
+        "env_kw": {"level": "calm", "max_episode_steps": 30},
         "drop_inputs": ("ihrcf", "atda"),
         "rounds": 0,
         "episodes": 3,

@@ -99,7 +99,7 @@ def test_the_worker_env_checks_actions_before_any_worker_steps(
         {"estimators": ("ihrcf", "no_such_estimator")},
         {"max_episode_steps": 0},
         {"autoreset_mode": "whenever"},
-        {"batch_estimators": "yes"},
+        {"batch_estimators": True},  # removed: refused by name
         {"render_mode": "rgb_array"},
     ],
 )

@@ -33,16 +33,16 @@ def _both_ended(closing: Callable[[Any], Any]) -> tuple[Any, np.ndarray]:
     return v, zero
 
 
-@pytest.mark.parametrize(("workers", "batch"), [(None, False), (None, True), (2, True)])
+@pytest.mark.parametrize("workers", [None, 2])
 def test_masked_envs_restart_as_the_single_env_of_their_seed(
-    closing: Callable[[Any], Any], make_env: Callable[..., gym.Env], workers: int | None, batch: bool
+    closing: Callable[[Any], Any], make_env: Callable[..., gym.Env], workers: int | None
 ) -> None:
     """3 envs; after 4 steps env 1 is reset with seed 77 (a sequence of seeds, the others None):
     env 1 then follows the single env of seed 77 and envs 0 and 2 their own episodes (seeds 10, 12),
     bit for bit; the reset's info covers env 1 only."""
     extra = {} if workers is None else {"workers": workers}
-    v = closing(gym.make_vec(V2, num_envs=3, batch_estimators=batch, **OPTIONS, **extra))
-    singles = [make_env(V2, batch_estimators=batch, **OPTIONS) for _ in range(4)]
+    v = closing(gym.make_vec(V2, num_envs=3, **OPTIONS, **extra))
+    singles = [make_env(V2, **OPTIONS) for _ in range(4)]
     obs, _ = v.reset(seed=10)
     s_obs = [e.reset(seed=10 + i)[0] for i, e in enumerate(singles[:3])]
     rng = np.random.default_rng(0)
@@ -100,16 +100,16 @@ def test_a_partial_reset_needs_a_full_one_first(closing: Callable[[Any], Any]) -
         v.reset(options={"reset_mask": np.array([True, False])})
 
 
-@pytest.mark.parametrize(("workers", "batch"), [(None, False), (None, True), (2, True)])
+@pytest.mark.parametrize("workers", [None, 2])
 def test_a_paused_env_goes_on_as_the_single_env(
-    closing: Callable[[Any], Any], make_env: Callable[..., gym.Env], workers: int | None, batch: bool
+    closing: Callable[[Any], Any], make_env: Callable[..., gym.Env], workers: int | None
 ) -> None:
     """3 envs; env 1 is paused for 4 of 10 steps: meanwhile its row keeps its last observation,
     reward 0 and no info; every env then equals the single env of its seed stepped with the actions
     of the steps it took, bit for bit."""
     extra = {} if workers is None else {"workers": workers}
-    v = closing(gym.make_vec(V2, num_envs=3, batch_estimators=batch, **OPTIONS, **extra))
-    singles = [make_env(V2, batch_estimators=batch, **OPTIONS) for _ in range(3)]
+    v = closing(gym.make_vec(V2, num_envs=3, **OPTIONS, **extra))
+    singles = [make_env(V2, **OPTIONS) for _ in range(3)]
     held = v.reset(seed=20)[0][1].copy()
     for i, e in enumerate(singles):
         e.reset(seed=20 + i)

@@ -23,7 +23,7 @@ def test_sub_envs_reproduce_the_single_numpy_env_through_touchdowns(
     bit for bit, through landings (the contacts in closed form) and autoresets; the controller sees
     the same observations (each env's own estimators: bitwise)."""
     n, seed = 3, 200
-    v = closing(gym.make_vec(V2, num_envs=n, batch_estimators=False, **OPTIONS))
+    v = closing(gym.make_vec(V2, num_envs=n, **OPTIONS))
     singles = [make_env(V2, **OPTIONS) for _ in range(n)]
     policies = [ScriptedLanding.from_env(e) for e in singles]
     obs, _ = v.reset(seed=seed)
@@ -68,7 +68,7 @@ def test_cameras_read_together_as_alone(
 
     options = {**OPTIONS, "camera_quality": "ideal", "max_episode_steps": 80}
     n = 3
-    v = closing(gym.make_vec(V2, num_envs=n, batch_estimators=False, **options))
+    v = closing(gym.make_vec(V2, num_envs=n, **options))
     singles = [make_env(V2, **options) for _ in range(n)]
     taken: list[bool] = []
     read = tag_camera.ProjectedTagCamera._read_closed_form

@@ -25,15 +25,13 @@ def one_blas_thread() -> Iterator[None]:
         yield
 
 
-@pytest.mark.parametrize("batch", [None, True])
 def test_workers_reproduce_the_one_process_vector_env(
-    closing: Callable[[Any], Any], batch: bool | None, one_blas_thread: None
+    closing: Callable[[Any], Any], one_blas_thread: None
 ) -> None:
     """3 envs over 2 workers (2 + 1) against one DeckLandingVectorEnv of 3: observations, rewards,
-    flags and info equal bit for bit, through a next-step autoreset (the batched estimators' rows
-    do not depend on the batch)."""
-    w = closing(gym.make_vec(V2, num_envs=3, workers=2, batch_estimators=batch, **OPTIONS))
-    v = closing(gym.make_vec(V2, num_envs=3, batch_estimators=batch, **OPTIONS))
+    flags and info equal bit for bit, through a next-step autoreset."""
+    w = closing(gym.make_vec(V2, num_envs=3, workers=2, **OPTIONS))
+    v = closing(gym.make_vec(V2, num_envs=3, **OPTIONS))
     assert isinstance(w, WorkerVectorEnv) and w.sizes == [2, 1]
     assert w.observation_space == v.observation_space and w.action_space == v.action_space
     ow, iw = w.reset(seed=40)

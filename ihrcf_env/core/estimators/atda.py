@@ -32,7 +32,9 @@ AMBIGUITY_RATIO: float = 2.0
 #: Rotation taking marker-frame vectors (OpenCV IPPE_SQUARE: x right, y up in the tag image, z out of
 #: the tag) to deck-frame vectors (x = tag up, y = tag left, z out): deck = (m_y, -m_x, m_z).
 R_DECK_MARKER: NDArray[np.float64] = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-_R_MARKER_DECK = np.ascontiguousarray(R_DECK_MARKER.T)
+#: Its transpose: marker-frame axes of deck-frame vectors (the camera-to-marker rotation times this
+#: is the camera-to-deck rotation).
+R_MARKER_DECK: NDArray[np.float64] = np.ascontiguousarray(R_DECK_MARKER.T)
 _NO_DISTORTION = np.zeros(5)
 _NO_DISTORTION.setflags(write=False)
 
@@ -90,7 +92,7 @@ def atda_candidates(
         if not (math.isfinite(float(t @ t) + float(rvec.ravel() @ rvec.ravel())) and t[2] > 0):
             continue  # a non-finite solution, or the tag behind the camera
         R_cm, _ = cv2.Rodrigues(rvec)
-        R_bd, p_bd = cam_pose_to_body(R_cm @ _R_MARKER_DECK, t, rig.camera_position_array, check=False)
+        R_bd, p_bd = cam_pose_to_body(R_cm @ R_MARKER_DECK, t, rig.camera_position_array, check=False)
         cands.append((reproj_rms(rvec, tvec), R_bd, p_bd))
     if not cands:
         return "tag behind the camera"
@@ -212,6 +214,7 @@ class ATDAEstimator:
 __all__ = [
     "AMBIGUITY_RATIO",
     "R_DECK_MARKER",
+    "R_MARKER_DECK",
     "ATDAEstimator",
     "Candidate",
     "atda_candidates",

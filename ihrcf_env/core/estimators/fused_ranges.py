@@ -6,8 +6,8 @@ yaw) and its distance along its normal. :func:`ranges_plane` fits IHRCF's plane 
 points, :func:`ranges_tilt` turns its normal into a roll / pitch measurement and
 :func:`ranges_distance` the plane of the filter's (updated) normal through the touch points into
 one linear measurement of the relative position, ``h @ r = z``, that leaves the position along the
-plane free (it coasts on the IMU). The filter (:mod:`~ihrcf_env.core.estimators.fused`) and its
-batched copy (:mod:`~ihrcf_env.core.batch.fused_measure`) both call these functions.
+plane free (it coasts on the IMU). The filter (:mod:`~ihrcf_env.core.estimators.fused`) calls
+these functions.
 """
 
 from __future__ import annotations
