@@ -200,3 +200,26 @@ def test_the_shipped_recurrent_policy_lands_without_pytorch(capsys: pytest.Captu
     # it lands these 4 on this machine: allow one unlucky episode on another CPU, not a policy
     # that no longer lands
     assert re.fullmatch(r"success [34]/4", out.strip().splitlines()[-1]), out[-2000:]
+
+
+MLP_JAX_V2 = Path(__file__).resolve().parents[1] / "examples" / "policies" / "ppo_jax_landing_v2.npz"
+
+
+def test_the_shipped_jax_trained_policy_lands_without_jax(capsys: pytest.CaptureFixture[str]) -> None:
+    """The DeckLanding-v2 MLP trained on the JAX backend, through the protocol CLI (numpy inference):
+    the moderate level's first 4 test seeds, projected camera."""
+    assert MLP_JAX_V2.is_file(), f"the shipped policy {MLP_JAX_V2} is missing"
+    argv = [
+        "--level",
+        "moderate",
+        "--policy",
+        str(MLP_JAX_V2),
+        "--episodes",
+        "4",
+        "--camera-model",
+        "projected",
+    ]
+    assert main([*argv, "--quiet"]) == 0
+    out = capsys.readouterr().out
+    # it lands these 4 on this machine: allow one unlucky episode on another CPU
+    assert re.fullmatch(r"success [34]/4", out.strip().splitlines()[-1]), out[-2000:]
