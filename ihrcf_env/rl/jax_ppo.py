@@ -5,7 +5,8 @@
 rejax trains on (its autoreset draws a new episode on every reset; episodes end on termination or
 after ``max_steps``). :class:`LandingPPO` steps the envs as one batch and resets only those that ended.
 :func:`train` runs it in chunks, each one compiled call, saving a
-checkpoint and the learning curve after every chunk (a stopped run resumes from its folder), and
+checkpoint and the learning curve after every chunk (a stopped run resumes from its folder; a new
+run may start from an exported policy's actor, :func:`load_policy`), and
 :func:`export_policy` writes the actor as an :class:`~ihrcf_env.control.mlp_policy.MlpPolicy`
 (numpy inference, no JAX needed to run it). Needs the ``[rl]`` extra (rejax, gymnax).
 """
@@ -30,7 +31,16 @@ from rejax import PPO
 from ihrcf_env.control.mlp_policy import MlpPolicy, mlp_from_arrays
 from ihrcf_env.vector.jax_batch import autoreset_step
 
-__all__ = ["LandingPPO", "PPOSettings", "export_policy", "gymnax_env", "main", "make_ppo", "train"]
+__all__ = [
+    "LandingPPO",
+    "PPOSettings",
+    "export_policy",
+    "gymnax_env",
+    "load_policy",
+    "main",
+    "make_ppo",
+    "train",
+]
 
 
 def gymnax_env(fenv: Any, max_steps: int) -> tuple[environment.Environment, Any]:
@@ -203,6 +213,45 @@ def export_policy(algo: Any, ts: Any, path: str | Path, **meta: Any) -> MlpPolic
     return policy
 
 
+def load_policy(ts: Any, policy: MlpPolicy, log_std: float) -> Any:
+    """``ts`` with its actor set to ``policy`` (hidden layers, action head and observation
+    normalisation, as :func:`export_policy` wrote them) and the Gaussian's log standard deviation
+    to ``log_std`` for every action (the file does not hold it); the critic and the optimiser's
+    state are left as they are. The policy's layer sizes must be the actor's."""
+    p = ts.actor_ts.params["params"]
+    hidden = p["features"]
+    names = [f"Dense_{k}" for k in range(len(hidden))]
+    if len(policy.weights) != len(names) + 1:
+        raise ValueError(f"policy: {len(policy.weights) - 1} hidden layers, the actor has {len(names)}")
+    new_hidden = {}
+    for name, w, b in zip(names, policy.weights[:-1], policy.biases[:-1], strict=True):
+        kernel = hidden[name]["kernel"]
+        if kernel.shape != w.T.shape:
+            raise ValueError(f"policy: layer {name} is {w.T.shape}, the actor's is {kernel.shape}")
+        new_hidden[name] = {"kernel": jnp.asarray(w.T, kernel.dtype), "bias": jnp.asarray(b, kernel.dtype)}
+    head = p["action_mean"]
+    if head["kernel"].shape != policy.weights[-1].T.shape:
+        raise ValueError(
+            f"policy: action head is {policy.weights[-1].T.shape}, the actor's is {head['kernel'].shape}"
+        )
+    new_p = dict(p)
+    new_p["features"] = new_hidden
+    new_p["action_mean"] = {
+        "kernel": jnp.asarray(policy.weights[-1].T, head["kernel"].dtype),
+        "bias": jnp.asarray(policy.biases[-1], head["bias"].dtype),
+    }
+    new_p["action_log_std"] = jnp.full_like(p["action_log_std"], log_std)
+    actor_ts = ts.actor_ts.replace(params={**ts.actor_ts.params, "params": new_p})
+    rms = ts.obs_rms_state
+    if rms.mean.shape != policy.mean.shape:
+        raise ValueError(f"policy: observation size {policy.mean.shape[0]}, the env's is {rms.mean.shape[0]}")
+    # the running statistics weigh the loaded ones as many observations
+    rms = rms.replace(
+        mean=jnp.asarray(policy.mean, rms.mean.dtype), var=jnp.asarray(policy.var, rms.var.dtype), count=1e6
+    )
+    return ts.replace(actor_ts=actor_ts, obs_rms_state=rms)
+
+
 def train(
     fenv: Any,
     out: str | Path,
@@ -214,13 +263,17 @@ def train(
     eval_envs: int = 64,
     time_budget_s: float | None = None,
     log: Callable[[str], None] = print,
+    init_policy: str | Path | None = None,
+    init_log_std: float = -1.0,
 ) -> tuple[Any, Any, list[dict[str, float]]]:
     """Train PPO on ``fenv`` for ``total_timesteps`` env steps in chunks of ``chunk_timesteps``,
-    resuming from ``out`` (``checkpoint.msgpack``, ``curve.json``) if a run left them there; stops
-    early when the next chunk would pass ``time_budget_s`` (s of wall time in this call). Returns
-    (algo, train state, curve: one row per chunk with steps, wall time, success rate, mean return
-    and length of the mean-action evaluation). Runs in 32-bit JAX (``jax_enable_x64`` off for the
-    call: rejax's running statistics are float32)."""
+        resuming from ``out`` (``checkpoint.msgpack``, ``curve.json``) if a run left them there; stops
+        early when the next chunk would pass ``time_budget_s`` (s of wall time in this call). A new run
+    (nothing to resume) starts from the actor of ``init_policy`` (an exported ``.npz``) with
+    ``init_log_std`` (:func:`load_policy`) if given. Returns
+        (algo, train state, curve: one row per chunk with steps, wall time, success rate, mean return
+        and length of the mean-action evaluation). Runs in 32-bit JAX (``jax_enable_x64`` off for the
+        call: rejax's running statistics are float32)."""
     with jax.enable_x64(False):
         return _train(
             fenv,
@@ -233,6 +286,8 @@ def train(
             eval_envs,
             time_budget_s,
             log,
+            init_policy,
+            init_log_std,
         )
 
 
@@ -247,7 +302,11 @@ def _train(
     eval_envs: int,
     time_budget_s: float | None,
     log: Callable[[str], None],
+    init_policy: str | Path | None,
+    init_log_std: float,
 ) -> tuple[Any, Any, list[dict[str, float]]]:
+    if not (isinstance(init_log_std, int | float) and -5.0 <= init_log_std <= 1.0):
+        raise ValueError(f"init_log_std must be a number in [-5, 1], got {init_log_std!r}")
     settings = settings or PPOSettings()
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
@@ -261,6 +320,9 @@ def _train(
         ts = serialization.from_bytes(ts, ckpt.read_bytes())
         curve = json.loads(curve_file.read_text())
         log(f"resumed at {curve[-1]['steps'] if curve else 0:.0f} steps from {ckpt}")
+    elif init_policy is not None:
+        ts = load_policy(ts, MlpPolicy.load(init_policy), init_log_std)
+        log(f"actor initialised from {init_policy}")
     train_fn = jax.jit(algo.train)
     start = time.perf_counter()
     last_chunk = 0.0
@@ -301,6 +363,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--out", required=True, help="run folder (checkpoint, curve); resumes a run left there")
     ap.add_argument("--policy", default=None, help="write the trained policy here (.npz)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--init-policy", default=None, help="start a new run from this exported policy (.npz)")
+    ap.add_argument(
+        "--init-log-std",
+        type=float,
+        default=-1.0,
+        help="the Gaussian's log std when starting from --init-policy",
+    )
     ap.add_argument("--num-envs", type=int, default=PPOSettings.num_envs)
     ap.add_argument("--num-steps", type=int, default=PPOSettings.num_steps)
     args = ap.parse_args(argv)
@@ -312,13 +381,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     settings = PPOSettings(num_envs=args.num_envs, num_steps=args.num_steps)
     algo, ts, curve = train(
         fenv, args.out, int(args.timesteps), max_steps, settings, int(args.chunk), args.seed,
-        time_budget_s=args.time_budget,
+        time_budget_s=args.time_budget, init_policy=args.init_policy, init_log_std=args.init_log_std,
     )  # fmt: skip
     if args.policy:
         last = curve[-1] if curve else {"steps": 0.0, "wall_s": 0.0}
         export_policy(
             algo, ts, args.policy, env_id=args.env_id, level=args.level, trainer="rejax PPO (JAX backend)",
             steps=int(last["steps"]), wall_s=float(last["wall_s"]),
+            **({"init_policy": Path(args.init_policy).name} if args.init_policy else {}),
         )  # fmt: skip
         print(f"policy written to {args.policy}")
     return 0

@@ -54,3 +54,31 @@ def test_the_batched_step_resets_only_the_envs_that_ended() -> None:
     np.testing.assert_array_equal(np.asarray(t2), np.where(d, 0, 1))  # new episodes start at t = 0
     assert np.all(np.asarray(new["h"])[d] >= 1.0) and np.all(np.asarray(new["h"])[~d] > 0.0)
     np.testing.assert_allclose(np.asarray(obs)[:, 0], np.asarray(new["h"]), rtol=1e-6)
+
+
+def test_a_new_run_starts_from_an_exported_policy(tmp_path: Path) -> None:
+    from ihrcf_env.rl.jax_ppo import load_policy, make_ppo
+
+    fenv = Drop()
+    algo, ts, _ = train(fenv, tmp_path / "a", 2048, 40, SETTINGS, chunk_timesteps=2048, log=lambda _: None)
+    pol = export_policy(algo, ts, tmp_path / "p.npz")
+    with jax.enable_x64(False):
+        fresh = make_ppo(fenv, 40, SETTINGS, 2048)
+        ts0 = fresh.init_state(jax.random.PRNGKey(7))
+        loaded = load_policy(ts0, pol, -1.5)
+        act = _mean_action(fresh, loaded)
+        for obs in np.random.default_rng(1).normal(size=(5, 2)).astype(np.float32):
+            np.testing.assert_allclose(np.asarray(act(obs)), pol.act(obs), atol=2e-5)
+        np.testing.assert_allclose(np.asarray(loaded.actor_ts.params["params"]["action_log_std"]), -1.5)
+        small = export_policy(algo, ts, tmp_path / "q.npz")
+        small.weights[0] = small.weights[0][:8]
+        small.biases[0] = small.biases[0][:8]
+        with pytest.raises(ValueError, match="layer Dense_0"):
+            load_policy(ts0, small, -1.0)
+    # train(init_policy=) starts there; a run left in the folder resumes instead
+    lines: list[str] = []
+    train(fenv, tmp_path / "b", 2048, 40, SETTINGS, chunk_timesteps=2048, log=lines.append,
+          init_policy=tmp_path / "p.npz")  # fmt: skip
+    assert any("initialised from" in line for line in lines)
+    with pytest.raises(ValueError, match="init_log_std"):
+        train(fenv, tmp_path / "c", 2048, 40, SETTINGS, init_policy=tmp_path / "p.npz", init_log_std=9.0)
