@@ -1,9 +1,9 @@
 """The fields of the landing tasks' flat observation (the layout
 :class:`~ihrcf_env.wrappers.landing_obs.LandingObservation` and the JAX observation
 :mod:`ihrcf_env.fast.observe` both build): the sensor block, one block per estimator, the fused
-filter's deck motion and the ground truth. The module docstring of
-:mod:`ihrcf_env.wrappers.landing_obs` describes each field; the deck-motion forecast's block is
-the wrapper's (:mod:`ihrcf_env.wrappers.forecast_feed`) and is given to :func:`landing_blocks`.
+filter's deck motion, the deck-motion forecast and the ground truth. The module docstring of
+:mod:`ihrcf_env.wrappers.landing_obs` describes each field, :mod:`ihrcf_env.wrappers.forecast_feed`
+the forecast's (:func:`forecast_fields`).
 """
 
 from __future__ import annotations
@@ -22,6 +22,19 @@ RATE_SCALE = 5.0  # rad/s
 MOTION = "motion"
 #: Observation block (and ``info`` key) of the ground truth (``privileged=True``).
 GROUND_TRUTH = "ground_truth"
+#: Observation block (and ``info`` key) of the deck-motion forecast (``deck_forecast``).
+FORECAST = "forecast"
+#: The forecast's outputs per horizon, their units, scales and scaled bounds.
+FORECAST_OUTPUTS = ("heave", "heave_rate", "roll", "pitch")
+FORECAST_UNITS = ("m", "m/s", "rad", "rad")
+FORECAST_SCALES = (0.1, 1.0, 0.1, 0.1)
+FORECAST_BOUNDS = (10.0, 20.0, 10.0, 10.0)
+_FORECAST_MEANINGS = (
+    "forecast deck heave about its mean height, per horizon",
+    "forecast deck heave rate, per horizon",
+    "forecast deck roll (about the heading frame's x), per horizon",
+    "forecast deck pitch (about the heading frame's y), per horizon",
+)
 
 
 def _f(
@@ -100,6 +113,26 @@ MOTION_FIELDS: tuple[Field, ...] = (
 )
 
 
+def forecast_fields(horizons: int) -> tuple[Field, ...]:
+    """The fields of the forecast block for ``horizons`` forecast horizons: per output the
+    forecast at each horizon, then their standard deviations, then ``quiet`` and ``valid``."""
+    items = zip(FORECAST_OUTPUTS, FORECAST_SCALES, FORECAST_BOUNDS, FORECAST_UNITS, strict=True)
+    rows = list(items)
+    means = tuple(
+        Field(n, horizons, -b, b, s, u, m) for (n, s, b, u), m in zip(rows, _FORECAST_MEANINGS, strict=True)
+    )
+    stds = tuple(
+        Field(f"{n}_std", horizons, 0.0, b, s, u, f"standard deviation of forecast.{n}")
+        for n, s, b, u in rows
+    )
+    return (
+        *means,
+        *stds,
+        Field("quiet", 1, 0.0, 1.0, 1.0, "", "probability that the touchdown window ahead is quiet"),
+        Field("valid", 1, 0.0, 1.0, 1.0, "", "1 = the forecaster has fitted its model (else the block is 0)"),
+    )
+
+
 def landing_blocks(
     estimators: Iterable[str] = DEFAULT_ESTIMATORS,
     max_range: float = 4.0,
@@ -122,6 +155,11 @@ def landing_blocks(
 
 __all__ = [
     "ESTIMATE_FIELDS",
+    "FORECAST",
+    "FORECAST_BOUNDS",
+    "FORECAST_OUTPUTS",
+    "FORECAST_SCALES",
+    "FORECAST_UNITS",
     "GROUND_TRUTH",
     "MAX_AGE",
     "MOTION",
@@ -129,6 +167,7 @@ __all__ = [
     "POSITION_SCALE",
     "RATE_SCALE",
     "TRUTH_FIELDS",
+    "forecast_fields",
     "landing_blocks",
     "sensor_fields",
 ]

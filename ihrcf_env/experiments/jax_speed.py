@@ -213,6 +213,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--no-front", action="store_true", help="skip the vector env front")
     ap.add_argument("--pybullet-steps", type=int, default=300)
     ap.add_argument("--markdown", default=None, help="write the table to this file")
+    ap.add_argument(
+        "--deck-forecast", action="store_true", help="with the forecast block (deck_forecast=True)"
+    )
     args = ap.parse_args(argv)
 
     import jax
@@ -220,13 +223,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     import ihrcf_env  # noqa: F401  (registers the ids)
     from ihrcf_env.vector.jax_make import JAX_DEFAULTS, make_functional
 
-    options = {"level": args.level, **JAX_DEFAULTS}
+    extra: dict[str, Any] = {"deck_forecast": True} if args.deck_forecast else {}
+    options = {"level": args.level, **JAX_DEFAULTS, **extra}
     reference = pybullet_rate(args.env_id, options, args.pybullet_steps)
     print(f"single PyBullet env ({args.env_id}, {options}): {reference:,.0f} env-steps/s")
     rows: list[SpeedRow] = []
     costs: dict[str, tuple[float, float]] = {}
     for dtype in args.dtypes:
-        fenv = make_functional(args.env_id, dtype=dtype, level=args.level)
+        fenv = make_functional(args.env_id, dtype=dtype, level=args.level, **extra)
         costs[dtype] = cost_per_env_step(fenv, dtype)
         for n in args.nums:
             row = functional_rate(fenv, n, args.steps, dtype)
@@ -246,6 +250,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     backend="jax",
                     dtype=dt,
                     level=args.level,
+                    **extra,
                 )
 
             for n in args.nums:
@@ -258,7 +263,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     text = [
         f"- machine: {platform.platform()}, {os.cpu_count()} CPUs, "
         f"JAX {jax.__version__} on {jax.devices()[0].platform}",
-        f"- task: `{args.env_id}` level `{args.level}`, {args.steps} steps per timed run",
+        f"- task: `{args.env_id}` level `{args.level}`{' with deck_forecast' if extra else ''}, "
+        f"{args.steps} steps per timed run",
         f"- single PyBullet env: {reference:,.0f} env-steps/s",
         "",
         table(rows, reference),

@@ -542,6 +542,10 @@ def forecast_update(
 # -- outputs --------------------------------------------------------------------------------------
 
 
+#: Added to the grid position in :func:`_predict` (grid steps).
+_GRID_NUDGE = 1e-9
+
+
 def _predict(prm: ForecastParams, st: ForecastState, offsets: np.ndarray) -> tuple[Array, Array]:
     """Mean and std (len, 4) of the outputs at ``offsets`` s after the latest sample."""
     x, P = _measure(prm, st, st.x, st.P, st.acc, st.acc_n, st.acc_dt)
@@ -549,8 +553,13 @@ def _predict(prm: ForecastParams, st: ForecastState, offsets: np.ndarray) -> tup
     t_last = jnp.where(st.fitted, st.t_last, 0.0)
     t_center = (st.cell.astype(x.dtype) + 0.5) * dt
     j = jnp.clip((t_last + jnp.asarray(offsets, x.dtype) - t_center) / dt, 2.0, prm.n_steps - 4.0)
-    j0 = jnp.floor(j).astype(jnp.int_)
-    w = (j - j0)[:, None]
+    # sample times and cell centres lie on a common grid, so the position often falls exactly on a
+    # grid step, where XLA's CPU code (which may round the products differently in each fused
+    # consumer) can floor it to either side; flooring a nudged position keeps every consumer on the
+    # same side, and the weight (within rounding of 0 or 1 there) stays the unnudged one
+    floor = jnp.floor(jnp.minimum(j + _GRID_NUDGE, prm.n_steps - 4.0))
+    w = (j - floor)[:, None]
+    j0 = floor.astype(jnp.int_)
     G = st.G
 
     def moments(rows: Array, proc: Array) -> tuple[Array, Array]:

@@ -22,6 +22,7 @@ import numpy as np
 from jax import Array
 
 from ihrcf_env.core.forecast import ForecastOptions, forecast_options
+from ihrcf_env.core.landing_layout import FORECAST_BOUNDS, FORECAST_SCALES
 from ihrcf_env.core.quiescence import QuiescenceThresholds
 from ihrcf_env.fast.forecast import (
     ForecastParams,
@@ -31,7 +32,6 @@ from ihrcf_env.fast.forecast import (
     forecast_params,
     forecast_update,
 )
-from ihrcf_env.fast.fused import FusedOutput
 from ihrcf_env.fast.linalg3 import matrix_from_euler
 
 __all__ = [
@@ -43,9 +43,9 @@ __all__ = [
     "feed_step",
 ]
 
-# the reference's scales and bounds (wrappers.forecast_feed), per output column
-_SCALES = (0.1, 1.0, 0.1, 0.1)
-_BOUNDS = (10.0, 20.0, 10.0, 10.0)
+# the block's scales and bounds per output column (the layout's, as the reference's)
+_SCALES = FORECAST_SCALES
+_BOUNDS = FORECAST_BOUNDS
 
 
 @dataclass(frozen=True)
@@ -116,7 +116,7 @@ def feed_init(fp: FeedParams, dtype: Any = None) -> FeedState:
     )
 
 
-def _sample(altitude: Array, fused: FusedOutput, R_lb: Array, R_lw: Array) -> Array:
+def _sample(altitude: Array, fused: Any, R_lb: Array, R_lw: Array) -> Array:
     """(heave m, roll rad, pitch rad) of the fused deck pose in the level frame of fixed heading."""
     R_wb = R_lw.T @ R_lb
     p = R_wb @ fused.position
@@ -130,13 +130,15 @@ def feed_step(
     time: Array,
     nav_velocity_z: Array,
     fresh: Array,
-    fused: FusedOutput,
+    fused: Any,
     R_lb: Array,
     R_lw: Array,
 ) -> tuple[FeedState, FeedOutput]:
     """One control step at ``time`` (s): the navigation vertical velocity (m/s, world z),
-    ``fresh`` True when the fused filter took a new camera frame this step, its output ``fused``
-    (the deck pose in the body frame), the IMU's level-from-body ``R_lb`` and heading-from-world
+    ``fresh`` True when the fused filter took a new camera frame this step, the fused estimate
+    shown ``fused`` (anything with the deck's ``position`` (3,) m and ``euler`` (3,) rad in the body
+    frame and ``valid``: a :class:`~ihrcf_env.fast.fused.FusedOutput` or the observation's
+    estimate), the IMU's level-from-body ``R_lb`` and heading-from-world
     ``R_lw`` rotations (the observation's ``heading_rotation``)."""
     f = st.altitude.dtype
     time = jnp.asarray(time, f)

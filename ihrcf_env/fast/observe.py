@@ -18,9 +18,12 @@ filter predicts it to the arrival); the estimators run every step and their resu
 only for a new frame, else the last estimates are shown again. An estimate's block holds its last
 valid values (heading frame of the current step) while it is invalid and its age grows.
 
-``deck_forecast`` is not available here (:func:`observe_params` refuses it). Parameters are
-static: close over them (``jax.jit(functools.partial(observe, params))``) or pass them as a static
-argument (``jax.jit(observe, static_argnums=0)``: they compare by identity). Frames as
+``deck_forecast`` appends the forecast block of :mod:`ihrcf_env.fast.forecast_feed` (the port of
+the wrapper's :class:`~ihrcf_env.wrappers.forecast_feed.ForecastFeed`), fed by the fused estimate
+shown on each new frame; its refit runs on every step under ``vmap`` (a fixed cost per env and
+step), so it is opt-in as on the PyBullet env. Parameters are static: close over them
+(``jax.jit(functools.partial(observe, params))``) or pass them as a static argument
+(``jax.jit(observe, static_argnums=0)``: they compare by identity). Frames as
 :mod:`ihrcf_env.wrappers.landing_obs` (body, heading frame from the IMU's attitude); SI units.
 """
 
@@ -43,15 +46,19 @@ from ihrcf_env.core.estimators import reasons as rs
 from ihrcf_env.core.estimators.cv_lm import MAX_ITER as MAX_LM_ITER
 from ihrcf_env.core.estimators.registry import BUILTIN_ESTIMATORS
 from ihrcf_env.core.landing_layout import (
+    FORECAST,
     GROUND_TRUTH,
     MAX_AGE,
     MOTION,
     POSITION_SCALE,
     RATE_SCALE,
+    forecast_fields,
     landing_blocks,
 )
 from ihrcf_env.core.layout import build_layout
 from ihrcf_env.core.rig import SensorRig
+from ihrcf_env.core.ship import DEFAULT_LENGTH_SCALE
+from ihrcf_env.fast import forecast_feed as ff
 from ihrcf_env.fast import fused as fu
 from ihrcf_env.fast.detector import STATUS_NAMES
 from ihrcf_env.fast.fused_blocks import imu_sample
@@ -104,6 +111,7 @@ class ObserveParams:
         max_residual: IHRCF's rigid-fit bound (m), for the reason text.
         fused_params: the fused filter's parameters (None without it).
         lm_iterations: the LM steps polishing each of ATDA's IPPE poses.
+        forecast: the forecast block's constants (``deck_forecast``; None without it).
     """
 
     names: tuple[str, ...]
@@ -131,6 +139,7 @@ class ObserveParams:
     max_residual: float
     fused_params: FusedParams | None
     lm_iterations: int = MAX_LM_ITER
+    forecast: ff.FeedParams | None = None
 
 
 class EstimateInfo(NamedTuple):
@@ -172,7 +181,8 @@ class ObserveState(NamedTuple):
     :class:`EstimateInfo` per estimator, ``age`` unused); ``held_block`` (E, 8), ``held_time`` (E,) s,
     ``has_held`` (E,): each estimator's last valid block and the time of its frame; ``prior``,
     ``has_prior``: ATDA's flip prior; ``fused``: the fused filter's state (None without it);
-    ``motion`` (6,): the deck-motion block shown.
+    ``motion`` (6,): the deck-motion block shown; ``feed``, ``forecast``: the forecaster's state
+    and its last output (``deck_forecast``; None without it).
     """
 
     steps: Array
@@ -195,6 +205,8 @@ class ObserveState(NamedTuple):
     has_prior: Array
     fused: fu.FusedState | None
     motion: Array
+    feed: ff.FeedState | None = None
+    forecast: ff.FeedOutput | None = None
 
 
 def _rig(calibration: Calibration) -> SensorRig:
@@ -209,8 +221,8 @@ def observe_params(config: DeckLandingConfig, lm_iterations: int = MAX_LM_ITER) 
     the LM steps that polish each IPPE pose (always all of them: the default is cv2's limit, with
     which the poses are cv2's; fewer are cheaper and stop short of cv2's converged pose where
     it needs more steps). ValueError naming
-    what this observation cannot build (a raw observation, ``deck_forecast``, an estimator other
-    than ``ihrcf``/``atda``/``fused``, the camera's image output, the fused filter's
+    what this observation cannot build (a raw observation, an estimator other than
+    ``ihrcf``/``atda``/``fused``, the camera's image output, the fused filter's
     ``range_only_update``)."""
     if not isinstance(config, DeckLandingConfig):
         raise TypeError(
@@ -225,10 +237,6 @@ def observe_params(config: DeckLandingConfig, lm_iterations: int = MAX_LM_ITER) 
     obs, world = config.observation, config.world
     if obs.raw or obs.calibration is None:
         raise ValueError("config.observation: a raw observation has no flat observation (raw=True)")
-    if obs.deck_forecast is not None:
-        raise ValueError(
-            "deck_forecast: the deck-motion forecast block is not available in the JAX observation"
-        )
     names = tuple(obs.estimators)
     available = sorted(BUILTIN_ESTIMATORS)  # the JAX observation ports every built-in estimator
     unknown = [n for n in names if n not in available]
@@ -260,7 +268,14 @@ def observe_params(config: DeckLandingConfig, lm_iterations: int = MAX_LM_ITER) 
         ih = ihrcf_setup(touch_table(cal.tables), rig, tag, obs.max_residual)
         fp, fused_atda = None, False
     max_range = float(world.tof.max_range)
-    lay = build_layout(landing_blocks(names, max_range, obs.privileged, obs.deck_motion))
+    feed = None
+    forecast_block = None
+    if obs.deck_forecast is not None:
+        ship = config.task.deck.ship
+        scale = ship.length_scale if ship is not None else DEFAULT_LENGTH_SCALE
+        feed = ff.feed_params(obs.deck_forecast, scale)
+        forecast_block = (FORECAST, forecast_fields(feed.forecast.horizons.size))
+    lay = build_layout(landing_blocks(names, max_range, obs.privileged, obs.deck_motion, forecast_block))
     latency = float(world.camera.latency)
     span = latency + world.camera_every / world.control_hz
     rate = world.tof.rate_hz
@@ -290,6 +305,7 @@ def observe_params(config: DeckLandingConfig, lm_iterations: int = MAX_LM_ITER) 
         max_residual=float(obs.max_residual),
         fused_params=fp,
         lm_iterations=lm_iterations,
+        forecast=feed,
     )
 
 
@@ -333,6 +349,17 @@ def observe_init(params: ObserveParams) -> ObserveState:
         has_prior=jnp.zeros((), bool),
         fused=None if params.fused is None else fu.fused_init(params.fused),
         motion=jnp.zeros(6, f),
+        feed=None if params.forecast is None else ff.feed_init(params.forecast, f),
+        forecast=None if params.forecast is None else _blank_forecast(params.forecast),
+    )
+
+
+def _blank_forecast(fp: ff.FeedParams) -> ff.FeedOutput:
+    f = _float()
+    h = fp.forecast.horizons.size
+    z = jnp.zeros((), f)
+    return ff.FeedOutput(
+        jnp.zeros(fp.size, f), jnp.zeros((h, 4), f), jnp.zeros((h, 4), f), z, jnp.zeros((), bool)
     )
 
 
@@ -532,6 +559,14 @@ def observe(
         o = fused_state.out
         motion = jnp.where(o.motion_valid, jnp.concatenate([R_lw @ o.velocity, R_lw @ o.normal_rate]), motion)
         out = put(out, MOTION, motion)
+    feed, forecast = st.feed, st.forecast
+    if p.forecast is not None:
+        assert st.feed is not None
+        nav_vz = jnp.asarray(raw.nav_velocity, f)[2]
+        feed, forecast = ff.feed_step(
+            p.forecast, st.feed, now, nav_vz, fresh, shown[p.names.index("fused")], R_lb, R_lw
+        )
+        out = put(out, FORECAST, forecast.block)
     if p.privileged:
         R_true, _, _ = imu_sample(
             jnp.asarray(truth.drone_quaternion_world, f), jnp.zeros(3, f), jnp.zeros(3, f)
@@ -566,6 +601,8 @@ def observe(
         has_prior=has_prior,
         fused=fused_state,
         motion=motion,
+        feed=feed,
+        forecast=forecast,
     )
     return out.astype(jnp.float32), state, infos
 

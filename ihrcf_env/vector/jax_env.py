@@ -290,7 +290,7 @@ class JaxVectorEnv(VectorEnv):
         trunc = stepping & ~term & (limit is not None) & (self._elapsed >= (limit or 0))
         assert self._obs is not None
         out_obs = np.where(stepping.reshape((-1,) + (1,) * (obs_np.ndim - 1)), obs_np, self._obs)
-        step_info = {k: np.asarray(v) for k, v in info.items()}
+        step_info = _to_numpy(info)
         infos = self._info_rows(step_info, np.flatnonzero(stepping))
         ended = np.flatnonzero(term | trunc)
         self._obs = out_obs
@@ -298,7 +298,7 @@ class JaxVectorEnv(VectorEnv):
             final_obs = out_obs[ended].copy()
             done = np.zeros(n, dtype=bool)
             done[ended] = True
-            final_info = {k: (v & done if k.startswith("_") else v) for k, v in infos.items()}
+            final_info = _mask_rows(infos, done)
             self._reset_rows(ended)
             out_obs = self._obs.copy()
             fo = np.full(n, None, dtype=object)
@@ -322,7 +322,7 @@ class JaxVectorEnv(VectorEnv):
         mask[rows] = True
         out: dict[str, Any] = {}
         for key, value in step_info.items():
-            out[key] = value
+            out[key] = self._info_rows(value, rows) if isinstance(value, dict) else value
             out[f"_{key}"] = mask.copy()
         return out
 
@@ -335,6 +335,19 @@ class JaxVectorEnv(VectorEnv):
     def _check_open(self) -> None:
         if self._closed:
             raise RuntimeError("vector env is closed (close() was called): make a new one with gym.make_vec")
+
+
+def _to_numpy(info: Any) -> Any:
+    """``info`` (a dict of arrays, possibly nested) with numpy arrays."""
+    return {k: _to_numpy(v) if isinstance(v, dict) else np.asarray(v) for k, v in info.items()}
+
+
+def _mask_rows(infos: dict[str, Any], rows: NDArray[np.bool_]) -> dict[str, Any]:
+    """A vector ``info`` whose masks (``_key``, at every level) are and-ed with ``rows``."""
+    return {
+        k: _mask_rows(v, rows) if isinstance(v, dict) else (v & rows if k.startswith("_") else v)
+        for k, v in infos.items()
+    }
 
 
 def _key_of(hi: Any, lo: Any) -> Any:

@@ -7,7 +7,9 @@ estimators and the normalised observation, in the layout of the PyBullet env's
 ``LandingObservation``) into the functions a trainer or :class:`~ihrcf_env.vector.jax_env.JaxVectorEnv`
 steps, one env per call: ``draw``, ``draw_host``, ``reset_from``, ``reset``, ``step``. Its state
 is ``(EnvState, ObserveState)``; its ``info`` holds the outcome code, the reward terms, the episode
-time and the truth.
+time, the truth and, with ``deck_forecast``, the forecast (``info["forecast"]``: ``horizons`` (H,) s,
+``mean`` and ``std`` (H, 4) in the observation block's frames and units, ``quiet_probability``,
+``valid``, ``samples``, as the PyBullet env's).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import numpy as np
 from gymnasium import spaces
 
 from ihrcf_env.config.landing import DeckLandingConfig
+from ihrcf_env.core.landing_layout import FORECAST
 from ihrcf_env.core.seeding import SeedStreams
 from ihrcf_env.fast import observe as ob
 from ihrcf_env.fast import step as st
@@ -96,4 +99,14 @@ class LandingFunctional:
         }
         for name, e in estimates.items():
             out[f"{name}_valid"] = e.valid
+        fc, feed, fp = obs_state.forecast, obs_state.feed, self.observe_params.forecast
+        if fc is not None and feed is not None and fp is not None:
+            out[FORECAST] = {
+                "horizons": jnp.asarray(fp.forecast.horizons, fc.mean.dtype),
+                "mean": fc.mean,
+                "std": fc.std,
+                "quiet_probability": fc.quiet,
+                "valid": fc.valid,
+                "samples": feed.samples,
+            }
         return obs, (env_state, obs_state), reward, done, out

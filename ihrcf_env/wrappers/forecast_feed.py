@@ -34,8 +34,8 @@ from numpy.typing import NDArray
 from ihrcf_env.core.estimators import PoseEstimate
 from ihrcf_env.core.forecast import DeckForecaster, ForecastOptions
 from ihrcf_env.core.frames import matrix_from_euler, matrix_from_quat
+from ihrcf_env.core.landing_layout import FORECAST, FORECAST_OUTPUTS, FORECAST_SCALES, forecast_fields
 from ihrcf_env.core.quiescence import QuiescenceThresholds
-from ihrcf_env.wrappers.layout import Field
 
 __all__ = [
     "FORECAST",
@@ -45,39 +45,9 @@ __all__ = [
     "forecast_fields",
 ]
 
-#: Observation block of the deck-motion forecast (``deck_forecast``).
-FORECAST = "forecast"
-HEAVE_SCALE = 0.1  # m
-TILT_SCALE = 0.1  # rad
-RATE_SCALE = 1.0  # m/s
-_SCALES = (HEAVE_SCALE, RATE_SCALE, TILT_SCALE, TILT_SCALE)
-_BOUNDS = (10.0, 20.0, 10.0, 10.0)  # scaled bounds of heave, heave rate, roll, pitch
-_NAMES = ("heave", "heave_rate", "roll", "pitch")
-_UNITS = ("m", "m/s", "rad", "rad")
-_MEANINGS = (
-    "forecast deck heave about its mean height, per horizon",
-    "forecast deck heave rate, per horizon",
-    "forecast deck roll (about the heading frame's x), per horizon",
-    "forecast deck pitch (about the heading frame's y), per horizon",
-)
-
-
-def forecast_fields(horizons: int) -> tuple[Field, ...]:
-    """The fields of the forecast block for ``horizons`` forecast horizons."""
-    means = tuple(
-        Field(n, horizons, -b, b, s, u, m)
-        for n, s, b, u, m in zip(_NAMES, _SCALES, _BOUNDS, _UNITS, _MEANINGS, strict=True)
-    )
-    stds = tuple(
-        Field(f"{n}_std", horizons, 0.0, b, s, u, f"standard deviation of forecast.{n}")
-        for n, s, b, u in zip(_NAMES, _SCALES, _BOUNDS, _UNITS, strict=True)
-    )
-    return (
-        *means,
-        *stds,
-        Field("quiet", 1, 0.0, 1.0, 1.0, "", "probability that the touchdown window ahead is quiet"),
-        Field("valid", 1, 0.0, 1.0, 1.0, "", "1 = the forecaster has fitted its model (else the block is 0)"),
-    )
+HEAVE_SCALE, RATE_SCALE, TILT_SCALE = FORECAST_SCALES[0], FORECAST_SCALES[1], FORECAST_SCALES[2]
+_SCALES = FORECAST_SCALES
+_NAMES = FORECAST_OUTPUTS
 
 
 class ForecastFeed:

@@ -32,6 +32,11 @@ from ihrcf_env.fast.raw import RawReading, Truth  # noqa: E402
 OBS_TOL = 1e-4
 #: Share of step-estimator pairs whose reason text may differ (an LM difference flipping a gate).
 MAX_REASON_MISMATCH = 0.02
+#: Largest differences allowed in the forecast: the block (scaled units) and the mean and std of
+#: ``info["forecast"]`` (m, m/s, rad). The fit on a sliding window amplifies the fused estimate's
+#: rounding-level differences.
+FORECAST_OBS_TOL = 1e-3
+FORECAST_TOL = 1e-4
 STEPS = 300
 
 
@@ -104,6 +109,7 @@ class Compiled:
     def __init__(self, cfg: Any) -> None:
         self.params = ob.observe_params(cfg)
         self.traces = 0
+        self.apart_worst = 0.0
 
         def step(st: Any, raw: RawReading, truth: Truth) -> Any:
             self.traces += 1
@@ -112,17 +118,26 @@ class Compiled:
         self.fn: Callable[..., Any] = jax.jit(step)
 
 
-def _compare(c: Compiled, recs: list, outs: list, infos: list) -> tuple[float, int, int]:
-    """Run the JAX observation over an episode: (max |difference|, reason mismatches, pairs)."""
+def _compare(
+    c: Compiled, recs: list, outs: list, infos: list, apart: slice | None = None
+) -> tuple[float, int, int]:
+    """Run the JAX observation over an episode: (max |difference| outside ``apart``, reason
+    mismatches, pairs); the largest difference inside ``apart`` is left in ``c.apart_worst``."""
     p = c.params
     st = ob.observe_reset(p, ob.observe_init(p))
     worst, mismatch, pairs = 0.0, 0, 0
+    inside = np.zeros(outs[0].shape, bool)
+    if apart is not None:
+        inside[apart] = True
+    c.apart_worst = 0.0
     for k, rec in enumerate(recs):
         out, st, est = c.fn(st, *_reading(rec))
         out = np.asarray(out)
         assert out.dtype == np.float32 and out.shape == outs[k].shape
         assert np.all(np.isfinite(out))
-        worst = max(worst, float(np.max(np.abs(out.astype(np.float64) - outs[k]))))
+        diff = np.abs(out.astype(np.float64) - outs[k])
+        worst = max(worst, float(np.max(diff[~inside])))
+        c.apart_worst = max(c.apart_worst, float(np.max(diff, where=inside, initial=0.0)))
         for name in p.names:
             e = jax.tree_util.tree_map(np.asarray, est[name])
             pairs += 1
@@ -176,9 +191,19 @@ def test_layout_is_the_wrappers(task: str, options: dict) -> None:
     assert p.counted == (task == "landing-v2")
 
 
+def test_the_forecast_block_is_the_wrappers() -> None:
+    cfg = _config("landing-v2", deck_forecast={"horizons": (0.5, 1.0, 2.0)})
+    p = ob.observe_params(cfg)
+    o = cfg.observation
+    slices, scales, low, high = landing_obs_fields(o.estimators, cfg.world.tof.max_range, False, False, 3)
+    assert p.slices == slices and p.scales == scales
+    np.testing.assert_array_equal(p.low, low)
+    np.testing.assert_array_equal(p.high, high)
+    assert p.forecast is not None and p.forecast.size == 8 * 3 + 2
+    assert not _same_params(p, ob.observe_params(_config("landing-v2")))
+
+
 def test_refused_options_are_named() -> None:
-    with pytest.raises(ValueError, match="deck_forecast"):
-        ob.observe_params(_config("landing-v2", deck_forecast=True))
     with pytest.raises(ValueError, match="raw"):
         ob.observe_params(_config("landing-v2", raw=True))
     with pytest.raises(ValueError, match="camera_output"):
@@ -243,3 +268,31 @@ def test_deck_motion_and_privileged_blocks_match() -> None:
     shown = np.array([o[sl["motion"]] for o in outs])
     assert np.any(shown != 0.0)  # the filter converged and its motion is shown
     assert np.all(np.array([o[sl["ground_truth"]] for o in outs])[:, 2] != 0.0)
+
+
+@pytest.mark.slow
+def test_deck_forecast_block_matches() -> None:
+    """The forecast block (fed by the fused estimate, fitted within the episode) and the rest of
+    the observation against the wrapper's; ``info["forecast"]`` against the JAX state's output."""
+    quick = {"window": 8.0, "min_span": 4.0, "order": 8, "horizons": (0.5, 1.0)}
+    cfg = _config("landing-v2", level="rough", deck_forecast=quick)
+    c = Compiled(cfg)
+    recs, outs, infos = _record(cfg, 13)
+    sl = c.params.slices
+    worst, mismatch, pairs = _compare(c, recs, outs, infos, apart=sl["forecast"])
+    assert worst <= OBS_TOL
+    assert c.apart_worst <= FORECAST_OBS_TOL
+    assert mismatch <= MAX_REASON_MISMATCH * pairs
+    fitted = np.array([o[sl["forecast.valid"]][0] for o in outs])
+    assert fitted.sum() >= 20  # the forecaster fitted and its forecast was compared
+    p = c.params
+    st = ob.observe_reset(p, ob.observe_init(p))
+    for k, rec in enumerate(recs):
+        _, st, _ = c.fn(st, *_reading(rec))
+        ref = infos[k]["forecast"]
+        fc = jax.tree_util.tree_map(np.asarray, st.forecast)
+        assert bool(fc.valid) == ref["valid"]
+        np.testing.assert_allclose(fc.mean, ref["mean"], atol=FORECAST_TOL)
+        np.testing.assert_allclose(fc.std, ref["std"], atol=FORECAST_TOL / 10)
+        assert abs(float(fc.quiet) - ref["quiet_probability"]) <= 1e-4
+        assert int(np.asarray(st.feed.samples)) == ref["samples"]

@@ -29,8 +29,10 @@ def test_options_the_backend_cannot_honour_are_named() -> None:
         make(backend="jax", workers=2)
     with pytest.raises(ValueError, match="dtype"):
         make(backend="jax", dtype="float16")
+    with pytest.raises(ValueError, match="deck_forecast needs the fused estimator"):
+        make(backend="jax", deck_forecast=True, estimators=("ihrcf", "atda"))
     with pytest.raises(ValueError, match="deck_forecast"):
-        make(backend="jax", deck_forecast=True)
+        make(backend="jax", deck_forecast={"horizons": (0.5, -1.0)})
 
 
 @pytest.mark.slow
@@ -49,6 +51,42 @@ def test_the_compiled_env_pairs_seeds_with_the_pybullet_env() -> None:
             obs, reward, term, trunc, info = env.step(np.zeros((2, 4)))
             assert np.isfinite(obs).all() and np.isfinite(reward).all()
         assert "outcome" in info and info["_outcome"].all()
+    finally:
+        env.close()
+        ref.close()
+
+
+#: Forecast options that fit within a few seconds of flight (the default waits 10 s).
+QUICK_FORECAST = {"window": 8.0, "min_span": 4.0, "order": 8, "horizons": (0.5, 1.0)}
+
+
+@pytest.mark.slow
+def test_the_deck_forecast_block_and_info() -> None:
+    """``deck_forecast`` on the JAX backend: the PyBullet env's layout, the block filled once the
+    forecaster fits (the drone holding over the deck), ``info["forecast"]`` as vector info."""
+    env = make(2, backend="jax", level="rough", deck_forecast=QUICK_FORECAST)
+    ref = gym.make(
+        ID, level="rough", camera_model="projected", camera_output="corners", deck_forecast=QUICK_FORECAST
+    )
+    try:
+        assert env.single_observation_space == ref.observation_space
+        assert env.obs_slices == ref.get_wrapper_attr("obs_slices")  # type: ignore[attr-defined]
+        sl = env.obs_slices  # type: ignore[attr-defined]
+        env.reset(seed=3)
+        valid = np.zeros(2, bool)
+        for _ in range(200):
+            obs, _, term, trunc, info = env.step(np.zeros((2, 4)))
+            assert np.isfinite(obs).all()
+            fc = info["forecast"]
+            assert fc["mean"].shape == (2, 2, 4) and fc["_mean"].all()
+            np.testing.assert_array_equal(obs[:, sl["forecast.valid"]][:, 0], fc["valid"].astype(np.float32))
+            np.testing.assert_allclose(fc["horizons"][0], [0.5, 1.0])
+            valid |= fc["valid"]
+            if (term | trunc).any():
+                break
+        assert valid.any(), "the forecaster never fitted"
+        shown = obs[:, sl["forecast.heave_std"]]
+        assert np.all(shown[fc["valid"]] > 0.0)
     finally:
         env.close()
         ref.close()
