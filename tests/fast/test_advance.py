@@ -20,12 +20,12 @@ import pybullet as p
 from ihrcf_env.config.vehicle import VelocityGains
 from ihrcf_env.config.wind import WindParams
 from ihrcf_env.config.world import WorldConfig
+from ihrcf_env.core.collision import drone_boxes
 from ihrcf_env.core.profiles import paper_profile
 from ihrcf_env.fast import contact
 from ihrcf_env.fast.advance import AdvanceConsts, Flight, advance
 from ihrcf_env.fast.autopilot import ControllerState, gains_of
 from ihrcf_env.fast.dynamics import DroneState, GroundEffectParams, drone_params
-from ihrcf_env.fast.params import drone_boxes
 from ihrcf_env.fast.wind import wind_constants
 from ihrcf_env.sim.disturbances import Wind
 from ihrcf_env.sim.world import World

@@ -17,9 +17,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from ihrcf_env.config.world import WorldConfig
+from ihrcf_env.core.collision import drone_boxes
 from ihrcf_env.fast import contact as fc
 from ihrcf_env.fast.contact import box_corners, first_contact
-from ihrcf_env.fast.params import drone_boxes
 from ihrcf_env.sim.world import World
 
 from .fast_helpers import Counted, rotations

@@ -11,11 +11,11 @@ import pytest
 
 from ihrcf_env.config.sensors import CameraConfig
 from ihrcf_env.config.world import WorldConfig
+from ihrcf_env.core.collision import drone_boxes
 from ihrcf_env.core.detector_model import DetectorModel
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.fast.rays import Scene
 from ihrcf_env.fast.tag_camera import STATUS_OCCLUDED, Imaging, imaging_of, tag_camera_setup, tag_read
-from ihrcf_env.sim.batched.contact import drone_boxes
 from ihrcf_env.sim.batched.detector import BatchedCornerTrack
 from ihrcf_env.sim.batched.rays import RayScene
 from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera

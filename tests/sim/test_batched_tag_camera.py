@@ -18,10 +18,10 @@ import pybullet as p
 import pytest
 
 from ihrcf_env.config.world import WorldConfig
+from ihrcf_env.core.collision import drone_boxes
 from ihrcf_env.core.detector_model import CornerTrack
 from ihrcf_env.core.frames import R_BODY_CAM, matrix_from_quat, quat_from_matrix
 from ihrcf_env.core.profiles import StaticProfile
-from ihrcf_env.sim.batched.contact import drone_boxes
 from ihrcf_env.sim.batched.detector import BatchedCornerTrack
 from ihrcf_env.sim.batched.rays import RayScene, _box_entry, cast_rays, to_local
 from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera

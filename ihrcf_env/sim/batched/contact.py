@@ -15,38 +15,16 @@ other rows).
 from __future__ import annotations
 
 import functools
-import xml.etree.ElementTree as ET
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ihrcf_env.core.paths import asset_path
+from ihrcf_env.core.collision import drone_boxes
 
 #: Contact codes of :func:`first_contact`, in the order a simultaneous contact reports them.
 NO_CONTACT, DECK, GROUND, BASE = 0, 1, 2, 3
 #: Names of the codes (index = code) as :class:`~ihrcf_env.sim.world.Touchdown` gives them.
 CONTACT_NAMES = ("", "deck", "ground", "base")
-
-
-@functools.lru_cache(maxsize=1)
-def drone_boxes() -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """``(centres, half_extents)``, each (B, 3) (body frame, m), of the axis-aligned collision boxes
-    of ``assets/quadrotor.urdf`` (read-only)."""
-    root = ET.parse(asset_path("quadrotor.urdf")).getroot()
-    centres, halves = [], []
-    for col in root.iter("collision"):
-        origin = col.find("origin")
-        box = col.find("geometry/box")
-        if box is None:
-            raise ValueError("quadrotor.urdf: the numpy physics supports box collision shapes only")
-        if origin is not None and origin.get("rpy", "0 0 0").split() != ["0", "0", "0"]:
-            raise ValueError("quadrotor.urdf: the numpy physics supports unrotated collision boxes only")
-        xyz = "0 0 0" if origin is None else origin.get("xyz", "0 0 0")
-        centres.append([float(v) for v in xyz.split()])
-        halves.append([float(v) / 2 for v in box.get("size", "").split()])
-    c, h = np.array(centres, dtype=np.float64), np.array(halves, dtype=np.float64)
-    c.flags.writeable = h.flags.writeable = False
-    return c, h
 
 
 @functools.lru_cache(maxsize=1)
@@ -157,7 +135,6 @@ __all__ = [
     "CONTACT_NAMES",
     "boxes_overlap_deck",
     "corners_world",
-    "drone_boxes",
     "drone_corners",
     "drone_radius",
     "first_contact",
