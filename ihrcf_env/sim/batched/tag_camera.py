@@ -79,24 +79,6 @@ class BatchedTagCamera:
         self._vignetting_exponent = float(im.vignetting_exponent)
         self._read_noise = float(im.read_noise_e)
         self._blur_threshold = float(im.blur_threshold_px)
-        self._same: dict[int, tuple[BatchedTagCamera, bool]] = {}  # same_as, per other camera
-
-    def same_as(self, other: BatchedTagCamera) -> bool:
-        """True when ``other`` reads as this one does (one batched read serves the worlds of both);
-        remembered per ``other`` (both are fixed once made)."""
-        if other is self:
-            return True
-        known = self._same.get(id(other))
-        if known is None or known[0] is not other:
-            same = (
-                self.camera == other.camera
-                and self.scene == other.scene
-                and self.params == other.params
-                and np.array_equal(self._cam_offset, other._cam_offset)
-                and np.array_equal(self._points_deck, other._points_deck)
-            )
-            known = self._same[id(other)] = (other, same)
-        return known[1]
 
     def _project(self, P: NDArray[np.float64]) -> NDArray[np.float64]:
         """Pixels (N, M, 2) of camera-frame points (N, M, 3) (as ``project_points``)."""

@@ -42,7 +42,7 @@ from ihrcf_env.core.detector_model import (
 from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 from ihrcf_env.sim.deck import Deck
-from ihrcf_env.sim.sensors.base import TAG_CAMERA, BodyState, poses_key, tag_reading
+from ihrcf_env.sim.sensors.base import TAG_CAMERA, BodyState, tag_reading
 from ihrcf_env.sim.sensors.imaging import EpisodeImaging, draw_episode, image_motion_px
 
 if TYPE_CHECKING:
@@ -115,9 +115,6 @@ class ProjectedTagCamera:
         self._deck_half = float(deck.config.thickness) / 2.0
         #: closed-form rays: every read is the batched read of this world alone (None: Bullet's rays)
         self.batched: BatchedTagCamera | None = None
-        #: a reading cast ahead (:meth:`BatchedTagCamera.read` of many worlds): (poses key, the
-        #: generator it drew from, the reading)
-        self.prefetched: tuple[bytes, np.random.Generator, dict[str, NDArray]] | None = None
         if closed_form:
             from ihrcf_env.sim.batched.rays import RayScene
             from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
@@ -264,21 +261,10 @@ class ProjectedTagCamera:
             return tag_reading(None, REASON_OCCLUDED)
         return tag_reading(corners, reason)
 
-    def poses_key(self, state: BodyState) -> tuple[bytes, NDArray[np.float64], NDArray[np.float64]]:
-        """(key of the drone's pose in ``state`` and the deck's pose now, deck position, rotation)."""
-        deck_pos, R_wd = self._deck_pose()
-        return poses_key(state.position, state.rotation, deck_pos, R_wd), deck_pos, R_wd
-
     def _read_closed_form(self, state: BodyState, rng: np.random.Generator) -> dict[str, NDArray]:
-        """The batched read of this world alone, or the one cast ahead for it (which must be of
-        the same poses and generator: it has drawn from it)."""
-        key, deck_pos, R_wd = self.poses_key(state)
-        ahead, self.prefetched = self.prefetched, None
+        """The batched read of this world alone (closed-form rays)."""
+        deck_pos, R_wd = self._deck_pose()
         self.last_features = None
-        if ahead is not None:
-            if ahead[0] != key or ahead[1] is not rng:
-                raise RuntimeError("a camera reading cast ahead was not read at its poses and generator")
-            return ahead[2]
         assert self.batched is not None
         if self.quality == "realistic" and self.episode is None:
             self.reset(rng)  # as the rendered camera: the episode drawn at the first read
