@@ -1,6 +1,8 @@
-"""The ToF sensors ps1..ps4 of N drones at once, by closed-form ray casting (:mod:`.rays`).
+"""The ToF sensors ps1..ps4 of N drones at once, by closed-form ray casting (:mod:`.rays`): the
+rays of a :class:`~ihrcf_env.sim.sensors.tof.ToFArray` given its world's deck, and the numpy
+reference of the JAX backend's :mod:`ihrcf_env.fast.rays` and :mod:`ihrcf_env.fast.tof`.
 
-:class:`BatchedToF` gives what :class:`~ihrcf_env.sim.sensors.tof.ToFArray` ``true_ranges``,
+:class:`ClosedFormToF` gives what :class:`~ihrcf_env.sim.sensors.tof.ToFArray` ``true_ranges``,
 ``cone_returns`` and ``cone_ranges`` give (noise-free), for stacks of drone and deck poses, with the
 same arithmetic on the rays' hits. Row-independent: a drone's readings never depend on the other rows.
 """
@@ -12,13 +14,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from ihrcf_env.sim.batched.rays import RayHits, RayScene, cast_rays, nearest, self_hits, to_world
+from ihrcf_env.sim.sensors.rays import RayHits, RayScene, cast_rays, nearest, self_hits, to_world
 
 if TYPE_CHECKING:
     from ihrcf_env.config.sensors import VL53L1X
 
 
-class BatchedToF:
+class ClosedFormToF:
     """Four ToF sensors at ``positions_body`` (4, 3; body frame, m) reading up to ``max_range`` (m)
     in ``scene``; ``model`` the realistic cone model (None: one ray per sensor along body -z)."""
 
@@ -132,5 +134,5 @@ class BatchedToF:
 
 
 __all__ = [
-    "BatchedToF",
+    "ClosedFormToF",
 ]
