@@ -129,7 +129,7 @@ def test_the_config_is_a_frozen_value() -> None:
 
 
 #: The refusal of the removed ``physics`` option: it names the option and the batched path.
-PHYSICS_REMOVED = r'physics: .*numpy batched physics (was|were) removed.*gym\.make_vec\(.*backend="jax"\)'
+PHYSICS_REMOVED = r'physics: .*numpy batched physics were removed.*gym\.make_vec\(.*backend="jax"\)'
 
 
 @pytest.mark.parametrize("value", ["numpy", "pybullet", None, 1])
