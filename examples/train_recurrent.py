@@ -9,7 +9,7 @@ without PyTorch::
     python -m ihrcf_env.evaluate --policy out/gru-v2/best.npz --level moderate --episodes 100 \
         --camera-model rendered
 
-``--vector-envs 32 --physics numpy`` flies the episodes in one native vector env of 32 envs (over
+``--vector-envs 32`` flies the episodes in one native vector env of 32 envs (over
 ``--workers`` processes) instead of single envs.
 
 Writes to ``--out``: ``best.npz`` (the best round on the validation seeds), ``final.npz``,
@@ -51,7 +51,6 @@ def main(argv: list[str] | None = None) -> int:
         default=0,
         help="fly in one vector env of this many envs over --workers processes (0: single envs)",
     )
-    ap.add_argument("--physics", default="pybullet", choices=("pybullet", "numpy"), help="flyers' physics")
     ap.add_argument(
         "--fit-threads",
         type=int,
@@ -106,7 +105,6 @@ def main(argv: list[str] | None = None) -> int:
         hidden=args.hidden,
         workers=args.workers,
         vector_envs=args.vector_envs,
-        physics=args.physics,
         max_wall_min=args.max_wall_min,
         seed=args.seed,
         fit_threads=args.workers if args.fit_threads is None else args.fit_threads,

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import dataclasses
 import math
 import os
 import statistics
@@ -22,7 +21,6 @@ from pathlib import Path
 
 import ihrcf_env  # noqa: F401  (registers the envs)
 from ihrcf_env.cli.common import check_output, command_main, int_in, make_parser, write_whole
-from ihrcf_env.config.world import PHYSICS_BACKENDS
 from ihrcf_env.core.metrics import table2_markdown
 from ihrcf_env.core.threads import limit_blas_threads
 from ihrcf_env.experiments.accuracy import accuracy
@@ -104,40 +102,31 @@ def _vector_report(args: argparse.Namespace, cores: list[int] | None) -> list[st
     limit_blas_threads(1)  # as the spawned processes run (one_blas_thread): the same for both sides
     head = (
         f"{args.id}, camera_model=projected, {args.actions} actions: single env {args.steps} steps, "
-        f"vector env ({args.physics} physics) {args.vector_steps} steps per N, {args.warmup} untimed "
+        f"vector env {args.vector_steps} steps per N, {args.warmup} untimed "
         f"first ({pinned}); one BLAS thread per process; {args.rounds} round(s), each timing the "
         "single env and then every configuration, ratios taken within a round"
     )
     print(head, flush=True)
-    # the same N envs (and seeds) with PyBullet's physics: the envs stepped in turn
-    backends = ("pybullet", args.physics) if args.physics != "pybullet" else ("pybullet",)
     singles: list[float] = []
-    runs: dict[tuple[int, int, str], list[VectorSpeed]] = {}
+    runs: dict[tuple[int, int], list[VectorSpeed]] = {}
     for k in range(args.rounds):
         single = single_speed(steps=args.steps, **common)
         singles.append(single)
         print(f"round {k + 1}: single env {single:.1f} steps/s", flush=True)
         for n in ns:
             for p in args.processes:
-                for physics in backends:
-                    if p == 1:
-                        row = vector_speed(num_envs=n, steps=args.vector_steps, **common, physics=physics)
-                    else:
-                        row = process_speed(
-                            num_envs=n,
-                            processes=p,
-                            steps=args.vector_steps,
-                            cores=cores,
-                            **common,
-                            physics=physics,
-                        )
-                    row = dataclasses.replace(row, physics=physics)
-                    print(
-                        f"round {k + 1}: N={n}, {physics}, {p} process(es): {row.env_steps_per_s:.1f} "
-                        f"env-steps/s ({row.ratio(single):.2f}x)",
-                        flush=True,
+                if p == 1:
+                    row = vector_speed(num_envs=n, steps=args.vector_steps, **common)
+                else:
+                    row = process_speed(
+                        num_envs=n, processes=p, steps=args.vector_steps, cores=cores, **common
                     )
-                    runs.setdefault((n, p, physics), []).append(row)
+                print(
+                    f"round {k + 1}: N={n}, {p} process(es): {row.env_steps_per_s:.1f} "
+                    f"env-steps/s ({row.ratio(single):.2f}x)",
+                    flush=True,
+                )
+                runs.setdefault((n, p), []).append(row)
     table = markdown_table(statistics.median(singles), [PairedSpeed.of(r, singles) for r in runs.values()])
     print()
     print("\n".join(table))
@@ -232,12 +221,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --vector: also P processes, each with its own vector env of N on its own core",
     )
     vec.add_argument("--id", default=ihrcf_env.LANDING_V1_ID, choices=ihrcf_env.VECTOR_IDS, help="env id")
-    vec.add_argument(
-        "--physics",
-        choices=PHYSICS_BACKENDS,
-        default="numpy",
-        help="the vector env's physics (the single env runs the default, pybullet)",
-    )
     vec.add_argument("--vector-steps", type=int_in(1), default=20, help="timed vector steps per N")
     vec.add_argument(
         "--rounds",

@@ -210,6 +210,10 @@ REMOVED_OPTIONS: dict[str, str] = {
         "the option and the batched estimators were removed (each env of a vector env runs its own "
         'estimators); the batched path is the JAX backend, gym.make_vec(id, num_envs, backend="jax")'
     ),
+    "physics": (
+        "the option and the numpy batched physics were removed (every world flies in PyBullet); the "
+        'batched path is the JAX backend, gym.make_vec(id, num_envs, backend="jax")'
+    ),
 }
 #: ``autopilot``: the classic position loop, or the wind-holding one (anti-windup and a
 #: disturbance observer, :class:`~ihrcf_env.sim.drone.VelocityController`).
@@ -417,7 +421,6 @@ def world_part(o: _Options, obs: Any) -> WorldConfig:
     return WorldConfig(
         gains=VelocityGains(wind_hold=check_str("autopilot", o.pick("autopilot"), AUTOPILOTS) == "wind_hold"),
         ground_effect=check_bool("ground_effect", o.pick("ground_effect")),
-        physics=o["physics"],
         control_hz=rate,
         action_mode=check_str("action_mode", o["action_mode"], ACTION_MODES),
         camera=cam,
@@ -528,7 +531,6 @@ def make_config(
     level: str | None = None,
     autopilot: str | None = None,
     ground_effect: bool | None = None,
-    physics: str = "pybullet",
     control_hz: int = 20,
     deck_profile: ProfileSpec | None = None,
     sea_state_amplitudes: Mapping[str, float] | None = None,

@@ -12,7 +12,7 @@ import numpy as np
 
 from ihrcf_env.config.sensors import CameraConfig, IMUConfig, ToFConfig
 from ihrcf_env.config.vehicle import NavigationConfig, QuadParams, VelocityGains
-from ihrcf_env.core.checks import check_fields, check_int, check_str, set_field
+from ihrcf_env.core.checks import check_fields, check_int, set_field
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.core.stewart import StewartGeometry
 
@@ -64,10 +64,6 @@ ACTION_MODES: tuple[str, ...] = ("velocity", "motors")
 CAMERA_MODELS: tuple[str, ...] = ("rendered", "projected")
 
 
-#: Integrators of the drone's flight (``WorldConfig.physics``).
-PHYSICS_BACKENDS: tuple[str, ...] = ("pybullet", "numpy")
-
-
 #: What the camera delivers: the ``"image"`` (rendered only) or the tag's ``"corners"`` (a rendered
 #: window around the tag + detection, or the projected model).
 CAMERA_OUTPUTS: tuple[str, ...] = ("image", "corners")
@@ -101,10 +97,6 @@ class WorldConfig:
     measurement_noise: tuple[tuple[str, str], ...] = ()
     #: sensor faults (:func:`ihrcf_env.sim.registry.check_faults`), applied after the noise models
     faults: tuple[tuple[str, tuple[tuple[str, Any], ...]], ...] = ()
-    #: who integrates the drone's flight: ``"pybullet"`` (its rigid-body solver and contacts) or
-    #: ``"numpy"`` (:mod:`ihrcf_env.sim.batched`: the same forces integrated in numpy, contacts in
-    #: closed form, many worlds at once in a vector env)
-    physics: str = "pybullet"
 
     def __post_init__(self) -> None:
         if not (isinstance(self.physics_hz, int | np.integer) and self.physics_hz > 0):
@@ -117,7 +109,6 @@ class WorldConfig:
             )
         if self.action_mode not in ACTION_MODES:
             raise ValueError(f"action_mode must be one of {ACTION_MODES}, got {self.action_mode!r}")
-        check_str("physics", self.physics, PHYSICS_BACKENDS)
         if self.camera_model not in CAMERA_MODELS:
             raise ValueError(f"camera_model must be one of {CAMERA_MODELS}, got {self.camera_model!r}")
         if self.camera_output not in CAMERA_OUTPUTS:
@@ -153,7 +144,6 @@ __all__ = [
     "CAMERA_OUTPUTS",
     "DECK_BOUNDS",
     "DECK_UNITS",
-    "PHYSICS_BACKENDS",
     "DeckConfig",
     "WorldConfig",
 ]

@@ -223,7 +223,7 @@ class DeckLandingEnv(gym.Env):
     def begin_step(self, action: Any) -> NDArray[np.float64]:
         """The first phase of :meth:`step`: check the env's state and ``action`` and hand the action
         to the autopilot or the motors (:meth:`apply_action`); returns it as floats. Then the world
-        advances one control period (``world.step()``, or a vector env's batched physics) and
+        advances one control period (``world.step()``, which a vector env calls itself) and
         :meth:`end_step` finishes the step."""
         self._check_open()
         if self._profile is None:

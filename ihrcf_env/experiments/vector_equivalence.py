@@ -161,13 +161,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     ap.add_argument("--seed", type=int, default=TEST_SEEDS.start, help="seed of env 0 (env i: seed + i)")
     ap.add_argument("--camera-model", default="projected", choices=("projected", "rendered"))
-    ap.add_argument("--physics", default="numpy", choices=("numpy", "pybullet"))
     args = ap.parse_args(argv)
     if not 1 <= args.episodes <= MAX_EPISODES:
         ap.error(f"argument --episodes: 1..{MAX_EPISODES}, got {args.episodes}")
     if args.seed < 0:
         ap.error(f"argument --seed: >= 0, got {args.seed}")
-    options: dict[str, Any] = {"camera_model": args.camera_model, "physics": args.physics}
+    options: dict[str, Any] = {"camera_model": args.camera_model}
     if args.id == ihrcf_env.LANDING_V2_ID:
         options["level"] = args.level
     vector = vector_episodes(args.id, args.episodes, args.seed, **options)

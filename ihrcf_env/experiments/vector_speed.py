@@ -44,7 +44,6 @@ class VectorSpeed:
     processes: int
     cores: int
     env_steps_per_s: float
-    physics: str = ""  # the vector env's physics option ("" when not given)
 
     def ratio(self, single_steps_per_s: float) -> float:
         """Env steps per second per core over the single env's steps per second (one core)."""
@@ -67,7 +66,7 @@ class PairedSpeed:
             raise ValueError(f"one single-env figure per round: {len(runs)} runs, {len(singles)} figures")
         median = statistics.median(r.env_steps_per_s for r in runs)
         first = runs[0]
-        speed = VectorSpeed(first.num_envs, first.processes, first.cores, median, first.physics)
+        speed = VectorSpeed(first.num_envs, first.processes, first.cores, median)
         return cls(speed, tuple(r.ratio(s) for r, s in zip(runs, singles, strict=True)))
 
     @property
@@ -238,9 +237,9 @@ def markdown_table(single_steps_per_s: float, rows: Sequence[VectorSpeed | Paire
     """The table's lines: the single env first (N and processes "-"), then one row per run; a
     :class:`PairedSpeed` row shows the median of its rounds' ratios and their range."""
     lines = [
-        "| N | physics | processes | env-steps/s | per core | ratio to single (per core) | rounds' range |",
-        "|---|---|---|---|---|---|---|",
-        f"| single env | pybullet | 1 | {single_steps_per_s:.1f} | {single_steps_per_s:.1f} | 1.00 | - |",
+        "| N | processes | env-steps/s | per core | ratio to single (per core) | rounds' range |",
+        "|---|---|---|---|---|---|",
+        f"| single env | 1 | {single_steps_per_s:.1f} | {single_steps_per_s:.1f} | 1.00 | - |",
     ]
     for row in rows:
         r = row.speed if isinstance(row, PairedSpeed) else row
@@ -251,7 +250,7 @@ def markdown_table(single_steps_per_s: float, rows: Sequence[VectorSpeed | Paire
             else "-"
         )
         lines.append(
-            f"| {r.num_envs} | {r.physics or '-'} | {r.processes} | {r.env_steps_per_s:.1f} | "
+            f"| {r.num_envs} | {r.processes} | {r.env_steps_per_s:.1f} | "
             f"{r.env_steps_per_s / r.cores:.1f} | {ratio:.2f} | {spread} |"
         )
     return lines

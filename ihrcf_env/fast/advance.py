@@ -1,9 +1,11 @@
 """One control period of one drone's flight (``lax.scan`` over the physics ticks): the velocity
 autopilot, the ground effect over the deck and the ground, the wind's drag force, the rigid-body
 tick, the touchdown test against the deck plate, the ground and the Stewart base, and, once down,
-the drone resting where it touched (moving with the deck on it). The port of
-:func:`ihrcf_env.sim.batched.loop.advance` for one world on velocity setpoints, with the navigation
-errors given (no user disturbances).
+the drone resting where it touched (moving with the deck on it). The counterpart of one
+:meth:`World.step <ihrcf_env.sim.world.World.step>` on velocity setpoints, with the navigation
+errors given (no user disturbances); the touchdown is the closed-form test of
+:mod:`ihrcf_env.fast.contact` where the world has PyBullet's contacts (after which its drone
+follows PyBullet's contact response, this one rests).
 
 The deck's poses at the period's ticks and the air's velocity at each tick are inputs (from
 :mod:`ihrcf_env.fast.deck_motion` and :mod:`ihrcf_env.fast.wind`, or the simulator's). Frames:

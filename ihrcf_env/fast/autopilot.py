@@ -1,5 +1,5 @@
 """The velocity controller (velocity set-points in the heading frame -> rotor speeds, at the physics
-rate) for one drone: the port of :class:`ihrcf_env.sim.batched.autopilot.BatchedVelocityController`.
+rate) for one drone: the port of :class:`ihrcf_env.sim.drone.VelocityController`.
 The position set-point integrates the command with its leash; the horizontal PID is the classic
 loop (per-axis integrator clamp) or the wind-holding loop (conditional, norm-limited integral and
 the disturbance observer); then the vertical PID, the tilt limit, the yaw reference, the geometric

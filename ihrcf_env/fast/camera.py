@@ -1,5 +1,5 @@
 """Points of the deck (the tag's corners, its quiet zone, its centre) through the downward camera:
-the projection of :class:`ihrcf_env.sim.batched.tag_camera.BatchedTagCamera` (and
+the projection of :class:`ihrcf_env.sim.sensors.closed_form_camera.ClosedFormTagCamera` (and
 :func:`ihrcf_env.core.detector_model.features.project_points`) for one environment.
 
 Frames: world (z up), body (world from body ``R_wb``), deck (world from deck ``R_wd``, origin at the
@@ -80,7 +80,7 @@ def tag_view(
     far: float,
 ) -> TagView:
     """The tag's view (:class:`TagView`) for ``points_deck`` (9, 3): the four tag corners, the four
-    quiet-zone corners and the tag centre in the deck frame (the order of the batched camera)."""
+    quiet-zone corners and the tag centre in the deck frame (the order of the closed-form camera)."""
     P, eye, R_wc = camera_points(position, rotation, deck_position, deck_rotation, points_deck, camera_offset)
     z = P[:8, 2]
     in_range = ~((jnp.min(z) <= near) | (jnp.max(z[:4]) >= far))

@@ -1,12 +1,13 @@
-"""First contact of one drone with its scene (touchdown geometry): the port of
-:func:`ihrcf_env.sim.batched.contact.first_contact`.
+"""First contact of one drone with its scene (touchdown geometry), in closed form: the contact
+PyBullet's collision detection finds in a :class:`~ihrcf_env.sim.world.World` (tested against it
+in ``tests/fast/test_contact.py``).
 
 The drone's collision shape is a set of boxes fixed in the body frame (``centres``, ``halves``
-(B, 3), m; the simulator reads them from the drone's URDF). It touches the deck when one of its
-boxes intersects the deck plate (the separating-axis test of two oriented boxes, 15 axes), the
-ground when a box corner lies on or below world z = 0, the Stewart base when a corner lies inside
-its cylinder. Contact codes: 0 none, 1 deck, 2 ground, 3 base (deck first when simultaneous,
-then ground).
+(B, 3), m; :func:`ihrcf_env.core.collision.drone_boxes`, from the drone's URDF). It touches the
+deck when one of its boxes intersects the deck plate (the separating-axis test of two oriented
+boxes, 15 axes), the ground when a box corner lies on or below world z = 0, the Stewart base when a
+corner lies inside its cylinder. Contact codes: 0 none, 1 deck, 2 ground, 3 base (deck first when
+simultaneous, then ground).
 """
 
 from __future__ import annotations

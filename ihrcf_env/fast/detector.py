@@ -1,7 +1,7 @@
 """The fitted detector model for one frame: the corners the rendered detector would report from the
 true projected tag, or the status code of its failure; the port of
-:meth:`ihrcf_env.core.detector_model.DetectorModel.corners` (and of its batched twin
-``sim.batched.detector.model_corners``), with the episode's correlated error field of
+:meth:`ihrcf_env.core.detector_model.DetectorModel.corners` (and of the closed-form camera's
+``sim.sensors.corner_model.model_corners``), with the episode's correlated error field of
 :class:`~ihrcf_env.core.detector_model.CornerTrack`.
 
 The draws (eight standard normals and one uniform per frame, the track's frequencies and phases per

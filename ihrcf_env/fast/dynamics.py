@@ -1,7 +1,9 @@
 """The quadrotor's physics tick for one drone: rotor lag, thrust and drag, PyBullet's rigid-body
-step, the saturating mixer and the ground effect relative to the deck. Ports of
-:mod:`ihrcf_env.sim.batched.dynamics`, ``integrator``, ``floatmath``, ``mixer`` and ``surface``
-(the same formulas in the same order as Bullet's double-precision step).
+step, the saturating mixer and the ground effect relative to the deck. Ports of the simulator's
+drone (:class:`ihrcf_env.sim.drone.Quadrotor`: rotor lag, forces, the mixer of
+``wrench_to_speeds``), of PyBullet's double-precision rigid-body step of it (the same formulas in
+the same order, the orientation reported through a rotation matrix as PyBullet reports it) and of
+:class:`ihrcf_env.sim.ground_effect.GroundEffect`.
 
 State (world frame, SI): position (3,) m, quaternion (4,) (x, y, z, w; body to world), velocity
 (3,) m/s, angular velocity (3,) rad/s, rotor speeds (4,) rad/s in the motor order of the

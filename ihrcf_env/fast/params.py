@@ -15,7 +15,6 @@ naming them.
 from __future__ import annotations
 
 import math
-import xml.etree.ElementTree as ET
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
@@ -24,8 +23,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ihrcf_env.config.landing import DeckLandingConfig
+from ihrcf_env.core.collision import drone_boxes
 from ihrcf_env.core.detector_model import DetectorModel
-from ihrcf_env.core.paths import asset_path
 from ihrcf_env.core.profiles import paper_profile
 from ihrcf_env.core.ship import ShipOptions
 from ihrcf_env.fast.advance import AdvanceConsts
@@ -45,7 +44,6 @@ __all__ = [
     "DeckConsts",
     "StepParams",
     "ToFConsts",
-    "drone_boxes",
     "make_params",
 ]
 
@@ -60,22 +58,6 @@ MIN_HEIGHT_RATIO = 0.5
 RAY_MARGIN_M = 0.002
 #: Tolerance (physics ticks) of the sample-clock arithmetic.
 TICK_EPS = 1e-6
-
-
-def drone_boxes() -> tuple[np.ndarray, np.ndarray]:
-    """``(centres, half_extents)`` (B, 3) (body frame, m) of the drone's collision boxes
-    (``assets/quadrotor.urdf``)."""
-    root = ET.parse(asset_path("quadrotor.urdf")).getroot()
-    centres, halves = [], []
-    for col in root.iter("collision"):
-        origin = col.find("origin")
-        box = col.find("geometry/box")
-        if box is None:
-            raise ValueError("quadrotor.urdf: the JAX step supports box collision shapes only")
-        xyz = "0 0 0" if origin is None else origin.get("xyz", "0 0 0")
-        centres.append([float(v) for v in xyz.split()])
-        halves.append([float(v) / 2 for v in box.get("size", "").split()])
-    return np.array(centres, dtype=np.float64), np.array(halves, dtype=np.float64)
 
 
 def _drone_reach(centres: np.ndarray, halves: np.ndarray) -> float:

@@ -1,6 +1,6 @@
 """Range beams against the collision scene in closed form, for one environment: the port of
-:func:`ihrcf_env.sim.batched.rays.cast_rays` and
-:meth:`ihrcf_env.sim.batched.ranging.BatchedToF.true_ranges`.
+:func:`ihrcf_env.sim.sensors.rays.cast_rays` and
+:meth:`ihrcf_env.sim.sensors.ranging.ClosedFormToF.true_ranges`.
 
 The scene: the ground plane (world z = 0, hit from either side, a ray starting on it does not hit
 it), the Stewart base (a z-axis cylinder of ``base_radius`` and ``base_height`` on the ground at the
@@ -24,7 +24,7 @@ __all__ = ["RayHits", "Scene", "body_hits", "cast_rays", "own_fraction", "true_r
 
 class Scene(NamedTuple):
     """The static collision scene: deck plate ``half_extents`` (3,), base cylinder ``base_radius``
-    and ``base_height`` (m), as :class:`ihrcf_env.sim.batched.rays.RayScene`."""
+    and ``base_height`` (m), as :class:`ihrcf_env.sim.sensors.rays.RayScene`."""
 
     half_extents: Array
     base_radius: Array

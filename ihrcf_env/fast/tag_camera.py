@@ -2,7 +2,7 @@
 (:func:`ihrcf_env.fast.camera.tag_view`), the depth range, the fitted detector model
 (:func:`ihrcf_env.fast.detector.detect`) and the occlusion rays from the optical centre to the
 tag's corners and centre (the scene and the drone's own boxes); the port of
-:meth:`ihrcf_env.sim.batched.tag_camera.BatchedTagCamera.read`.
+:meth:`ihrcf_env.sim.sensors.closed_form_camera.ClosedFormTagCamera.read`.
 
 The realistic camera's noise ratio and motion blur come from the episode's imaging draw and the
 drone's velocities (:class:`Imaging`; None: the ideal camera). The draws (eight normals, one

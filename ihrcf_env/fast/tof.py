@@ -1,7 +1,7 @@
 """The ToF sensors' readings for one drone: the ideal model (one noise-free ray per sensor) and the
 VL53L1X cone model (the signal-weighted mean of the cone's rays, the SNR limit, the repeatability,
 the per-episode offset, the dropout): the port of :meth:`ihrcf_env.sim.sensors.tof.ToFArray.read`
-with the closed-form rays of :meth:`ihrcf_env.sim.batched.ranging.BatchedToF.cone_returns`.
+with the closed-form rays of :meth:`ihrcf_env.sim.sensors.ranging.ClosedFormToF.cone_returns`.
 
 The draws (the offsets' and the noise's standard normals, the dropout's uniforms) are inputs.
 Ranges in m (float64: the observation rounds them to float32), ``valid`` flags; an invalid reading
@@ -121,7 +121,7 @@ def read_ideal(ranges: Array, hit: Array, max_range: float) -> tuple[Array, Arra
 def cone_rays_of(
     starts: np.ndarray, directions: np.ndarray, self_fraction: np.ndarray, self_normal: np.ndarray
 ) -> ConeRays:
-    """:class:`ConeRays` of host arrays (e.g. ``BatchedToF._cone``)."""
+    """:class:`ConeRays` of host arrays (e.g. ``ClosedFormToF._cone``)."""
     return ConeRays(
         jnp.asarray(starts), jnp.asarray(directions), jnp.asarray(self_fraction), jnp.asarray(self_normal)
     )

@@ -185,8 +185,6 @@ class RunConfig:
     workers: int = 2
     #: 0: single envs in ``workers`` processes; N: one vector env of N envs over ``workers``
     vector_envs: int = 0
-    #: the flyers' physics (``physics`` of the envs; not part of the policy's env options)
-    physics: str = "pybullet"
     commit_below: float = 0.1
     polish_epochs: int = 0
     polish_lr: float = 3e-4
@@ -235,11 +233,10 @@ def train(cfg: RunConfig, log: Callable[[str], None] = print) -> GruPolicy:
         log_csv.write(row)
     t0 = time.time() - wall0
     deadline = None if cfg.max_wall_min is None else t0 + 60.0 * cfg.max_wall_min
-    fly_kw = {**cfg.env_kw, "physics": cfg.physics}
     pool: Pool | VectorFlyer = (
-        VectorFlyer(cfg.env_id, fly_kw, cfg.vector_envs, cfg.workers, cfg.commit_below)
+        VectorFlyer(cfg.env_id, cfg.env_kw, cfg.vector_envs, cfg.workers, cfg.commit_below)
         if cfg.vector_envs
-        else Pool(cfg.env_id, fly_kw, cfg.workers, cfg.commit_below)
+        else Pool(cfg.env_id, cfg.env_kw, cfg.workers, cfg.commit_below)
     )
     policy = net.export(inputs, obs_size, meta)
 

@@ -32,11 +32,9 @@ the attitude the agent observes).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from typing import Protocol, runtime_checkable
 
 import numpy as np
-from numpy.typing import NDArray
 
 from ihrcf_env.config.vehicle import NavigationConfig, NavigationErrors
 from ihrcf_env.core.checks import check_real
@@ -132,19 +130,6 @@ class GNSSINSNavigation:
         w = self._w
         self._white = [w * z[3], w * z[4], w * z[5]]
 
-    def take_draws(self, count: int) -> list[list[float]]:
-        """The normal draws (6 per step) of the next ``count`` steps, consumed as ``count`` calls
-        of the step would consume them (for a batched step of the same error process)."""
-        out: list[list[float]] = []
-        while len(out) < count:
-            if self._i >= len(self._block):
-                self._block = self._rng.standard_normal((self._BLOCK, 6)).tolist()
-                self._i = 0
-            take = min(count - len(out), len(self._block) - self._i)
-            out.extend(self._block[self._i : self._i + take])
-            self._i += take
-        return out
-
     def advance(self, t: float) -> None:
         """Bring the error to time ``t`` (s); a time before the current one only moves the clock."""
         k = int(round(t / self.dt))
@@ -152,20 +137,6 @@ class GNSSINSNavigation:
             self._step()
             self._k += 1
         self._k = k
-
-    def errors_at(
-        self, times: Sequence[float]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """The error state :meth:`estimate` applies at each of ``times`` (s, non-decreasing),
-        advancing to the last: position error ``e_p``, correlated velocity error ``e_v`` and the
-        white velocity noise, each (len(times), 3) (world, m and m/s). :meth:`estimate` at time
-        ``t`` returns ``(p + e_p, ((v + e_v) - e_p / tau_p) + white)`` (``1 / tau_p`` as
-        ``_inv_tp``)."""
-        out = np.empty((3, len(times), 3))
-        for m, t in enumerate(times):
-            self.advance(t)
-            out[0, m], out[1, m], out[2, m] = self.position_error, self.velocity_error, self._white
-        return out[0], out[1], out[2]
 
     def estimate(self, t: float, position: Vec3, velocity: Vec3) -> tuple[Vec3, Vec3]:
         self.advance(t)

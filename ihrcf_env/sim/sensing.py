@@ -32,7 +32,6 @@ from ihrcf_env.sim.sensors.base import TAG_CAMERA
 from ihrcf_env.sim.sensors.timing import DelayLine, SampleClock, no_frame_reading
 
 if TYPE_CHECKING:
-    from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
     from ihrcf_env.sim.world import World
 
 __all__ = ["CAMERA_SENSORS", "Sensing", "Snapshot"]
@@ -220,23 +219,6 @@ class Sensing:
         if line is not None and name in self.frame_counts:
             return step % every == 0 and line.exposed_at != self.world.tick
         return step % every == 0 or self._held.get(name) is None
-
-    def camera_ahead(self) -> tuple[ProjectedTagCamera, BodyState, np.random.Generator] | None:
-        """The projected tag camera with closed-form rays, the state and the generator of the
-        reading the next :meth:`read_sensors` takes of it, or None when it takes none (or the
-        camera is another kind): a reading cast ahead for many worlds at once
-        (:func:`~ihrcf_env.sim.batched.loop.advance`) is taken by that read."""
-        from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera as Projected
-
-        cam = self.world.sensors.get(TAG_CAMERA)
-        gen = self._rngs.get(TAG_CAMERA)
-        if not isinstance(cam, Projected) or cam.batched is None or gen is None:
-            return None
-        if cam.quality == "realistic" and cam.episode is None:  # its own read draws the episode
-            return None
-        if not self.takes_fresh(TAG_CAMERA):
-            return None
-        return cam, self.body_state(), gen
 
     def _take(
         self, name: str, state: BodyState, dt: float, rng: np.random.Generator | None

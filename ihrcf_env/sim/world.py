@@ -90,15 +90,6 @@ class World:
     :meth:`nav_position` / :meth:`nav_velocity` give the estimate the autopilot flies on.
     """
 
-    def __new__(cls, config: WorldConfig | None = None, gui: bool = False) -> World:
-        """A :class:`World`, or with ``physics="numpy"`` the world whose flight the numpy
-        integrator advances (:class:`ihrcf_env.sim.batched.world.NumpyPhysicsWorld`)."""
-        if cls is World and config is not None and config.physics == "numpy":
-            from ihrcf_env.sim.batched.world import NumpyPhysicsWorld
-
-            cls = NumpyPhysicsWorld
-        return super().__new__(cls)
-
     def __init__(self, config: WorldConfig | None = None, gui: bool = False) -> None:
         self.config = config if config is not None else WorldConfig()
         self._closed = True  # until the client exists
@@ -139,8 +130,7 @@ class World:
         self.controller = VelocityController(self.quad, cfg.gains)
         rendered = cfg.camera is not None and cfg.camera_model == "rendered"
         self.camera = DownCamera(cid, cfg.camera, cfg.rig) if rendered and cfg.camera is not None else None
-        # numpy physics: the ranges in closed form too (no Bullet collision world is stepped)
-        self.tof = ToFArray(cid, cfg.tof, cfg.rig, deck=self.deck if cfg.physics == "numpy" else None)
+        self.tof = ToFArray(cid, cfg.tof, cfg.rig)
         self.imu_sensor = IMU.from_config(cfg.imu)
         self.navigation: Navigation = make_navigation(cfg.navigation, self.dt)
         self.sensors: dict[str, Sensor] = {}
@@ -182,13 +172,7 @@ class World:
         from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
 
         model = cfg.detector_model if cfg.detector_model is not None else DetectorModel.load()
-        # numpy physics: the camera's rays in closed form too
-        closed = cfg.physics == "numpy"
-        return {
-            TAG_CAMERA: ProjectedTagCamera(
-                self.client, camera, cfg.rig, self.deck, tag_size, model, closed_form=closed
-            )
-        }
+        return {TAG_CAMERA: ProjectedTagCamera(self.client, camera, cfg.rig, self.deck, tag_size, model)}
 
     # -- lifecycle -------------------------------------------------------------------------
     def reset(

@@ -1,8 +1,7 @@
 """The landing tasks' Gymnasium vector envs: ``gym.make_vec(id, num_envs=N)`` (and ``workers=K``).
 
 * :class:`DeckLandingVectorEnv` (:mod:`ihrcf_env.vector.env`): N envs in this process, stepped
-  together (each env's observation through its own estimators; their worlds advanced in one
-  batched step with ``physics="numpy"``);
+  together (each env's world advanced by PyBullet, its observation through its own estimators);
 * :class:`WorkerVectorEnv` (:mod:`ihrcf_env.vector.workers`): N envs over K worker processes, each
   holding a ``DeckLandingVectorEnv`` of its share;
 * :func:`make_landing_v1` / :func:`make_landing_v2`: the ids' ``vector_entry_point`` (``workers``

@@ -14,12 +14,12 @@ raw task); the vector env does what ``gym.make``'s wrappers would do itself: the
 the id's spec (``max_episode_steps`` overrides it as in ``gym.make``: -1 for none), the order of
 calls, the checks of its inputs (whole, before any env steps). A step runs in three phases: every
 task's :meth:`~ihrcf_env.envs.deck_landing.DeckLandingEnv.begin_step` (the action handed over),
-the worlds advanced (one at a time, or with ``physics="numpy"`` all in one batched physics step),
-every task's :meth:`~ihrcf_env.envs.deck_landing.DeckLandingEnv.end_step` (sensing, task rules,
-info); then the observations, each env's through its own observation wrapper and estimators.
-Sub-env ``i`` of ``reset(seed=s)`` is the single env reset with seed ``s + i``: it reproduces
-``gym.make(id, **options)`` step for step, bit for bit. (The batched path of the estimators is the
-JAX backend, ``gym.make_vec(id, num_envs, backend="jax")``.)
+the worlds advanced one at a time (each its own PyBullet step), every task's
+:meth:`~ihrcf_env.envs.deck_landing.DeckLandingEnv.end_step` (sensing, task rules, info); then the
+observations, each env's through its own observation wrapper and estimators. Sub-env ``i`` of
+``reset(seed=s)`` is the single env reset with seed ``s + i``: it reproduces
+``gym.make(id, **options)`` step for step, bit for bit. (The batched path of the physics and the
+estimators is the JAX backend, ``gym.make_vec(id, num_envs, backend="jax")``.)
 """
 
 from __future__ import annotations
@@ -36,7 +36,6 @@ from numpy.typing import NDArray
 
 from ihrcf_env.core.checks import check_int
 from ihrcf_env.envs.deck_landing import DeckLandingEnv
-from ihrcf_env.sim.batched.loop import advance
 from ihrcf_env.vector.checks import (
     MAX_ENVS,
     check_actions,
@@ -144,7 +143,6 @@ class DeckLandingVectorEnv(VectorEnv):
         self.spec = gym.spec(env_id)
         self._autoreset = np.zeros(n, dtype=bool)
         self._elapsed = np.zeros(n, dtype=np.int64)  # steps of each env's episode
-        self._numpy_physics = self._subs[0].task.config.world.physics == "numpy"
         self._was_reset = False
         #: each env's last observation (the rows a partial reset leaves)
         self._obs: list[Any] = [None] * n
@@ -236,14 +234,13 @@ class DeckLandingVectorEnv(VectorEnv):
 
     def _advance(self, actions: NDArray[Any], rows: NDArray[np.intp]) -> dict[int, StepResult]:
         """Step the tasks of ``rows`` (row ``i`` with ``actions[i]``) in three phases: each task's
-        ``begin_step``, the worlds advanced (numpy physics: all in one batched step), each task's
+        ``begin_step``, the worlds advanced (``World.step``, one after the other), each task's
         ``end_step``. Returns row -> the task's step results."""
         if rows.size == 0:
             return {}
         tasks = [self._subs[i].task for i in rows]
         taken = [task.begin_step(actions[i]) for task, i in zip(tasks, rows, strict=True)]
-        worlds = [task.world for task in tasks]
-        touchdowns = advance(worlds) if self._numpy_physics else [w.step() for w in worlds]
+        touchdowns = [task.world.step() for task in tasks]
         out: dict[int, StepResult] = {}
         for task, i, a, touchdown in zip(tasks, rows, taken, touchdowns, strict=True):
             out[int(i)] = task.end_step(a, touchdown)

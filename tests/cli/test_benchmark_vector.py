@@ -13,9 +13,7 @@ import pytest
 from ihrcf_env.cli.benchmark import VECTOR_NS, build_parser, main
 from ihrcf_env.experiments.vector_speed import PairedSpeed, VectorSpeed, markdown_table
 
-ROW = re.compile(
-    r"^\| (\d+) \| (\w+) \| (\d+) \| ([0-9.]+) \| ([0-9.]+) \| ([0-9.]+) \| ([0-9.]+)-([0-9.]+) \|$"
-)
+ROW = re.compile(r"^\| (\d+) \| (\d+) \| ([0-9.]+) \| ([0-9.]+) \| ([0-9.]+) \| ([0-9.]+)-([0-9.]+) \|$")
 
 
 @pytest.fixture
@@ -38,21 +36,18 @@ def test_vector_run_prints_one_row_per_n_and_processes(
     assert "Table" not in out and "ATDA" not in out  # the vector comparison only
     lines = md.read_text().splitlines()
     head = lines.index(
-        "| N | physics | processes | env-steps/s | per core | ratio to single (per core) | rounds' range |"
+        "| N | processes | env-steps/s | per core | ratio to single (per core) | rounds' range |"
     )
-    assert lines[head + 1] == "|---|---|---|---|---|---|---|"
-    single = re.match(
-        r"^\| single env \| pybullet \| 1 \| ([0-9.]+) \| ([0-9.]+) \| 1\.00 \| - \|$", lines[head + 2]
-    )
+    assert lines[head + 1] == "|---|---|---|---|---|---|"
+    single = re.match(r"^\| single env \| 1 \| ([0-9.]+) \| ([0-9.]+) \| 1\.00 \| - \|$", lines[head + 2])
     assert single is not None and float(single[1]) > 0
     rows = [ROW.match(line) for line in lines[head + 3 :]]
-    assert all(r is not None for r in rows) and len(rows) == 4
-    got = [(int(r[1]), r[2], int(r[3])) for r in rows if r is not None]
-    # each N and number of processes with PyBullet (the envs stepped in turn), then the numpy physics
-    assert got == [(2, "pybullet", 1), (2, "numpy", 1), (2, "pybullet", 2), (2, "numpy", 2)]
-    for r, used in zip(rows, (1, 1, cores, cores), strict=True):
+    assert all(r is not None for r in rows) and len(rows) == 2
+    got = [(int(r[1]), int(r[2])) for r in rows if r is not None]
+    assert got == [(2, 1), (2, 2)]  # each N and number of processes
+    for r, used in zip(rows, (1, cores), strict=True):
         assert r is not None
-        sps, per_core, ratio, low, high = float(r[4]), float(r[5]), float(r[6]), float(r[7]), float(r[8])
+        sps, per_core, ratio, low, high = float(r[3]), float(r[4]), float(r[5]), float(r[6]), float(r[7])
         assert sps > 0
         assert per_core == pytest.approx(sps / used, abs=0.06)
         assert low - 0.005 <= ratio <= high + 0.005  # the median of the two rounds' ratios
@@ -63,20 +58,20 @@ def test_vector_run_prints_one_row_per_n_and_processes(
 
 
 def test_ratio_is_per_core_against_the_single_env() -> None:
-    rows = [VectorSpeed(8, 1, 1, 300.0, "numpy"), VectorSpeed(8, 4, 2, 1000.0)]
+    rows = [VectorSpeed(8, 1, 1, 300.0), VectorSpeed(8, 4, 2, 1000.0)]
     table = markdown_table(200.0, rows)
-    assert table[2] == "| single env | pybullet | 1 | 200.0 | 200.0 | 1.00 | - |"
-    assert table[3] == "| 8 | numpy | 1 | 300.0 | 300.0 | 1.50 | - |"
-    assert table[4] == "| 8 | - | 4 | 1000.0 | 500.0 | 2.50 | - |"
+    assert table[2] == "| single env | 1 | 200.0 | 200.0 | 1.00 | - |"
+    assert table[3] == "| 8 | 1 | 300.0 | 300.0 | 1.50 | - |"
+    assert table[4] == "| 8 | 4 | 1000.0 | 500.0 | 2.50 | - |"
 
 
 def test_rounds_pair_each_run_with_its_own_single_env() -> None:
     # the machine twice as fast in round 2: each round's ratio is the same, the medians are taken
-    runs = [VectorSpeed(8, 1, 1, v, "numpy") for v in (300.0, 600.0, 330.0)]
+    runs = [VectorSpeed(8, 1, 1, v) for v in (300.0, 600.0, 330.0)]
     row = PairedSpeed.of(runs, [200.0, 400.0, 200.0])
     assert row.ratios == (1.5, 1.5, 1.65)
     assert row.ratio == 1.5 and row.speed.env_steps_per_s == 330.0
-    assert markdown_table(200.0, [row])[3] == "| 8 | numpy | 1 | 330.0 | 330.0 | 1.50 | 1.50-1.65 |"
+    assert markdown_table(200.0, [row])[3] == "| 8 | 1 | 330.0 | 330.0 | 1.50 | 1.50-1.65 |"
     with pytest.raises(ValueError, match="one single-env figure per round"):
         PairedSpeed.of(runs, [200.0])
 

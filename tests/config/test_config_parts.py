@@ -126,3 +126,16 @@ def test_the_config_is_a_frozen_value() -> None:
     assert isinstance(cfg, DeckLandingConfig)
     with pytest.raises(dataclasses.FrozenInstanceError):
         cfg.task_name = "landing-v1"  # type: ignore[misc]
+
+
+#: The refusal of the removed ``physics`` option: it names the option and the batched path.
+PHYSICS_REMOVED = r'physics: .*numpy batched physics were removed.*gym\.make_vec\(.*backend="jax"\)'
+
+
+@pytest.mark.parametrize("value", ["numpy", "pybullet", None, 1])
+@pytest.mark.parametrize("task", ["hover", "landing-v1", "landing-v2"])
+def test_the_removed_physics_option_is_refused_by_name(task: str, value: object) -> None:
+    """Any value of ``physics`` is a ValueError naming it and the JAX backend."""
+    with pytest.raises(ValueError, match=PHYSICS_REMOVED):
+        make_config(task=task, physics=value)
+    assert not any(f.name == "physics" for f in dataclasses.fields(make_config(task=task).world))

@@ -486,8 +486,8 @@ BAD_OPTIONS = [
     ({"faults": {"imu_bias_step": {"onset": -1.0}}}, ValueError, "faults"),
     ({"level": "calm"}, ValueError, "level"),  # an option of the landing task v2
     ({"ground_effect": 1}, TypeError, "ground_effect"),
-    ({"physics": "bullet"}, ValueError, "physics"),
-    ({"physics": 1}, TypeError, "physics"),
+    ({"physics": "numpy"}, ValueError, "physics: the option and the numpy batched physics were removed"),
+    ({"physics": "pybullet"}, ValueError, "physics: the option and the numpy batched physics were removed"),
     ({"ship": {"sea_state": 4}}, ValueError, "ship"),  # only with deck_profile="ship"
     ({"ship": {"sea_state": 99}, "deck_profile": "ship"}, ValueError, "ship"),
     ({"sensors": ("lidar",)}, ValueError, "sensors"),

@@ -1,4 +1,4 @@
-"""The tag's projection through the camera (ihrcf_env.fast.camera) against the batched camera's
+"""The tag's projection through the camera (ihrcf_env.fast.camera) against the closed-form camera's
 arithmetic and OpenCV's projectPoints, float64."""
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ def scene(seed: int, n: int):
 
 
 def reference(p, R, dp, dR):
-    """The batched camera's camera-frame points, depth check and view cosine (numpy)."""
+    """The closed-form camera's camera-frame points, depth check and view cosine (numpy)."""
     eye = p + R @ OFFSET
     R_wc = R @ R_BODY_CAM
     pts_w = dp[:, None, :] + POINTS @ dR.transpose(0, 2, 1)

@@ -1,5 +1,5 @@
-"""The fitted detector model (ihrcf_env.fast.detector) against the batched twin
-(sim.batched.detector.model_corners) and DetectorModel.corners, float64."""
+"""The fitted detector model (ihrcf_env.fast.detector) against the closed-form camera's
+(sim.sensors.corner_model.model_corners) and DetectorModel.corners, float64."""
 
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ from ihrcf_env.core.detector_model import QUIET_ZONE_SCALE, CornerTrack, Detecto
 from ihrcf_env.core.rig import SensorRig, intrinsics_from_fov, tag_corners_deck
 from ihrcf_env.fast.camera import tag_view
 from ihrcf_env.fast.detector import STATUS_DEPTH, STATUS_FRAME_LOST, STATUS_NAMES, detect, detector_params
-from ihrcf_env.sim.batched.detector import BatchedCornerTrack, model_corners
 from ihrcf_env.sim.faults import REASON_FRAME_LOST
 from ihrcf_env.sim.sensors.base import TAG_STATUS, tag_status_code
+from ihrcf_env.sim.sensors.corner_model import CornerTracks, model_corners
 from ihrcf_env.sim.sensors.tag_camera import REASON_DEPTH
 
 from .fast_helpers import Counted, rel_err, rotations
@@ -52,7 +52,7 @@ def draws(seed: int, n: int):
     rng = np.random.default_rng(seed)
     normals = rng.standard_normal((n, 4, 2))
     uniforms = rng.random(n)
-    track = BatchedCornerTrack(n)
+    track = CornerTracks(n)
     track.reset([np.random.default_rng([seed, i]) for i in range(n)])
     return normals, uniforms, track
 
@@ -64,7 +64,7 @@ def test_status_table_is_the_readings() -> None:
 
 
 @pytest.mark.parametrize("quality", ["ideal", "realistic"])
-def test_detect_matches_batched_model(quality: str) -> None:
+def test_detect_matches_closed_form_model(quality: str) -> None:
     prm = MODEL.params(quality)
     dprm = detector_params(prm)
     c, q, cos_view = frames(3, 2048)

@@ -4,11 +4,12 @@ projected camera, one episode per level (float64). Both run the same episode dra
 generators in its order, given to fast.step.step_with) under a scripted descent: more than five
 seconds of slow flight with lateral and yaw commands, then down onto the deck.
 
-Before the touchdown both backends integrate the same flight (the numpy physics reproduces
-Bullet's step): drone and deck poses agree to rounding. The ToF ranges differ where a cone's rays
-meet the deck's edge or the Stewart base (Bullet's collision shapes against the closed-form scene):
-compared by their agreement fraction and median. Touchdown: Bullet's contact may fire one physics
-tick apart from the closed-form test; the outcome class must agree."""
+Before the touchdown both backends integrate the same flight (the JAX tick reproduces Bullet's
+step, tests/fast/test_dynamics.py): drone and deck poses agree to rounding. The ToF ranges
+differ where a cone's rays meet the deck's edge or the Stewart base (Bullet's collision shapes
+against the closed-form scene): compared by their agreement fraction and median. Touchdown:
+Bullet's contact may fire one physics tick apart from the closed-form test; the outcome class must
+agree."""
 
 from __future__ import annotations
 

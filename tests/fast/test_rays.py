@@ -1,5 +1,5 @@
 """Range beams (ihrcf_env.fast.rays) against the closed-form numpy casts of the simulator
-(ihrcf_env.sim.batched.rays / ranging), float64."""
+(ihrcf_env.sim.sensors.rays / ranging), float64."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import numpy as np
 from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.fast.rays import Scene, cast_rays, true_ranges
-from ihrcf_env.sim.batched.ranging import BatchedToF
-from ihrcf_env.sim.batched.rays import RayScene
-from ihrcf_env.sim.batched.rays import cast_rays as np_cast_rays
+from ihrcf_env.sim.sensors.ranging import ClosedFormToF
+from ihrcf_env.sim.sensors.rays import RayScene
+from ihrcf_env.sim.sensors.rays import cast_rays as np_cast_rays
 
 from .fast_helpers import Counted, rel_err, rotations
 
@@ -24,7 +24,7 @@ SCENE = Scene(
     jnp.asarray(RAY_SCENE.base_height),
 )
 MAX_RANGE = 4.0
-TOF = BatchedToF(SensorRig().sensor_positions_body, MAX_RANGE, RAY_SCENE, None)
+TOF = ClosedFormToF(SensorRig().sensor_positions_body, MAX_RANGE, RAY_SCENE, None)
 S_B, D_B, F_SELF, N_SELF = TOF._axis
 
 CAST = Counted(lambda s, d, dp, dR: cast_rays(s, d, 2.5, dp, dR, SCENE))
@@ -72,7 +72,7 @@ def test_cast_rays_matches_numpy() -> None:
     assert rel_err(got.normal, want.normal) < 1e-12
 
 
-def test_true_ranges_match_batched_tof() -> None:
+def test_true_ranges_match_closed_form_tof() -> None:
     rng = np.random.default_rng(1)
     n = 256
     dp, dR = decks(rng, n)

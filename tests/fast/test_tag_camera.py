@@ -1,4 +1,4 @@
-"""The projected tag camera's reading (ihrcf_env.fast.tag_camera) against BatchedTagCamera.read,
+"""The projected tag camera's reading (ihrcf_env.fast.tag_camera) against ClosedFormTagCamera.read,
 float64: projection, depth range, detector model and occlusion."""
 
 from __future__ import annotations
@@ -11,16 +11,16 @@ import pytest
 
 from ihrcf_env.config.sensors import CameraConfig
 from ihrcf_env.config.world import WorldConfig
+from ihrcf_env.core.collision import drone_boxes
 from ihrcf_env.core.detector_model import DetectorModel
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.fast.rays import Scene
 from ihrcf_env.fast.tag_camera import STATUS_OCCLUDED, Imaging, imaging_of, tag_camera_setup, tag_read
-from ihrcf_env.sim.batched.contact import drone_boxes
-from ihrcf_env.sim.batched.detector import BatchedCornerTrack
-from ihrcf_env.sim.batched.rays import RayScene
-from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
 from ihrcf_env.sim.sensors.base import tag_status_code
+from ihrcf_env.sim.sensors.closed_form_camera import ClosedFormTagCamera
+from ihrcf_env.sim.sensors.corner_model import CornerTracks
 from ihrcf_env.sim.sensors.imaging import draw_episode
+from ihrcf_env.sim.sensors.rays import RayScene
 from ihrcf_env.sim.sensors.tag_camera import RAY_MARGIN_M, REASON_OCCLUDED
 
 from .fast_helpers import Counted, rel_err, rotations
@@ -45,14 +45,14 @@ TALL = RayScene(RAY_SCENE.deck_half_extents, 0.5, 0.9)
 
 
 @pytest.mark.parametrize(("tall", "quality"), [(False, "ideal"), (True, "ideal"), (False, "realistic")])
-def test_tag_read_matches_batched_camera(tall: bool, quality: str) -> None:
+def test_tag_read_matches_closed_form_camera(tall: bool, quality: str) -> None:
     camera = CameraConfig(distortion=(-0.05, 0.01), quality=quality)
     rig = SensorRig()
     ray_scene = TALL if tall else RAY_SCENE
     scene = Scene(
         *(jnp.asarray(v) for v in (ray_scene.deck_half_extents, ray_scene.base_radius, ray_scene.base_height))
     )
-    ref = BatchedTagCamera(camera, rig, ray_scene, TAG, MODEL)
+    ref = ClosedFormTagCamera(camera, rig, ray_scene, TAG, MODEL)
     setup = tag_camera_setup(camera, rig, TAG, MODEL, scene, drone_boxes(), RAY_MARGIN_M)
     rng = np.random.default_rng(0)
     n = 600
@@ -62,7 +62,7 @@ def test_tag_read_matches_batched_camera(tall: bool, quality: str) -> None:
     height = np.concatenate([rng.uniform(0.05, 0.4, n // 4), rng.uniform(0.3, 6.0, n - n // 4)])
     p = dp + np.column_stack([rng.uniform(-1.5, 1.5, (n, 2)), height])
     p[:20] = dp[:20] + np.column_stack([rng.uniform(1.0, 2.5, (20, 2)), rng.uniform(-0.5, 0.2, 20)])
-    track = BatchedCornerTrack(n)
+    track = CornerTracks(n)
     track.reset([np.random.default_rng([1, i]) for i in range(n)])
     gens = [np.random.default_rng([2, i]) for i in range(n)]
     ahead = copy.deepcopy(gens)

@@ -83,7 +83,7 @@ def test_readings_match_tof_array(world: World, noise: str) -> None:
     assert np.array(want_v).mean() > 0.5 and (np.array(want_v) == 0).any()
 
 
-def test_cone_ranges_match_batched_tof_in_float64(world: World) -> None:
+def test_cone_ranges_match_closed_form_tof_in_float64(world: World) -> None:
     cfg = ToFConfig(noise="realistic")
     tof = ToFArray(world.client, cfg, world.config.rig, deck=world.deck)
     cf = tof.closed_form

@@ -14,7 +14,7 @@ from ihrcf_env.control.gru_policy import WEIGHTS, GruPolicy
 from ihrcf_env.rl import episodes as ep
 
 V2 = ihrcf_env.LANDING_V2_ID
-KW: dict[str, Any] = {"level": "calm", "max_episode_steps": 25, "physics": "numpy"}
+KW: dict[str, Any] = {"level": "calm", "max_episode_steps": 25}
 
 
 def _policy(obs_size: int, seed: int = 0) -> GruPolicy:

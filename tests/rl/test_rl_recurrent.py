@@ -112,7 +112,7 @@ def test_a_tiny_run_writes_its_policies_and_resumes(tmp_path: Path, rec: Any) ->
 
 
 def test_a_run_flown_by_the_vector_env_logs_the_same_rounds(tmp_path: Path, rec: Any) -> None:
-    """``vector_envs``: the rounds are flown by one vector env (numpy physics) and logged as with
+    """``vector_envs``: the rounds are flown by one vector env and logged as with
     single envs; the episodes of round 0 (the expert's) are those of single envs of the same
     options, so the logged samples and landings agree with a single-env run."""
     base = {
@@ -128,7 +128,6 @@ def test_a_run_flown_by_the_vector_env_logs_the_same_rounds(tmp_path: Path, rec:
         "hidden": 8,
         "head": 8,
         "workers": 1,
-        "physics": "numpy",
     }
     rows = []
     for k, vector in enumerate((0, 2)):

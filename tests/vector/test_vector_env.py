@@ -211,3 +211,21 @@ def test_the_vector_package_reads_no_private_or_stripped_wrapper() -> None:
                 assert isinstance(owner, ast.Name) and owner.id == "self", (
                     f"{path.name}:{node.lineno} reads {node.attr} of another object"
                 )
+
+
+def test_the_removed_physics_option_is_refused_by_name(no_leaks: None) -> None:
+    """``physics`` (the numpy batched physics was removed) is a ValueError naming it and the JAX
+    backend, before any env is built, by every vector env."""
+    removed = r'physics: .*numpy batched physics were removed.*gym\.make_vec\(.*backend="jax"\)'
+    with pytest.raises(ValueError, match=removed):
+        DeckLandingVectorEnv(V2, 2, camera_model="projected", physics="numpy")
+    with pytest.raises(ValueError, match=removed):
+        gym.make_vec(V2, num_envs=2, camera_model="projected", physics="numpy")
+    with pytest.raises(ValueError, match=removed):
+        gym.make_vec(V2, num_envs=2, workers=2, camera_model="projected", physics="numpy")
+
+
+def test_the_jax_backend_refuses_physics_by_name() -> None:
+    pytest.importorskip("jax")
+    with pytest.raises(ValueError, match=r"physics: .*numpy batched physics were removed"):
+        gym.make_vec(V2, num_envs=2, backend="jax", physics="numpy")

@@ -15,7 +15,7 @@ import pytest
 import ihrcf_env
 
 V2 = ihrcf_env.LANDING_V2_ID
-OPTIONS: dict[str, Any] = {"camera_model": "projected", "level": "calm", "physics": "numpy"}
+OPTIONS: dict[str, Any] = {"camera_model": "projected", "level": "calm"}
 
 
 def _actions(rng: np.random.Generator, n: int) -> np.ndarray:

@@ -102,18 +102,11 @@ def tag_reading(corners: NDArray[np.float64] | None, reason: str) -> dict[str, N
     }
 
 
-def poses_key(*parts: NDArray) -> bytes:
-    """Arrays (what was cast, the drone's and the deck's poses) as one key: their float64 bytes.
-    A reading cast ahead for many worlds is taken only by a read at the same key."""
-    return b"".join(np.ascontiguousarray(a, dtype=np.float64).tobytes() for a in parts)
-
-
 __all__ = [
     "TAG_CAMERA",
     "TAG_STATUS",
     "BodyState",
     "Sensor",
-    "poses_key",
     "tag_reading",
     "tag_status_code",
 ]

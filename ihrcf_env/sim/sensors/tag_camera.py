@@ -42,11 +42,11 @@ from ihrcf_env.core.detector_model import (
 from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
 from ihrcf_env.sim.deck import Deck
-from ihrcf_env.sim.sensors.base import TAG_CAMERA, BodyState, poses_key, tag_reading
+from ihrcf_env.sim.sensors.base import TAG_CAMERA, BodyState, tag_reading
 from ihrcf_env.sim.sensors.imaging import EpisodeImaging, draw_episode, image_motion_px
 
 if TYPE_CHECKING:
-    from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
+    from ihrcf_env.sim.sensors.closed_form_camera import ClosedFormTagCamera
 
 #: Failure reasons decided by the simulator (the model's are in detector_model).
 REASON_DEPTH = "tag outside the camera's depth range"
@@ -66,6 +66,9 @@ class ProjectedTagCamera:
         deck: the world's deck (its pose is read at every read).
         tag_size: edge of the tag's black square (m).
         model: the fitted detector model (:meth:`DetectorModel.load`).
+        closed_form: cast the occlusion and depth rays in closed form against the world's scene
+            (:class:`~ihrcf_env.sim.sensors.closed_form_camera.ClosedFormTagCamera`, its read of
+            this one world) instead of PyBullet's ``rayTestBatch``.
 
     ``read`` returns :func:`~ihrcf_env.sim.sensors.base.tag_reading`; :attr:`last_features` keeps
     the last frame's :class:`~ihrcf_env.core.detector_model.TagFeatures` (None when the
@@ -113,18 +116,16 @@ class ProjectedTagCamera:
         self._blur_threshold = float(im.blur_threshold_px)
         self._e_per_dn = math.nan
         self._deck_half = float(deck.config.thickness) / 2.0
-        #: closed-form rays: every read is the batched read of this world alone (None: Bullet's rays)
-        self.batched: BatchedTagCamera | None = None
-        #: a reading cast ahead (:meth:`BatchedTagCamera.read` of many worlds): (poses key, the
-        #: generator it drew from, the reading)
-        self.prefetched: tuple[bytes, np.random.Generator, dict[str, NDArray]] | None = None
+        #: closed-form rays: every read is the closed-form camera's read of this world (None:
+        #: PyBullet's rays)
+        self.closed_form: ClosedFormTagCamera | None = None
         if closed_form:
-            from ihrcf_env.sim.batched.rays import RayScene
-            from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
+            from ihrcf_env.sim.sensors.closed_form_camera import ClosedFormTagCamera
+            from ihrcf_env.sim.sensors.rays import RayScene
 
             g = deck.geometry
             scene = RayScene.of(deck.config.size, deck.config.thickness, g.base_radius, g.base_height)
-            self.batched = BatchedTagCamera(camera, rig, scene, float(tag_size), model)
+            self.closed_form = ClosedFormTagCamera(camera, rig, scene, float(tag_size), model)
 
     def reset(self, rng: np.random.Generator, episode: EpisodeImaging | None = None) -> None:
         """Start an episode. The realistic quality first draws the episode's light, exposure and
@@ -249,7 +250,7 @@ class ProjectedTagCamera:
         """:func:`~ihrcf_env.sim.sensors.base.tag_reading` of the frame at ``state``. Draws 8
         normals and one uniform from ``rng`` whatever happens (reproducible streams; and the
         realistic episode first, if :meth:`reset` was not called)."""
-        if self.batched is not None:
+        if self.closed_form is not None:
             return self._read_closed_form(state, rng)
         if self.quality == "realistic" and self.episode is None:
             self.reset(rng)  # as the rendered camera: the episode drawn at the first read
@@ -264,38 +265,27 @@ class ProjectedTagCamera:
             return tag_reading(None, REASON_OCCLUDED)
         return tag_reading(corners, reason)
 
-    def poses_key(self, state: BodyState) -> tuple[bytes, NDArray[np.float64], NDArray[np.float64]]:
-        """(key of the drone's pose in ``state`` and the deck's pose now, deck position, rotation)."""
-        deck_pos, R_wd = self._deck_pose()
-        return poses_key(state.position, state.rotation, deck_pos, R_wd), deck_pos, R_wd
-
     def _read_closed_form(self, state: BodyState, rng: np.random.Generator) -> dict[str, NDArray]:
-        """The batched read of this world alone, or the one cast ahead for it (which must be of
-        the same poses and generator: it has drawn from it)."""
-        key, deck_pos, R_wd = self.poses_key(state)
-        ahead, self.prefetched = self.prefetched, None
+        """The closed-form camera's read of this world (one row)."""
+        deck_pos, R_wd = self._deck_pose()
         self.last_features = None
-        if ahead is not None:
-            if ahead[0] != key or ahead[1] is not rng:
-                raise RuntimeError("a camera reading cast ahead was not read at its poses and generator")
-            return ahead[2]
-        assert self.batched is not None
+        assert self.closed_form is not None
         if self.quality == "realistic" and self.episode is None:
             self.reset(rng)  # as the rendered camera: the episode drawn at the first read
         pos, R, dp, dR = self.batch_inputs(state, deck_pos, R_wd)
-        out = self.batched.read(pos, R, dp, dR, [self.track], [rng], **self.imaging_inputs(state))
+        out = self.closed_form.read(pos, R, dp, dR, [self.track], [rng], **self.imaging_inputs(state))
         return reading_row(out, 0)
 
     def batch_inputs(
         self, state: BodyState, deck_pos: NDArray[np.float64], R_wd: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """The poses of one world as :meth:`BatchedTagCamera.read` takes them (rows of N = 1)."""
+        """The poses of one world as :meth:`ClosedFormTagCamera.read` takes them (rows of N = 1)."""
         pos = np.asarray(state.position, dtype=np.float64)[None]
         R = np.asarray(state.rotation, dtype=np.float64)[None]
         return pos, R, deck_pos[None], R_wd[None]
 
     def imaging_inputs(self, state: BodyState) -> dict[str, Any]:
-        """The realistic quality's inputs of one world to :meth:`BatchedTagCamera.read` (none for
+        """The realistic quality's inputs of one world to :meth:`ClosedFormTagCamera.read` (none for
         the ideal one)."""
         if self.quality != "realistic":
             return {}
@@ -307,7 +297,9 @@ class ProjectedTagCamera:
 
 
 def reading_row(out: dict[str, NDArray], i: int) -> dict[str, NDArray]:
-    """Row ``i`` of a batched tag reading as :func:`~ihrcf_env.sim.sensors.base.tag_reading` gives it."""
+    """Row ``i`` of a tag reading of N worlds (:meth:`ClosedFormTagCamera.read
+    <ihrcf_env.sim.sensors.closed_form_camera.ClosedFormTagCamera.read>`) as
+    :func:`~ihrcf_env.sim.sensors.base.tag_reading` gives it."""
     return {
         "tag_corners": np.array(out["tag_corners"][i], dtype=np.float64),
         "tag_detected": np.array(bool(out["tag_detected"][i])),

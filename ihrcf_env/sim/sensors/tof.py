@@ -45,11 +45,11 @@ from numpy.typing import NDArray
 from ihrcf_env.config.sensors import ToFConfig
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.sim.noise import NoiseModel, NoNoise
-from ihrcf_env.sim.sensors.base import BodyState, poses_key
+from ihrcf_env.sim.sensors.base import BodyState
 
 if TYPE_CHECKING:
-    from ihrcf_env.sim.batched.ranging import BatchedToF
     from ihrcf_env.sim.deck import Deck
+    from ihrcf_env.sim.sensors.ranging import ClosedFormToF
 
 
 class ToFArray:
@@ -62,10 +62,8 @@ class ToFArray:
 
     The rays are cast with PyBullet's ``rayTestBatch`` against the client's bodies, or, given the
     world's ``deck`` (its plate and base are then the scene, with the ground and the drone's own
-    collision boxes), in closed form (:mod:`ihrcf_env.sim.batched.ranging`), the deck's pose read
-    from its body at each reading. Closed-form rays cast for many worlds at once
-    (:func:`~ihrcf_env.sim.batched.ranging.prefetch`) are taken by the next reading at the same
-    drone and deck poses.
+    collision boxes), in closed form (:mod:`ihrcf_env.sim.sensors.ranging`), the deck's pose read
+    from its body at each reading.
     """
 
     name = "tof"
@@ -80,16 +78,14 @@ class ToFArray:
     ) -> None:
         self.client = client
         self.deck = deck
-        self.closed_form: BatchedToF | None = None
-        #: closed-form rays cast ahead (ranging.prefetch): (poses key, (a, b) of the one world)
-        self.prefetched: tuple[bytes, tuple[NDArray[np.float64], NDArray[np.float64]]] | None = None
+        self.closed_form: ClosedFormToF | None = None
         if deck is not None:
-            from ihrcf_env.sim.batched.ranging import BatchedToF
-            from ihrcf_env.sim.batched.rays import RayScene
+            from ihrcf_env.sim.sensors.ranging import ClosedFormToF
+            from ihrcf_env.sim.sensors.rays import RayScene
 
             g = deck.geometry
             scene = RayScene.of(deck.config.size, deck.config.thickness, g.base_radius, g.base_height)
-            self.closed_form = BatchedToF(rig.sensor_positions_body, config.max_range, scene, config.model)
+            self.closed_form = ClosedFormToF(rig.sensor_positions_body, config.max_range, scene, config.model)
         self.config = config
         self._pos_body = rig.sensor_positions_body
         self.model = config.model
@@ -152,14 +148,10 @@ class ToFArray:
         self, pos: NDArray[np.float64], R_wb: NDArray[np.float64], cone: bool
     ) -> tuple[NDArray, NDArray]:
         """The closed-form rays at this drone pose and the deck's pose now, of this world:
-        :meth:`BatchedToF.cone_returns` (``cone``) or :meth:`BatchedToF.true_ranges`; the
-        prefetched ones when cast at the same poses."""
+        :meth:`ClosedFormToF.cone_returns` (``cone``) or :meth:`ClosedFormToF.true_ranges`."""
         cf = self.closed_form
         assert cf is not None
         deck_pos, deck_R = self._deck_pose()
-        ahead, self.prefetched = self.prefetched, None
-        if ahead is not None and ahead[0] == poses_key(np.array([cone]), pos, R_wb, deck_pos[0], deck_R[0]):
-            return ahead[1]
         cast = cf.cone_returns if cone else cf.true_ranges
         a, b = cast(pos[None], R_wb[None], deck_pos, deck_R)
         return a[0], b[0]

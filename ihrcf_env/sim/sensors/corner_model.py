@@ -1,7 +1,8 @@
-"""The detector model for N worlds at once: the batched twin of
+"""The detector model's corner errors and failures for N worlds at once (the corner tracks and
+detector model of :class:`~ihrcf_env.sim.sensors.closed_form_camera.ClosedFormTagCamera`):
 :func:`~ihrcf_env.core.detector_model.tag_features` and :meth:`DetectorModel.corners
-<ihrcf_env.core.detector_model.DetectorModel.corners>`, with each world's correlated error field
-(:class:`BatchedCornerTrack`) and its own random generator.
+<ihrcf_env.core.detector_model.DetectorModel.corners>` on stacks of frames, with each world's
+correlated error field (:class:`CornerTracks`) and its own random generator.
 
 Row n of every result is, bit for bit, what the scalar code returns for world n: the same
 floating-point operations in the same order (the scalar per-frame path evaluates the corner
@@ -38,7 +39,7 @@ _RULES = np.array([tag_status_code(r) for r in (REASON_QUIET_ZONE, REASON_SMALL,
 _OUTSIDE, _BORDER, _OBLIQUE = (tag_status_code(r) for r in (REASON_OUTSIDE, REASON_BORDER, REASON_OBLIQUE))
 
 
-class BatchedCornerTrack:
+class CornerTracks:
     """The :class:`~ihrcf_env.core.detector_model.CornerTrack` of N worlds: ``omega`` (N, 4, 64, 2)
     unit frequencies, ``phase`` (N, 4, 64) rad and ``drawn`` (N,) (False: the world's field is drawn
     from its generator at its first use, as a track reset without a generator)."""
@@ -53,7 +54,7 @@ class BatchedCornerTrack:
         return len(self.drawn)
 
     @classmethod
-    def of(cls, tracks: Sequence[CornerTrack]) -> BatchedCornerTrack:
+    def of(cls, tracks: Sequence[CornerTrack]) -> CornerTracks:
         """A copy of the scalar tracks' fields."""
         out = cls(len(tracks))
         for i, t in enumerate(tracks):
@@ -173,7 +174,7 @@ def model_corners(
     blur_px: NDArray[np.float64] | float,
     normals: NDArray[np.float64],
     uniforms: NDArray[np.float64],
-    track: BatchedCornerTrack,
+    track: CornerTracks,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """:meth:`DetectorModel.corners <ihrcf_env.core.detector_model.DetectorModel.corners>` of N
     frames, the true corners (N, 4, 2) and quiet-zone corners (N, 4, 2) px, given each world's draws
@@ -206,7 +207,7 @@ def model_corners(
 
 
 __all__ = [
-    "BatchedCornerTrack",
+    "CornerTracks",
     "edge_margin",
     "model_corners",
     "quad_features",

@@ -1,4 +1,4 @@
-"""The batched projected camera's realistic quality (noise ratio, motion blur) against the scalar
+"""The closed-form projected camera's realistic quality (noise ratio, motion blur) against the scalar
 read with Bullet's rays, and row by row against itself: rows do not depend on the batch."""
 
 from __future__ import annotations
@@ -10,16 +10,16 @@ from dataclasses import replace
 import numpy as np
 import pybullet as p
 import pytest
-from test_batched_tag_camera import look_at, place, scene_of
+from test_closed_form_camera import look_at, place, scene_of
 
 from ihrcf_env.config.sensors import CameraConfig
 from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.detector_model import CornerTrack
 from ihrcf_env.core.frames import matrix_from_quat
 from ihrcf_env.core.profiles import StaticProfile
-from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
 from ihrcf_env.sim.sensors import BodyState
 from ihrcf_env.sim.sensors.base import TAG_CAMERA
+from ihrcf_env.sim.sensors.closed_form_camera import ClosedFormTagCamera
 from ihrcf_env.sim.sensors.tag_camera import ProjectedTagCamera
 from ihrcf_env.sim.world import World
 
@@ -57,14 +57,14 @@ def _cases(w: World, seed: int) -> list[tuple[BodyState, np.ndarray, np.ndarray,
     return out
 
 
-def _batched(w: World, cam: ProjectedTagCamera) -> BatchedTagCamera:
-    return BatchedTagCamera(cam.camera, w.config.rig, scene_of(w), w.config.deck.tag_size, cam.model)
+def _closed_form(w: World, cam: ProjectedTagCamera) -> ClosedFormTagCamera:
+    return ClosedFormTagCamera(cam.camera, w.config.rig, scene_of(w), w.config.deck.tag_size, cam.model)
 
 
 def test_realistic_rows_follow_the_scalar_read(world: World) -> None:
     cam = world.sensors[TAG_CAMERA]
     assert isinstance(cam, ProjectedTagCamera) and cam.quality == "realistic"
-    bcam = _batched(world, cam)
+    bcam = _closed_form(world, cam)
     cases = _cases(world, 3)
     episodes, tracks, rngs = [], [], []
     for i in range(N):
@@ -97,7 +97,7 @@ def test_realistic_rows_follow_the_scalar_read(world: World) -> None:
         if e["tag_detected"]:
             detected += 1
             worst = max(worst, float(np.abs(got["tag_corners"][i] - e["tag_corners"]).max()))
-    print(f"{detected}/{N} detected; max |batched - scalar| corner {worst:.3g} px")
+    print(f"{detected}/{N} detected; max |closed form - scalar| corner {worst:.3g} px")
     assert detected >= N // 2
     assert worst < 1e-2  # the scene depth is Bullet's to within its 1 mm tolerance (equal here)
     with pytest.raises(ValueError, match="realistic"):  # no velocities, no imaging
@@ -114,7 +114,7 @@ def test_realistic_rows_follow_the_scalar_read(world: World) -> None:
 def test_realistic_rows_do_not_depend_on_the_batch(world: World) -> None:
     cam = world.sensors[TAG_CAMERA]
     assert isinstance(cam, ProjectedTagCamera)
-    bcam = _batched(world, cam)
+    bcam = _closed_form(world, cam)
     cases = _cases(world, 5)
     episodes = []
     for i in range(N):

@@ -4,7 +4,7 @@ The collision bodies a range sensor's ray can meet in a :class:`~ihrcf_env.sim.w
 ground plane (world z = 0), the deck plate (a box whose top face is the deck frame's z = 0 plane,
 :class:`RayScene` ``deck_half_extents``), the Stewart platform's base (a cylinder of radius
 ``base_radius`` and height ``base_height`` standing on the ground, centred on the world origin)
-and the drone's own collision boxes (:func:`~ihrcf_env.sim.batched.contact.drone_boxes`). The tag
+and the drone's own collision boxes (:func:`~ihrcf_env.core.collision.drone_boxes`). The tag
 and the legs are visual only.
 
 The conventions are PyBullet's ``rayTestBatch``: a ray runs from ``start`` to ``start + length *
@@ -25,7 +25,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from ihrcf_env.sim.batched.contact import drone_boxes
+from ihrcf_env.core.collision import drone_boxes
 
 
 @dataclass(frozen=True)

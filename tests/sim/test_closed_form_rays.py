@@ -1,4 +1,4 @@
-"""Closed-form ray casting (ihrcf_env.sim.batched.rays / ranging) against PyBullet's rayTestBatch.
+"""Closed-form ray casting (ihrcf_env.sim.sensors.rays / ranging) against PyBullet's rayTestBatch.
 
 Bullet casts rays against convex shapes (the deck box, the base cylinder) with a GJK-based convex
 cast that stops within a tolerance of the surface: its hit points lie up to EPS = 1 mm off the
@@ -21,8 +21,8 @@ from scipy.spatial.transform import Rotation
 from ihrcf_env.config.sensors import ToFConfig
 from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.frames import matrix_from_quat
-from ihrcf_env.sim.batched.ranging import BatchedToF
-from ihrcf_env.sim.batched.rays import RayScene, cast_rays, self_hits
+from ihrcf_env.sim.sensors.ranging import ClosedFormToF
+from ihrcf_env.sim.sensors.rays import RayScene, cast_rays, self_hits
 from ihrcf_env.sim.sensors.tof import ToFArray
 from ihrcf_env.sim.world import World
 
@@ -195,7 +195,7 @@ def random_drones(rng, n: int, deck_pos):
 
 @pytest.mark.parametrize("noise", ["ideal", "realistic"])
 def test_tof_closed_form_matches_pybullet(world, noise):
-    """ToFArray(deck=...) equals BatchedToF's rows bit for bit, and PyBullet's ToFArray within
+    """ToFArray(deck=...) equals ClosedFormToF's rows bit for bit, and PyBullet's ToFArray within
     Bullet's tolerance: every ray inside the EPS bracket; the readings of sensors whose rays all hit
     faces more than EDGE from an edge within 2 mm, their signals within 1 %."""
     w, scene = world, scene_of(world)
@@ -203,10 +203,10 @@ def test_tof_closed_form_matches_pybullet(world, noise):
     bullet = ToFArray(w.client, cfg, w.config.rig)
     closed = ToFArray(w.client, cfg, w.config.rig, deck=w.deck)
     pos_b = w.config.rig.sensor_positions_body
-    tof = BatchedToF(pos_b, cfg.max_range, scene, cfg.model)
+    tof = ClosedFormToF(pos_b, cfg.max_range, scene, cfg.model)
     lo, hi = (
-        BatchedToF(pos_b, cfg.max_range, grown(scene, EPS), cfg.model),
-        BatchedToF(pos_b, cfg.max_range, grown(scene, -EPS), cfg.model),
+        ClosedFormToF(pos_b, cfg.max_range, grown(scene, EPS), cfg.model),
+        ClosedFormToF(pos_b, cfg.max_range, grown(scene, -EPS), cfg.model),
     )
     rng = np.random.default_rng(11)
     n_clean, worst = 0, 0.0

@@ -1,10 +1,11 @@
-"""One read of the projected tag camera for N worlds at once: the batched twin of
-:meth:`ProjectedTagCamera.read <ihrcf_env.sim.sensors.tag_camera.ProjectedTagCamera.read>`.
+"""The projected tag camera with closed-form rays: :class:`ClosedFormTagCamera`, one read of
+:meth:`ProjectedTagCamera.read <ihrcf_env.sim.sensors.tag_camera.ProjectedTagCamera.read>` for N
+worlds at once (the numpy reference of the JAX backend's :mod:`ihrcf_env.fast.tag_camera`).
 
 Each world's tag corners (and its quiet zone's) are projected through the true camera, the depth
-range is checked, the detector model (:mod:`~ihrcf_env.sim.batched.detector`) adds the correlated
-corner error from each world's own generator and decides the model's failures, and occlusion
-comes from the closed-form rays of :mod:`~ihrcf_env.sim.batched.rays` (the ground, the Stewart
+range is checked, the detector model (:mod:`~ihrcf_env.sim.sensors.corner_model`) adds the
+correlated corner error from each world's own generator and decides the model's failures, and occlusion
+comes from the closed-form rays of :mod:`~ihrcf_env.sim.sensors.rays` (the ground, the Stewart
 base, the deck plate and the drone's own collision boxes) instead of PyBullet's ``rayTestBatch``.
 A row is the scalar read of that world: the same floating-point operations in the same order (the
 small matrix products as stacked ``matmul``, one BLAS call per world as in the scalar code) and
@@ -31,23 +32,23 @@ from ihrcf_env.config.sensors import FULL_SCALE_DN, CameraConfig
 from ihrcf_env.core.detector_model import QUIET_ZONE_SCALE, CornerTrack, DetectorModel
 from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.rig import SensorRig, tag_corners_deck
-from ihrcf_env.sim.batched.detector import BatchedCornerTrack, model_corners
-from ihrcf_env.sim.batched.rays import RayScene, cast_rays, self_hits, to_local
 from ihrcf_env.sim.sensors.base import TAG_STATUS, tag_status_code
+from ihrcf_env.sim.sensors.corner_model import CornerTracks, model_corners
 from ihrcf_env.sim.sensors.imaging import EpisodeImaging
+from ihrcf_env.sim.sensors.rays import RayScene, cast_rays, self_hits, to_local
 from ihrcf_env.sim.sensors.tag_camera import RAY_MARGIN_M, REASON_DEPTH, REASON_OCCLUDED
 
 _DEPTH, _OCCLUDED = tag_status_code(REASON_DEPTH), tag_status_code(REASON_OCCLUDED)
 _REASONS = np.array(TAG_STATUS)
 
 
-class BatchedTagCamera:
+class ClosedFormTagCamera:
     """The projected tag camera of N worlds (see the module docstring).
 
     Args:
         camera: the camera (its intrinsics, distortion, near/far planes; quality ``"ideal"``).
         rig: the sensor rig (camera position on the body).
-        scene: the worlds' collision scene (:meth:`RayScene.of <ihrcf_env.sim.batched.rays.RayScene.of>`).
+        scene: the worlds' collision scene (:meth:`RayScene.of <ihrcf_env.sim.sensors.rays.RayScene.of>`).
         tag_size: edge of the tag's black square (m).
         model: the fitted detector model.
     """
@@ -79,24 +80,6 @@ class BatchedTagCamera:
         self._vignetting_exponent = float(im.vignetting_exponent)
         self._read_noise = float(im.read_noise_e)
         self._blur_threshold = float(im.blur_threshold_px)
-        self._same: dict[int, tuple[BatchedTagCamera, bool]] = {}  # same_as, per other camera
-
-    def same_as(self, other: BatchedTagCamera) -> bool:
-        """True when ``other`` reads as this one does (one batched read serves the worlds of both);
-        remembered per ``other`` (both are fixed once made)."""
-        if other is self:
-            return True
-        known = self._same.get(id(other))
-        if known is None or known[0] is not other:
-            same = (
-                self.camera == other.camera
-                and self.scene == other.scene
-                and self.params == other.params
-                and np.array_equal(self._cam_offset, other._cam_offset)
-                and np.array_equal(self._points_deck, other._points_deck)
-            )
-            known = self._same[id(other)] = (other, same)
-        return known[1]
 
     def _project(self, P: NDArray[np.float64]) -> NDArray[np.float64]:
         """Pixels (N, M, 2) of camera-frame points (N, M, 3) (as ``project_points``)."""
@@ -135,7 +118,7 @@ class BatchedTagCamera:
         rotation: NDArray[np.float64],
         deck_position: NDArray[np.float64],
         deck_rotation: NDArray[np.float64],
-        track: BatchedCornerTrack | Sequence[CornerTrack],
+        track: CornerTracks | Sequence[CornerTrack],
         rngs: Sequence[np.random.Generator],
         velocity: NDArray[np.float64] | None = None,
         angular_velocity: NDArray[np.float64] | None = None,
@@ -151,9 +134,9 @@ class BatchedTagCamera:
         :func:`~ihrcf_env.sim.sensors.base.tag_reading` fields stacked: ``tag_corners`` (N, 4, 2)
         px, ``tag_detected`` (N,), ``tag_reason`` (N,) str, ``tag_status`` (N,)."""
         n = len(rngs)
-        scalar_tracks = None if isinstance(track, BatchedCornerTrack) else list(track)
-        batch = BatchedCornerTrack.of(scalar_tracks) if scalar_tracks is not None else track
-        assert isinstance(batch, BatchedCornerTrack)
+        scalar_tracks = None if isinstance(track, CornerTracks) else list(track)
+        batch = CornerTracks.of(scalar_tracks) if scalar_tracks is not None else track
+        assert isinstance(batch, CornerTracks)
         if len(batch) != n or len(position) != n:
             raise ValueError(f"{n} generators for {len(position)} poses and {len(batch)} tracks")
         c = self.camera
@@ -320,5 +303,5 @@ def _own_fraction(
 
 
 __all__ = [
-    "BatchedTagCamera",
+    "ClosedFormTagCamera",
 ]

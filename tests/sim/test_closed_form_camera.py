@@ -1,8 +1,8 @@
-"""The batched projected tag camera (ihrcf_env.sim.batched.tag_camera) against the scalar
+"""The closed-form projected tag camera (ihrcf_env.sim.sensors.closed_form_camera) against the scalar
 ProjectedTagCamera.read of a World, row by row, over consecutive reads.
 
 Occlusion: the scalar camera asks Bullet, whose convex ray cast stops up to 1 mm off a box's or
-the cylinder's surface (tests/sim/test_batched_rays.py); the rays stop RAY_MARGIN_M = 2 mm short
+the cylinder's surface (tests/sim/test_closed_form_rays.py); the rays stop RAY_MARGIN_M = 2 mm short
 of the tag, i.e. 2 mm cos(incidence) off the deck's top face. Poses where the occlusion verdict
 changes when every collision surface moves by 1 mm out or in (deck plate, base, drone boxes)
 and the model would report the tag are not used (``ambiguous``); the others must agree exactly.
@@ -18,15 +18,15 @@ import pybullet as p
 import pytest
 
 from ihrcf_env.config.world import WorldConfig
+from ihrcf_env.core.collision import drone_boxes
 from ihrcf_env.core.detector_model import CornerTrack
 from ihrcf_env.core.frames import R_BODY_CAM, matrix_from_quat, quat_from_matrix
 from ihrcf_env.core.profiles import StaticProfile
-from ihrcf_env.sim.batched.contact import drone_boxes
-from ihrcf_env.sim.batched.detector import BatchedCornerTrack
-from ihrcf_env.sim.batched.rays import RayScene, _box_entry, cast_rays, to_local
-from ihrcf_env.sim.batched.tag_camera import BatchedTagCamera
 from ihrcf_env.sim.sensors import BodyState
 from ihrcf_env.sim.sensors.base import TAG_CAMERA, TAG_STATUS
+from ihrcf_env.sim.sensors.closed_form_camera import ClosedFormTagCamera
+from ihrcf_env.sim.sensors.corner_model import CornerTracks
+from ihrcf_env.sim.sensors.rays import RayScene, _box_entry, cast_rays, to_local
 from ihrcf_env.sim.sensors.tag_camera import RAY_MARGIN_M, ProjectedTagCamera
 from ihrcf_env.sim.world import World
 
@@ -48,10 +48,10 @@ def scene_of(w: World) -> RayScene:
     return RayScene.of(c.deck.size, c.deck.thickness, c.stewart.base_radius, c.stewart.base_height)
 
 
-def batched(w: World) -> BatchedTagCamera:
+def closed_form(w: World) -> ClosedFormTagCamera:
     cam = w.sensors[TAG_CAMERA]
     assert isinstance(cam, ProjectedTagCamera)
-    return BatchedTagCamera(cam.camera, w.config.rig, scene_of(w), w.config.deck.tag_size, cam.model)
+    return ClosedFormTagCamera(cam.camera, w.config.rig, scene_of(w), w.config.deck.tag_size, cam.model)
 
 
 def look_at(eye: np.ndarray, target: np.ndarray, spin: float, rig_offset: np.ndarray):
@@ -144,7 +144,7 @@ def place(w: World, pos, q, deck_pos, deck_q):
     return BodyState(0.0, pos, R, q, np.zeros(3), np.zeros(3), np.zeros(3)), dp, dR
 
 
-def occlusion_bracket(cam: BatchedTagCamera, pos, R, dp, dR, e: float) -> np.ndarray:
+def occlusion_bracket(cam: ClosedFormTagCamera, pos, R, dp, dR, e: float) -> np.ndarray:
     """(N,) occlusion of the camera's rays with every collision surface moved out by ``e`` (m)."""
     eye = pos + R @ np.asarray(cam._cam_offset)
     targets = (dp[:, None, :] + cam._points_deck @ dR.transpose(0, 2, 1))[:, [0, 1, 2, 3, 8]]
@@ -164,10 +164,10 @@ def occlusion_bracket(cam: BatchedTagCamera, pos, R, dp, dR, e: float) -> np.nda
 
 def scenario(w: World, n: int, seed: int):
     """Poses (PyBullet's) of n worlds without an ambiguous occlusion, each world's scalar readings
-    over READS reads, and the inputs of the batched reads."""
+    over READS reads, and the inputs of the closed-form reads."""
     cam = w.sensors[TAG_CAMERA]
     assert isinstance(cam, ProjectedTagCamera)
-    bcam = batched(w)
+    bcam = closed_form(w)
     dpos, dq, bpos, bq = poses(w, n, seed)
     inputs = []
     for k in range(READS):
@@ -221,7 +221,7 @@ def test_rows_match_scalar_reads(world: World) -> None:
     bcam, inputs, tracks, rngs, expected, dropped, after = scenario(world, 96, 11)
     n = len(tracks)
     assert n >= 80  # few poses are ambiguous (grazing views the model still reports)
-    batch = BatchedCornerTrack.of(tracks)
+    batch = CornerTracks.of(tracks)
     worst = 0.0
     statuses = []
     for (pos, R, dp, dR), exp in zip(inputs, expected, strict=True):
@@ -253,7 +253,7 @@ def test_rows_independent_of_n(world: World) -> None:
     n = len(tracks)
 
     def run(rows: list[int]) -> list[dict]:
-        tr = BatchedCornerTrack.of([copy.deepcopy(tracks[i]) for i in rows])
+        tr = CornerTracks.of([copy.deepcopy(tracks[i]) for i in rows])
         rg = [copy.deepcopy(rngs[i]) for i in rows]
         return [bcam.read(*(a[rows] for a in x), tr, rg) for x in inputs]
 
@@ -270,7 +270,7 @@ def test_scalar_tracks_are_updated(world: World) -> None:
     bcam, inputs, tracks, rngs, expected, _, _ = scenario(world, 12, 3)
     for x, exp in zip(inputs, expected, strict=True):
         compare(bcam.read(*x, tracks, rngs), exp)
-    first = bcam.read(*inputs[0], BatchedCornerTrack.of(tracks), copy.deepcopy(rngs))
+    first = bcam.read(*inputs[0], CornerTracks.of(tracks), copy.deepcopy(rngs))
     assert first["tag_detected"].any()
     for t in tracks[1::2]:  # drawn at their first use in range
         assert t.omega is not None
@@ -280,14 +280,53 @@ def test_refuses_bad_input(world: World) -> None:
     cam = world.sensors[TAG_CAMERA]
     assert isinstance(cam, ProjectedTagCamera)
     with pytest.raises(TypeError, match="scene"):
-        BatchedTagCamera(cam.camera, world.config.rig, None, 0.4, cam.model)  # type: ignore[arg-type]
-    bcam = batched(world)
+        ClosedFormTagCamera(cam.camera, world.config.rig, None, 0.4, cam.model)  # type: ignore[arg-type]
+    bcam = closed_form(world)
     with pytest.raises(ValueError, match="generators"):
         bcam.read(
             np.zeros((2, 3)),
             np.tile(np.eye(3), (2, 1, 1)),
             np.zeros((2, 3)),
             np.tile(np.eye(3), (2, 1, 1)),
-            BatchedCornerTrack(2),
+            CornerTracks(2),
             [np.random.default_rng(0)],
         )
+
+
+def test_the_projected_camera_with_closed_form_rays_reads_its_row(world: World) -> None:
+    """ProjectedTagCamera(closed_form=True) reads, at each read of each world, the closed-form
+    camera's row of that world, bit for bit, from the same track and generator."""
+    cam = world.sensors[TAG_CAMERA]
+    assert isinstance(cam, ProjectedTagCamera)
+    own = ProjectedTagCamera(
+        world.client,
+        cam.camera,
+        world.config.rig,
+        world.deck,
+        world.config.deck.tag_size,
+        cam.model,
+        closed_form=True,
+    )
+    assert own.closed_form is not None and cam.closed_form is None
+    n, seed = 12, 7
+    dpos, dq, bpos, bq = poses(world, n, seed)
+    tracks = [CornerTrack(np.random.default_rng([seed, i, 1]) if i % 2 == 0 else None) for i in range(n)]
+    rngs = [np.random.default_rng([seed, i]) for i in range(n)]
+    batch, batch_rngs = CornerTracks.of(copy.deepcopy(tracks)), copy.deepcopy(rngs)
+    bcam = closed_form(world)
+    seen = set()
+    for k in range(READS):
+        rows, inputs = [], []
+        for i in range(n):
+            state, dp, dR = place(world, dpos[k, i], dq[k, i], bpos[k, i], bq[k, i])
+            own.track = tracks[i]
+            rows.append(own.read(state, 0.05, rngs[i]))
+            inputs.append((state.position, state.rotation, dp, dR))
+        got = bcam.read(*(np.array(a) for a in zip(*inputs, strict=True)), batch, batch_rngs)
+        for i, row in enumerate(rows):
+            for key in KEYS:
+                assert np.array_equal(row[key], got[key][i]), (k, i, key)
+            seen.add(str(row["tag_reason"]))
+    assert "" in seen and "tag occluded" in seen
+    for r, b in zip(rngs, batch_rngs, strict=True):
+        assert r.random() == b.random()

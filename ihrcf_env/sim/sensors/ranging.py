@@ -1,28 +1,26 @@
-"""The ToF sensors ps1..ps4 of N drones at once, by closed-form ray casting (:mod:`.rays`).
+"""The ToF sensors ps1..ps4 of N drones at once, by closed-form ray casting (:mod:`.rays`): the
+rays of a :class:`~ihrcf_env.sim.sensors.tof.ToFArray` given its world's deck, and the numpy
+reference of the JAX backend's :mod:`ihrcf_env.fast.rays` and :mod:`ihrcf_env.fast.tof`.
 
-:class:`BatchedToF` gives what :class:`~ihrcf_env.sim.sensors.tof.ToFArray` ``true_ranges``,
+:class:`ClosedFormToF` gives what :class:`~ihrcf_env.sim.sensors.tof.ToFArray` ``true_ranges``,
 ``cone_returns`` and ``cone_ranges`` give (noise-free), for stacks of drone and deck poses, with the
 same arithmetic on the rays' hits. Row-independent: a drone's readings never depend on the other rows.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ihrcf_env.sim.batched.rays import RayHits, RayScene, cast_rays, nearest, self_hits, to_world
-from ihrcf_env.sim.sensors.base import poses_key
+from ihrcf_env.sim.sensors.rays import RayHits, RayScene, cast_rays, nearest, self_hits, to_world
 
 if TYPE_CHECKING:
     from ihrcf_env.config.sensors import VL53L1X
-    from ihrcf_env.sim.sensors.base import BodyState
-    from ihrcf_env.sim.sensors.tof import ToFArray
 
 
-class BatchedToF:
+class ClosedFormToF:
     """Four ToF sensors at ``positions_body`` (4, 3; body frame, m) reading up to ``max_range`` (m)
     in ``scene``; ``model`` the realistic cone model (None: one ray per sensor along body -z)."""
 
@@ -33,7 +31,6 @@ class BatchedToF:
         self.max_range = float(max_range)
         self.scene = scene
         self.model = model
-        self._same: dict[int, tuple[BatchedToF, bool]] = {}  # same_as, per other sensor set
         axis = np.tile([0.0, 0.0, -1.0], (4, 1))
         self._axis = self._mount(self.positions_body, axis)
         if model is not None:
@@ -42,20 +39,6 @@ class BatchedToF:
             n = model.rays
             self._cone = self._mount(np.repeat(self.positions_body, n, axis=0), np.tile(dirs_body, (4, 1)))
             self._gain = model.flat_gain
-
-    def same_as(self, other: BatchedToF) -> bool:
-        """True when ``other`` casts the same rays in the same scene (one batched call serves the
-        worlds of both); remembered per ``other`` (both are fixed once made)."""
-        known = self._same.get(id(other))
-        if known is None or known[0] is not other:
-            same = (
-                self.scene == other.scene
-                and self.max_range == other.max_range
-                and self.model == other.model
-                and np.array_equal(self.positions_body, other.positions_body)
-            )
-            known = self._same[id(other)] = (other, same)
-        return known[1]
 
     def _mount(
         self, starts: NDArray[np.float64], dirs: NDArray[np.float64]
@@ -150,44 +133,6 @@ class BatchedToF:
         return np.where(total > 0, mean, np.nan), total / r.shape[-1]
 
 
-def prefetch(sensors: Sequence[ToFArray], states: Sequence[BodyState]) -> None:
-    """Cast the closed-form rays of N worlds' ToF sensors (each with a ``deck``: closed form) at
-    their drones' ``states`` and their decks' poses now, one batched call per sensor set-up; each
-    sensor's next reading at the same poses takes its row (bit for bit what it would cast alone:
-    rows are independent)."""
-    groups: list[list[int]] = []  # sensors casting the same rays in the same scene
-    for k, s in enumerate(sensors):
-        if s.closed_form is None:
-            raise ValueError("prefetch: every sensor needs closed-form rays (a ToFArray given its deck)")
-        group = next((g for g in groups if _same_rays(sensors[g[0]], s)), None)
-        if group is None:
-            groups.append([k])
-        else:
-            group.append(k)
-    for rows in groups:
-        first = sensors[rows[0]]
-        cf = first.closed_form
-        assert cf is not None
-        pos = np.stack([states[k].position for k in rows]).astype(np.float64)
-        rot = np.stack([states[k].rotation for k in rows]).astype(np.float64)
-        decks = [sensors[k]._deck_pose() for k in rows]
-        deck_pos = np.concatenate([d[0] for d in decks])
-        deck_rot = np.concatenate([d[1] for d in decks])
-        cast = cf.true_ranges if first.model is None else cf.cone_returns
-        a, b = cast(pos, rot, deck_pos, deck_rot)
-        for m, k in enumerate(rows):
-            key = poses_key(np.array([first.model is not None]), pos[m], rot[m], deck_pos[m], deck_rot[m])
-            sensors[k].prefetched = (key, (a[m], b[m]))
-
-
-def _same_rays(a: ToFArray, b: ToFArray) -> bool:
-    """True when two sensors cast the same rays in the same scene (one batched call serves both)."""
-    ca, cb = a.closed_form, b.closed_form
-    assert ca is not None and cb is not None
-    return ca is cb or ca.same_as(cb)
-
-
 __all__ = [
-    "BatchedToF",
-    "prefetch",
+    "ClosedFormToF",
 ]
