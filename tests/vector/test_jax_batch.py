@@ -55,6 +55,10 @@ def test_reset_ended_replaces_exactly_the_ended_rows(n: int, block: int) -> None
     np.testing.assert_array_equal(v[~e], 1.0)
     assert np.all((h[e] >= 1.0) & (h[e] <= 2.0)) and np.all(v[e] == 0.0)  # a new draw: height in [1, 2]
     assert len(np.unique(h[e])) == e.sum()  # every ended row its own draw
+    # the row's own key, whether the ended rows fit one block or every row was computed
+    keys = jax.random.split(jax.random.PRNGKey(0), n)
+    want = np.array([float(fresh(keys[i])["h"]) for i in np.flatnonzero(e)])
+    np.testing.assert_allclose(h[e], want, rtol=1e-6)
 
 
 def test_reset_ended_with_nothing_ended_is_the_identity() -> None:
