@@ -67,12 +67,16 @@ def reset_ended(
     def some(batch: Any) -> Any:
         rows = jnp.nonzero(ended, size=block, fill_value=n)[0]
         fresh = jax.vmap(reset_one)(keys[jnp.minimum(rows, n - 1)])
-        return jax.tree_util.tree_map(lambda a, b: a.at[rows].set(b, mode="drop"), batch, fresh)
+        return jax.tree_util.tree_map(
+            lambda a, b: a.at[rows].set(b.astype(a.dtype), mode="drop"), batch, fresh
+        )
 
     def every(batch: Any) -> Any:
         fresh = map_envs(reset_one, keys)
         return jax.tree_util.tree_map(
-            lambda a, b: jnp.where(ended.reshape((n,) + (1,) * (a.ndim - 1)), b, a), batch, fresh
+            lambda a, b: jnp.where(ended.reshape((n,) + (1,) * (a.ndim - 1)), b, a).astype(a.dtype),
+            batch,
+            fresh,
         )
 
     def few(batch: Any) -> Any:
