@@ -223,3 +223,18 @@ def test_the_shipped_jax_trained_policy_lands_without_jax(capsys: pytest.Capture
     out = capsys.readouterr().out
     # it lands these 4 on this machine: allow one unlucky episode on another CPU
     assert re.fullmatch(r"success [34]/4", out.strip().splitlines()[-1]), out[-2000:]
+
+
+MLP_JAX_V2_ROUGH = MLP_JAX_V2.with_name("ppo_jax_landing_v2_rough.npz")
+
+
+def test_the_shipped_rough_policy_lands_without_jax(capsys: pytest.CaptureFixture[str]) -> None:
+    """The MLP fine-tuned on the rough level (from the moderate one), through the protocol CLI:
+    the rough level's first 4 test seeds, projected camera."""
+    assert MLP_JAX_V2_ROUGH.is_file(), f"the shipped policy {MLP_JAX_V2_ROUGH} is missing"
+    argv = ["--level", "rough", "--policy", str(MLP_JAX_V2_ROUGH), "--episodes", "4"]
+    assert main([*argv, "--camera-model", "projected", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    # it lands all 4 on this machine, some close to the tilt and offset limits: allow two
+    # episodes to go the other way on another CPU, not a policy that no longer lands
+    assert re.fullmatch(r"success [234]/4", out.strip().splitlines()[-1]), out[-2000:]
