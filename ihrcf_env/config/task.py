@@ -26,7 +26,7 @@ from ihrcf_env.core.checks import (
     set_field,
 )
 from ihrcf_env.core.profiles import PROFILE_NAMES, MotionProfile, make_profile, sea_state_amplitudes
-from ihrcf_env.core.ship import ShipOptions
+from ihrcf_env.core.ship import DEFAULT_LENGTH_SCALE, ShipOptions
 
 #: Seconds of deck motion checked against the legs' stroke at reset when ``horizon_s`` is None.
 DEFAULT_HORIZON_S = 600.0
@@ -217,6 +217,11 @@ class DeckMotion:
         set_field(self, "random_start", check_bool("random_deck_start", self.random_start))
         h = check_positive("horizon_s", self.horizon_s, "s", high=MAX_HORIZON_S)
         set_field(self, "horizon_s", h)
+
+    @property
+    def length_scale(self) -> float:
+        """The deck's Froude scale (model/full size): the ship's, else the default platform's."""
+        return self.ship.length_scale if self.ship is not None else DEFAULT_LENGTH_SCALE
 
     def make_profile(self, rng: np.random.Generator) -> MotionProfile:
         """This episode's profile (a sea state draws its periods and phases from ``rng``)."""

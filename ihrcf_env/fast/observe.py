@@ -57,7 +57,6 @@ from ihrcf_env.core.landing_layout import (
 )
 from ihrcf_env.core.layout import build_layout
 from ihrcf_env.core.rig import SensorRig
-from ihrcf_env.core.ship import DEFAULT_LENGTH_SCALE
 from ihrcf_env.fast import forecast_feed as ff
 from ihrcf_env.fast import fused as fu
 from ihrcf_env.fast.detector import STATUS_NAMES
@@ -271,9 +270,7 @@ def observe_params(config: DeckLandingConfig, lm_iterations: int = MAX_LM_ITER) 
     feed = None
     forecast_block = None
     if obs.deck_forecast is not None:
-        ship = config.task.deck.ship
-        scale = ship.length_scale if ship is not None else DEFAULT_LENGTH_SCALE
-        feed = ff.feed_params(obs.deck_forecast, scale)
+        feed = ff.feed_params(obs.deck_forecast, config.task.deck.length_scale)
         forecast_block = (FORECAST, forecast_fields(feed.forecast.horizons.size))
     lay = build_layout(landing_blocks(names, max_range, obs.privileged, obs.deck_motion, forecast_block))
     latency = float(world.camera.latency)

@@ -65,7 +65,6 @@ from ihrcf_env.core.estimators import (
     check_estimator_names,
 )
 from ihrcf_env.core.forecast import ForecastOptions
-from ihrcf_env.core.ship import DEFAULT_LENGTH_SCALE
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
 from ihrcf_env.wrappers.forecast_feed import FORECAST, ForecastFeed
 from ihrcf_env.wrappers.layout import Block, Field, Layout, build_layout
@@ -269,9 +268,7 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         #: the deck-motion forecast (``deck_forecast``, Dict observation only), else None
         self.forecast: ForecastFeed | None = None
         if fc_opts is not None:
-            ship = config.task.deck.ship
-            scale = ship.length_scale if ship is not None else DEFAULT_LENGTH_SCALE
-            self.forecast = ForecastFeed(fc_opts, scale)
+            self.forecast = ForecastFeed(fc_opts, config.task.deck.length_scale)
             d[FORECAST] = _forecast_space(len(fc_opts.horizons))
         self._dict_space = spaces.Dict(d)
         sl = self.flat_slices

@@ -84,7 +84,6 @@ from ihrcf_env.core.landing_layout import (
     sensor_fields,
 )
 from ihrcf_env.core.landing_layout import landing_blocks as core_landing_blocks
-from ihrcf_env.core.ship import DEFAULT_LENGTH_SCALE
 from ihrcf_env.wrappers.estimates import GROUND_TRUTH, base_config
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
 from ihrcf_env.wrappers.forecast_feed import FORECAST, ForecastFeed, forecast_fields
@@ -208,9 +207,7 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         #: the deck-motion forecast (``deck_forecast``), else None
         self.forecast: ForecastFeed | None = None
         if opts.deck_forecast is not None:
-            ship = config.task.deck.ship
-            scale = ship.length_scale if ship is not None else DEFAULT_LENGTH_SCALE
-            self.forecast = ForecastFeed(opts.deck_forecast, scale)
+            self.forecast = ForecastFeed(opts.deck_forecast, config.task.deck.length_scale)
         self._max_range = float(world.tof.max_range)
         horizons = 0 if self.forecast is None else self.forecast.horizons.size
         self.obs_slices, self.obs_scales, low, high = landing_obs_fields(
