@@ -36,6 +36,7 @@ __all__ = [
     "PPOSettings",
     "export_policy",
     "gymnax_env",
+    "load_checkpoint",
     "load_policy",
     "main",
     "make_ppo",
@@ -268,7 +269,9 @@ def train(
 ) -> tuple[Any, Any, list[dict[str, float]]]:
     """Train PPO on ``fenv`` for ``total_timesteps`` env steps in chunks of ``chunk_timesteps``,
         resuming from ``out`` (``checkpoint.msgpack``, ``curve.json``) if a run left them there; stops
-        early when the next chunk would pass ``time_budget_s`` (s of wall time in this call). A new run
+        early when the next chunk would pass ``time_budget_s`` (s of wall time in this call). The
+        state of the chunk with the highest evaluated success rate so far is kept as ``best.msgpack``
+        (:func:`load_checkpoint`). A new run
     (nothing to resume) starts from the actor of ``init_policy`` (an exported ``.npz``) with
     ``init_log_std`` (:func:`load_policy`) if given. Returns
         (algo, train state, curve: one row per chunk with steps, wall time, success rate, mean return
@@ -341,12 +344,20 @@ def _train(
         row["length"] = length
         curve.append(row)
         ckpt.write_bytes(serialization.to_bytes(ts))
+        if success > max((r["success"] for r in curve[:-1]), default=-1.0):
+            (folder / "best.msgpack").write_bytes(serialization.to_bytes(ts))
         curve_file.write_text(json.dumps(curve, indent=1))
         log(
             f"{row['steps']:.3g} steps  {wall:7.1f} s  success {success:5.1%}  return {ret:8.2f}  "
             f"length {length:5.1f}"
         )
     return algo, ts, curve
+
+
+def load_checkpoint(ts: Any, path: str | Path) -> Any:
+    """``ts`` (a train state of the same algorithm and settings) with the values saved at ``path``
+    (``checkpoint.msgpack`` or ``best.msgpack`` of a run folder)."""
+    return serialization.from_bytes(ts, Path(path).read_bytes())
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -372,19 +383,36 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     ap.add_argument("--num-envs", type=int, default=PPOSettings.num_envs)
     ap.add_argument("--num-steps", type=int, default=PPOSettings.num_steps)
+    ap.add_argument("--learning-rate", type=float, default=PPOSettings.learning_rate)
+    ap.add_argument("--eval-envs", type=int, default=64, help="episodes of each chunk's evaluation")
+    ap.add_argument(
+        "--export",
+        choices=("last", "best"),
+        default="last",
+        help="write the last chunk's actor, or the one with the best evaluated success rate",
+    )
     args = ap.parse_args(argv)
+    if not (args.learning_rate > 0 and args.learning_rate < 1):
+        ap.error(f"--learning-rate must be in (0, 1), got {args.learning_rate}")
+    if args.eval_envs < 1:
+        ap.error(f"--eval-envs must be a positive int, got {args.eval_envs}")
     from ihrcf_env.vector.checks import time_limit
     from ihrcf_env.vector.jax_make import make_functional
 
     max_steps = time_limit(args.env_id, None) or 600
     fenv = make_functional(args.env_id, "float32", max_steps=max_steps, level=args.level)
-    settings = PPOSettings(num_envs=args.num_envs, num_steps=args.num_steps)
+    settings = PPOSettings(num_envs=args.num_envs, num_steps=args.num_steps, learning_rate=args.learning_rate)
     algo, ts, curve = train(
         fenv, args.out, int(args.timesteps), max_steps, settings, int(args.chunk), args.seed,
-        time_budget_s=args.time_budget, init_policy=args.init_policy, init_log_std=args.init_log_std,
+        eval_envs=args.eval_envs, time_budget_s=args.time_budget, init_policy=args.init_policy,
+        init_log_std=args.init_log_std,
     )  # fmt: skip
     if args.policy:
         last = curve[-1] if curve else {"steps": 0.0, "wall_s": 0.0}
+        best = Path(args.out) / "best.msgpack"
+        if args.export == "best" and curve and best.exists():
+            ts = load_checkpoint(ts, best)
+            last = max(curve, key=lambda r: r["success"])
         export_policy(
             algo, ts, args.policy, env_id=args.env_id, level=args.level, trainer="rejax PPO (JAX backend)",
             steps=int(last["steps"]), wall_s=float(last["wall_s"]),

@@ -14,7 +14,13 @@ pytest.importorskip("rejax")
 from functional_toy import Drop  # noqa: E402
 
 from ihrcf_env.control.mlp_policy import MlpPolicy  # noqa: E402
-from ihrcf_env.rl.jax_ppo import PPOSettings, _mean_action, export_policy, train  # noqa: E402
+from ihrcf_env.rl.jax_ppo import (  # noqa: E402
+    PPOSettings,
+    _mean_action,
+    export_policy,
+    load_checkpoint,
+    train,
+)
 
 SETTINGS = PPOSettings(num_envs=16, num_steps=16, num_minibatches=4, hidden=(16, 16))
 
@@ -35,6 +41,15 @@ def test_train_runs_resumes_and_exports(tmp_path: Path) -> None:
     for obs in np.random.default_rng(0).normal(size=(5, 2)).astype(np.float32):
         np.testing.assert_allclose(back.act(obs), np.asarray(act(obs)), atol=2e-5)
     assert pol.meta == {"trained": "toy"}
+    # best.msgpack holds the state of the first chunk with the highest evaluated success rate
+    best = max(range(len(curve2)), key=lambda k: curve2[k]["success"])
+    assert (tmp_path / "best.msgpack").exists()
+    with jax.enable_x64(False):
+        kept = load_checkpoint(ts2, tmp_path / "best.msgpack")
+    if best == len(curve2) - 1:
+        np.testing.assert_array_equal(np.asarray(kept.obs_rms_state.mean), np.asarray(ts2.obs_rms_state.mean))
+    else:  # an earlier chunk's state: fewer observations counted than the last one's
+        assert float(kept.obs_rms_state.count) < float(ts2.obs_rms_state.count)
 
 
 def test_the_batched_step_resets_only_the_envs_that_ended() -> None:
