@@ -8,7 +8,8 @@ threads JAX may use):
   actions: env-steps/s;
 * the JAX backend's functional step (pure JAX, as a trainer runs it: ``lax.scan`` over steps of
   the envs vmapped in chunks of :data:`~ihrcf_env.vector.jax_batch.CHUNK`, the envs that ended
-  reset in the same step, random actions drawn in JAX) for each ``N``, in
+  reset in the same step, random actions drawn in JAX, every observation summed into the result
+  so that none of its computation is compiled away) for each ``N``, in
   float64 and float32: compile time (s), env-steps/s and the ratio to the PyBullet env;
 * the Gymnasium vector env front (``gym.make_vec(..., backend="jax")``, numpy in and out) for the
   same ``N``: env-steps/s;
@@ -54,42 +55,51 @@ class SpeedRow:
 
 
 def rollout_fn(fenv: Any, num_envs: int, steps: int) -> Callable[[Any, Any], Any]:
-    """A jitted function ``(key, params) -> (total reward, episodes ended)`` that resets
-    ``num_envs`` envs and runs ``steps`` steps of all of them with random actions, resetting the
-    envs that ended (only those: :func:`~ihrcf_env.vector.jax_batch.reset_ended`)."""
+    """A jitted function ``(key, params) -> (total reward, episodes ended, observation checksum)``
+    that resets ``num_envs`` envs and runs ``steps`` steps of all of them with random actions,
+    resetting the envs that ended in the same step (only those:
+    :func:`~ihrcf_env.vector.jax_batch.autoreset_step`, as the trainers step it). Every
+    observation (the steps' and the resets') is summed into the checksum: a rollout whose
+    observations were unused would let XLA drop everything only they depend on (the estimators),
+    and time a step no trainer runs."""
     import jax
     import jax.numpy as jnp
 
-    from ihrcf_env.vector.jax_batch import map_envs, reset_ended
+    from ihrcf_env.vector.jax_batch import autoreset_step
 
     shape = fenv.action_space.shape
 
     def reset_one(key: Any, params: Any) -> Any:
         k1, k2 = jax.random.split(key)
-        return fenv.reset_from(fenv.draw(k1, params), k2, params)[1]
+        return fenv.reset_from(fenv.draw(k1, params), k2, params)
 
     def run(key: Any, params: Any) -> Any:
         k0, key = jax.random.split(key)
-        state = jax.vmap(reset_one, in_axes=(0, None))(jax.random.split(k0, num_envs), params)
+        obs, state = jax.vmap(reset_one, in_axes=(0, None))(jax.random.split(k0, num_envs), params)
+        f = reward_dtype(params)
 
         def one(carry: Any, k: Any) -> Any:
-            state, total, ended = carry
-            ka, ks, kr = jax.random.split(k, 3)
+            state, total, ended, check = carry
+            ka, ks = jax.random.split(k)
             actions = jax.random.uniform(ka, (num_envs, *shape), minval=-1.0, maxval=1.0)
-            keys = jax.random.split(ks, num_envs)
-            _, state, reward, done, _ = map_envs(
-                lambda k, s, a: fenv.step(k, s, a, params), keys, state, actions
+            obs, state, reward, done, _ = autoreset_step(
+                lambda k, s, a: fenv.step(k, s, a, params),
+                lambda k: reset_one(k, params),
+                jax.random.split(ks, num_envs),
+                state,
+                actions,
             )
-            state = reset_ended(lambda k: reset_one(k, params), kr, state, done)
             return (
                 state,
-                total + reward.sum().astype(total.dtype),
-                ended + done.sum().astype(ended.dtype),
+                total + reward.sum().astype(f),
+                ended + done.sum().astype(jnp.int32),
+                check + obs.astype(f).sum(),
             ), None
 
-        init = (state, jnp.zeros((), reward_dtype(params)), jnp.zeros((), jnp.int32))
-        (state, total, ended), _ = jax.lax.scan(one, init, jax.random.split(key, steps))
-        return total, ended
+        zero = jnp.zeros((), f)
+        init = (state, zero, jnp.zeros((), jnp.int32), obs.astype(f).sum())
+        (state, total, ended, check), _ = jax.lax.scan(one, init, jax.random.split(key, steps))
+        return total, ended, check
 
     return jax.jit(run)
 

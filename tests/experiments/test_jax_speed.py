@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -21,9 +23,31 @@ from ihrcf_env.experiments.jax_speed import (  # noqa: E402
 
 def test_rollout_resets_the_envs_that_ended() -> None:
     fenv = Drop()
-    total, ended = rollout_fn(fenv, 4, 60)(jax.random.PRNGKey(0), fenv.params)
+    total, ended, check = rollout_fn(fenv, 4, 60)(jax.random.PRNGKey(0), fenv.params)
     # falling from 1-2 m at g = 1 with random thrust in [-1, 1] - g: every env lands in 60 steps
-    assert int(ended) >= 4 and np.isfinite(float(total))
+    assert int(ended) >= 4 and np.isfinite(float(total)) and np.isfinite(float(check))
+
+
+class Doubled(Drop):
+    """Drop with every observation doubled (the same dynamics, draws and rewards)."""
+
+    def reset_from(self, episode: Any, key: Any, params: Any) -> tuple[Any, Any]:
+        obs, state = super().reset_from(episode, key, params)
+        return 2.0 * obs, state
+
+    def step(self, key: Any, state: Any, action: Any, params: Any) -> Any:
+        obs, *rest = super().step(key, state, action, params)
+        return (2.0 * obs, *rest)
+
+
+def test_rollout_result_depends_on_every_observation() -> None:
+    # a timed rollout must compute the observations (XLA drops what no result depends on)
+    key = jax.random.PRNGKey(3)
+    total, ended, check = rollout_fn(Drop(), 3, 40)(key, Drop().params)
+    total2, ended2, check2 = rollout_fn(Doubled(), 3, 40)(key, Drop().params)
+    assert float(total2) == pytest.approx(float(total)) and int(ended2) == int(ended)
+    assert abs(float(check)) > 1.0
+    assert float(check2) == pytest.approx(2.0 * float(check), rel=1e-5)
 
 
 def test_rates_costs_and_table() -> None:
