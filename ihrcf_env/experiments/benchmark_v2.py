@@ -148,8 +148,8 @@ def page_markdown(rows: Mapping[Job, LandingRow], stamp: Stamp) -> str:
             f"test seeds from {TEST_SEEDS.start} up, the same seeds for every policy and camera. "
             "`blind:0.3` descends at 0.3 m/s with no lateral command; `scripted` is the package's landing "
             "controller on the fused estimate (own sensing only); a `.zip` is a saved stable-baselines3 "
-            "policy, a `.npz` a saved recurrent policy ([learning](learning.md)). The same figures for one "
-            "row: "
+            "policy, a `.npz` a saved numpy policy, recurrent (GRU) or not (MLP) "
+            "([learning](learning.md)). The same figures for one row: "
             "`ihrcf-evaluate --level L --policy P --episodes N --camera-model C`.",
             "",
             table_markdown(rows),
