@@ -1,212 +1,441 @@
-"""PPO on the JAX backend: rejax's PPO over a functional landing env, exported as a numpy policy.
+"""PPO on the JAX backend, exported as a numpy policy: ``python -m ihrcf_env.rl.jax_ppo``.
 
-:func:`gymnax_env` adapts a functional env (:class:`~ihrcf_env.vector.jax_env.FunctionalEnv`:
-``draw`` / ``reset_from`` / ``step``, one env per call) to gymnax's ``Environment`` interface, which
-rejax trains on (its autoreset draws a new episode on every reset; episodes end on termination or
-after ``max_steps``). :class:`LandingPPO` steps the envs as one batch and resets only those that ended.
-:func:`train` runs it in chunks, each one compiled call, saving a
-checkpoint and the learning curve after every chunk (a stopped run resumes from its folder; a new
-run may start from an exported policy's actor, :func:`load_policy`), and
-:func:`export_policy` writes the actor as an :class:`~ihrcf_env.control.mlp_policy.MlpPolicy`
-(numpy inference, no JAX needed to run it). Needs the ``[rl]`` extra (rejax, gymnax).
+The envs of a functional env (:class:`~ihrcf_env.vector.jax_env.FunctionalEnv`; the landing task's
+:class:`~ihrcf_env.vector.jax_landing.LandingFunctional`) step as one batch
+(:func:`~ihrcf_env.vector.jax_rollout.batch_step`: the step limit, same-step autoreset of the envs
+that ended, the batch spread over the host's devices). One compiled function, :func:`transition`,
+takes the policy's action and steps the batch; it serves the first reset (every env forced to
+reset), the training rollouts (sampled actions) and the evaluations (the mean action), so the
+env's step compiles once per run. PPO's update (:mod:`ihrcf_env.rl.ppo_learner`) is a second,
+small compiled function.
+
+The critic reads the env's ground truth beside the observation (an asymmetric actor-critic) when
+the functional env provides it (``privileged``); the actor reads the observation only, and the
+exported policy is the actor (:func:`export_policy`, an
+:class:`~ihrcf_env.control.mlp_policy.MlpPolicy`: numpy inference, no JAX). :func:`train` runs
+in chunks: after each, a checkpoint, an evaluation (the mean action over one episode of every env)
+and a row of the learning curve; a stopped run resumes from its folder; ``time_budget_s`` stops
+it in time to evaluate and export. Needs the ``[rl]`` extra (rejax, flax, optax).
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
 
-import jax
-import jax.numpy as jnp
-import numpy as np
-from flax import serialization
-from gymnax.environments import environment, spaces
-from rejax import PPO
+_START = time.monotonic()  # the command's start, for --time-budget (before the heavy imports)
 
-from ihrcf_env.control.mlp_policy import MlpPolicy, mlp_from_arrays
-from ihrcf_env.vector.jax_batch import autoreset_step
+import argparse  # noqa: E402
+import json  # noqa: E402
+import os  # noqa: E402
+from collections.abc import Callable, Sequence  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Any, NamedTuple  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from ihrcf_env.control.mlp_policy import MlpPolicy, mlp_from_arrays  # noqa: E402
 
 __all__ = [
-    "LandingPPO",
     "PPOSettings",
+    "Run",
     "export_policy",
-    "gymnax_env",
     "load_checkpoint",
     "load_policy",
     "main",
-    "make_ppo",
+    "make_learner",
+    "mean_action_fn",
     "train",
 ]
 
 
-def gymnax_env(fenv: Any, max_steps: int) -> tuple[environment.Environment, Any]:
-    """(gymnax env, its params) of the functional env ``fenv`` with episodes of at most
-    ``max_steps`` steps (the id's step limit)."""
-    obs_space = fenv.observation_space
-    act_space = fenv.action_space
-
-    class Landing(environment.Environment):
-        @property
-        def default_params(self) -> Any:
-            return fenv.params
-
-        def step_env(self, key: Any, state: Any, action: Any, params: Any) -> Any:
-            inner, t = state
-            obs, inner, reward, terminated, info = fenv.step(key, inner, action, params)
-            t = t + 1
-            done = jnp.logical_or(terminated, t >= max_steps)
-            info = {"success": info.get("is_success", jnp.zeros((), bool)), "terminated": terminated}
-            return obs, (inner, t), reward, done, info
-
-        def reset_env(self, key: Any, params: Any) -> Any:
-            k1, k2 = jax.random.split(key)
-            obs, inner = fenv.reset_from(fenv.draw(k1, params), k2, params)
-            return obs, (inner, jnp.zeros((), jnp.int32))
-
-        def observation_space(self, params: Any) -> Any:
-            return spaces.Box(obs_space.low, obs_space.high, obs_space.shape, jnp.float32)
-
-        def action_space(self, params: Any) -> Any:
-            return spaces.Box(act_space.low, act_space.high, act_space.shape, jnp.float32)
-
-        @property
-        def name(self) -> str:
-            return "ihrcf-landing"
-
-    return Landing(), fenv.params
-
-
-class LandingPPO(PPO):  # type: ignore[misc,unused-ignore]  # Any without rejax installed
-    """rejax's PPO whose N envs step as one batch: the step in chunks
-    (:func:`~ihrcf_env.vector.jax_batch.map_envs`) and the reset run only for the envs that ended
-    (:func:`~ihrcf_env.vector.jax_batch.autoreset_step`). gymnax's per-env autoreset under
-    ``vmap`` would run a reset, about two steps' work, for every env on every step. Same
-    transitions otherwise: an env that ended starts a new episode in the same step."""
-
-    @property
-    def vmap_step(self) -> Callable[..., Any]:
-        env, params_default = self.env, self.env_params
-
-        def step(keys: Any, state: Any, action: Any, params: Any = params_default) -> Any:
-            return autoreset_step(
-                lambda k, s, a: env.step_env(k, s, a, params),
-                lambda k: env.reset_env(k, params),
-                keys,
-                state,
-                action,
-            )
-
-        return step
-
-
 @dataclass(frozen=True)
 class PPOSettings:
-    """rejax PPO's hyperparameters (the names of :class:`rejax.PPO`)."""
+    """The recipe: PPO's hyperparameters, the batch and the critic's inputs.
+
+    ``asymmetric``: the critic reads the env's privileged ground truth beside the observation
+    (where the functional env provides it); ``devices``: devices the batch is spread over (None:
+    all JAX has, as many as split ``num_envs`` evenly)."""
 
     num_envs: int = 256
-    num_steps: int = 64
+    num_steps: int = 32
     num_epochs: int = 4
-    num_minibatches: int = 16
-    learning_rate: float = 3e-4
+    num_minibatches: int = 8
+    learning_rate: float = 1e-3
     max_grad_norm: float = 0.5
-    gamma: float = 0.995
+    gamma: float = 0.99
     gae_lambda: float = 0.95
     clip_eps: float = 0.2
     ent_coef: float = 0.0
     vf_coef: float = 0.5
     hidden: tuple[int, ...] = (128, 128)
     activation: str = "swish"
-    extra: dict[str, Any] = field(default_factory=dict)
+    asymmetric: bool = True
+    devices: int | None = None
 
 
-def make_ppo(
-    fenv: Any,
-    max_steps: int,
-    settings: PPOSettings,
-    chunk_timesteps: int,
-    eval_envs: int = 64,
-) -> Any:
-    """rejax's PPO on ``fenv``, training ``chunk_timesteps`` per call of its ``train``; its
-    evaluation (once per chunk) flies ``eval_envs`` episodes with the actor's mean action and
-    returns (success rate, mean return, mean length)."""
-    env, params = gymnax_env(fenv, max_steps)
+class Run(NamedTuple):
+    """The batch between steps: the env state, the normalised observation rows, the envs whose
+    last step ended an episode, and counters since the last :func:`_zero_counts`: episodes ended,
+    successful, and the sum of their returns; ``returns`` the running return of each env."""
 
-    def evaluate(algo: Any, ts: Any, rng: Any) -> Any:
-        act = _mean_action(algo, ts)
-        keys = jax.random.split(rng, eval_envs)
-        obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+    state: Any
+    obs: Any
+    done: Any
+    returns: Any
+    ended: Any
+    succeeded: Any
+    return_sum: Any
 
-        def one(carry: Any, k: Any) -> Any:
-            obs, state, done, ret, length, success = carry
-            a = jax.vmap(act)(obs)
-            ks = jax.random.split(k, eval_envs)
-            obs2, state2, r, d, info = jax.vmap(env.step_env, in_axes=(0, 0, 0, None))(ks, state, a, params)
-            live = ~done
-            ret = ret + jnp.where(live, r, 0.0)
-            length = length + live
-            success = success | (live & info["success"])
-            return (obs2, state2, done | d, ret, length, success), None
 
-        zeros = jnp.zeros(eval_envs)
-        carry = (obs, state, jnp.zeros(eval_envs, bool), zeros, zeros, jnp.zeros(eval_envs, bool))
-        carry, _ = jax.lax.scan(one, carry, jax.random.split(rng, max_steps))
-        _, _, _, ret, length, success = carry
-        return jnp.stack([success.mean(), ret.mean(), length.mean()])
+def make_learner(fenv: Any, settings: PPOSettings) -> Any:
+    """The :class:`~ihrcf_env.rl.ppo_learner.Learner` of ``fenv`` (its spaces) and ``settings``."""
+    from ihrcf_env.rl.ppo_learner import Learner
 
-    algo = LandingPPO.create(
-        env=env,
-        env_params=params,
-        num_envs=settings.num_envs,
-        num_steps=settings.num_steps,
-        num_epochs=settings.num_epochs,
-        num_minibatches=settings.num_minibatches,
-        learning_rate=settings.learning_rate,
-        max_grad_norm=settings.max_grad_norm,
-        gamma=settings.gamma,
-        gae_lambda=settings.gae_lambda,
-        clip_eps=settings.clip_eps,
-        ent_coef=settings.ent_coef,
-        vf_coef=settings.vf_coef,
-        total_timesteps=chunk_timesteps,
-        eval_freq=chunk_timesteps,
-        skip_initial_evaluation=True,
-        normalize_observations=True,
-        agent_kwargs={"hidden_layer_sizes": settings.hidden, "activation": settings.activation},
-        **settings.extra,
+    n_obs = int(np.prod(fenv.observation_space.shape))
+    extra = _privileged_size(fenv) if settings.asymmetric else 0
+    return Learner(
+        actor_inputs=n_obs, inputs=n_obs + extra, action_dim=int(np.prod(fenv.action_space.shape)),
+        hidden=tuple(settings.hidden), activation=settings.activation, learning_rate=settings.learning_rate,
+        max_grad_norm=settings.max_grad_norm, gamma=settings.gamma, gae_lambda=settings.gae_lambda,
+        clip_eps=settings.clip_eps, ent_coef=settings.ent_coef, vf_coef=settings.vf_coef,
+        num_epochs=settings.num_epochs, num_minibatches=settings.num_minibatches,
+        low=float(np.min(fenv.action_space.low)), high=float(np.max(fenv.action_space.high)),
+    )  # fmt: skip
+
+
+def _privileged_size(fenv: Any) -> int:
+    import jax
+
+    from ihrcf_env.vector.jax_rollout import has_stages
+
+    if not (has_stages(fenv) and callable(getattr(fenv, "privileged", None))):
+        return 0
+    reading = jax.eval_shape(lambda k: fenv.reset_stage(k, fenv.params)[0], jax.random.PRNGKey(0))
+    return int(jax.eval_shape(fenv.privileged, reading).shape[0])
+
+
+class _Compiled(NamedTuple):
+    transition: Callable[..., Any]
+    update: Callable[..., Any]
+    zero_counts: Callable[..., Any]
+    start: Callable[..., Any]
+
+
+def _compile(fenv: Any, learner: Any, settings: PPOSettings, max_steps: int) -> tuple[_Compiled, Any]:
+    """The run's compiled functions and its device mesh."""
+    import jax
+    import jax.numpy as jnp
+
+    from ihrcf_env.rl.ppo_learner import Trajectory, normalise, update_stats
+    from ihrcf_env.vector.jax_devices import check_devices, env_mesh
+    from ihrcf_env.vector.jax_rollout import batch_step, placeholder_state
+
+    n = settings.num_envs
+    devices = check_devices(settings.devices, n)
+    mesh = env_mesh(devices)
+    privileged = getattr(fenv, "privileged", None) if learner.inputs > learner.actor_inputs else None
+    step = batch_step(fenv, max_steps, mesh=mesh, privileged=privileged)
+
+    def transition(ts: Any, run: Run, force: Any, deterministic: Any) -> tuple[Any, Run, Any, Any]:
+        key, k_act, k_env = jax.random.split(ts.rng, 3)
+        action, taken, log_prob, value = learner.act(ts, run.obs, k_act, deterministic)
+        keys = jax.random.split(k_env, n)
+        obs, state, reward, done, success = step(keys, run.state, action, force)
+        stats = update_stats(ts.obs_rms_state, obs)
+        stats = jax.tree_util.tree_map(
+            lambda old, new: jnp.where(deterministic, old, new), ts.obs_rms_state, stats
+        )
+        counted = jnp.where(deterministic, 0, jnp.sum(~force)).astype(ts.global_step.dtype)
+        steps = ts.global_step + counted
+        ts = ts.replace(rng=key, obs_rms_state=stats, global_step=steps)
+        live = ~force
+        reward = jnp.where(live, reward, 0.0).astype(jnp.float32)
+        done = done & live
+        returns = run.returns + reward
+        traj = Trajectory(run.obs, taken, log_prob, reward, value, done)
+        new = Run(
+            state, normalise(stats, obs), done, jnp.where(done, 0.0, returns),
+            run.ended + jnp.sum(done), run.succeeded + jnp.sum(done & success),
+            run.return_sum + jnp.sum(jnp.where(done, returns, 0.0)),
+        )  # fmt: skip
+        return ts, new, traj, done & success
+
+    def update(ts: Any, trajs: list[Any], run: Run) -> Any:
+        traj = jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *trajs)
+        return learner.update(ts, traj, run.obs, run.done)
+
+    def zero_counts(run: Run) -> Run:
+        z = jnp.zeros((), jnp.int32)
+        return run._replace(ended=z, succeeded=z, return_sum=jnp.zeros((), jnp.float32))
+
+    def start(ts: Any) -> Run:
+        state = placeholder_state(fenv, n)
+        obs = jnp.zeros((n, learner.inputs), jnp.float32)
+        z = jnp.zeros((), jnp.int32)
+        return Run(
+            state, obs, jnp.zeros(n, bool), jnp.zeros(n, jnp.float32), z, z, jnp.zeros((), jnp.float32)
+        )
+
+    compiled = _Compiled(
+        jax.jit(transition, donate_argnums=(1,)), jax.jit(update), jax.jit(zero_counts), jax.jit(start)
     )
-    return algo.replace(eval_callback=evaluate)
+    return compiled, mesh
 
 
-def _mean_action(algo: Any, ts: Any) -> Callable[[Any], Any]:
-    """The actor's deterministic action (the Gaussian's mean, clipped) of one observation."""
+def _reset(c: _Compiled, ts: Any, n: int, deterministic: bool) -> tuple[Any, Run]:
+    """A fresh batch: every env reset (through :func:`transition`, so nothing compiles again)."""
+    import jax.numpy as jnp
+
+    run = c.start(ts)
+    ts, run, _, _ = c.transition(ts, run, jnp.ones(n, bool), jnp.asarray(deterministic))
+    return ts, c.zero_counts(run)
+
+
+def _evaluate(c: _Compiled, ts: Any, n: int, max_steps: int, key: Any) -> tuple[float, float, float]:
+    """(success rate, mean return, mean length) of the first episode of each of ``n`` envs flown
+    with the actor's mean action; ``ts`` is left as it was."""
+    import jax.numpy as jnp
+
+    ts_e = ts.replace(rng=key)
+    ts_e, run = _reset(c, ts_e, n, True)
+    first = np.zeros(n, bool)
+    success = np.zeros(n, bool)
+    ret = np.zeros(n)
+    length = np.zeros(n)
+    force = jnp.zeros(n, bool)
+    det = jnp.asarray(True)
+    for _ in range(max_steps):
+        ts_e, run, traj, succeeded = c.transition(ts_e, run, force, det)
+        r, d, s = np.asarray(traj.reward), np.asarray(traj.done), np.asarray(succeeded)
+        live = ~first
+        ret[live] += r[live]
+        length[live] += 1
+        success |= live & s
+        first |= d
+        if first.all():
+            break
+    success_rate = float(success.mean())
+    return success_rate, float(ret.mean()), float(length.mean())
+
+
+def train(
+    fenv: Any,
+    out: str | Path,
+    total_timesteps: int,
+    max_steps: int,
+    settings: PPOSettings | None = None,
+    chunk_timesteps: int = 1_000_000,
+    seed: int = 0,
+    time_budget_s: float | None = None,
+    log: Callable[[str], None] = print,
+    init_policy: str | Path | None = None,
+    init_log_std: float = -1.0,
+    started: float | None = None,
+) -> tuple[Any, Any, list[dict[str, float]]]:
+    """Train PPO on ``fenv`` for ``total_timesteps`` env steps (module docstring), checkpointing
+    every ``chunk_timesteps`` into ``out`` (``checkpoint.msgpack``, ``best.msgpack``: the chunk with
+    the best evaluated success, ``curve.json``) and resuming a run left there. ``time_budget_s``:
+    wall seconds from ``started`` (a ``time.monotonic()`` reading; default this call) by which the
+    run has stopped, evaluated its last state and left the time to export it. A new run may start
+    from the actor of ``init_policy`` (an exported ``.npz``) with ``init_log_std``. Returns (learner,
+    train state, curve: one row per chunk with steps, wall s, the evaluation's success, return and
+    length, and the training episodes' success). Runs in 32-bit JAX."""
+    import jax
+
+    with jax.enable_x64(False):
+        return _train(
+            fenv, out, total_timesteps, max_steps, settings or PPOSettings(), chunk_timesteps, seed,
+            time_budget_s, log, init_policy, init_log_std, time.monotonic() if started is None else started,
+        )  # fmt: skip
+
+
+def _check_train_args(
+    total_timesteps: Any, chunk_timesteps: Any, time_budget_s: Any, settings: PPOSettings
+) -> None:
+    for name, value in (("total_timesteps", total_timesteps), ("chunk_timesteps", chunk_timesteps)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ValueError(f"{name} must be a positive int, got {value!r}")
+    if time_budget_s is not None and not (
+        isinstance(time_budget_s, int | float)
+        and not isinstance(time_budget_s, bool)
+        and 0 < time_budget_s < 1e7
+    ):
+        raise ValueError(f"time_budget_s must be a positive number of seconds, got {time_budget_s!r}")
+    for name in ("num_envs", "num_steps", "num_epochs", "num_minibatches"):
+        value = getattr(settings, name)
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ValueError(f"{name} must be a positive int, got {value!r}")
+    if (settings.num_envs * settings.num_steps) % settings.num_minibatches:
+        raise ValueError(
+            f"num_minibatches={settings.num_minibatches} must divide num_envs x num_steps "
+            f"({settings.num_envs * settings.num_steps})"
+        )
+
+
+def _train(
+    fenv: Any, out: str | Path, total_timesteps: int, max_steps: int, settings: PPOSettings,
+    chunk_timesteps: int, seed: int, time_budget_s: float | None, log: Callable[[str], None],
+    init_policy: str | Path | None, init_log_std: float, started: float,
+) -> tuple[Any, Any, list[dict[str, float]]]:  # fmt: skip
+    import jax
+    import jax.numpy as jnp
+    from flax import serialization
+
+    _check_train_args(total_timesteps, chunk_timesteps, time_budget_s, settings)
+    if not (isinstance(init_log_std, int | float) and -5.0 <= init_log_std <= 1.0):
+        raise ValueError(f"init_log_std must be a number in [-5, 1], got {init_log_std!r}")
+    learner = make_learner(fenv, settings)
+    compiled, mesh = _compile(fenv, learner, settings, max_steps)
+    folder = Path(out)
+    folder.mkdir(parents=True, exist_ok=True)
+    n = settings.num_envs
+    per_iteration = n * settings.num_steps
+    chunk = max(1, -(-chunk_timesteps // per_iteration)) * per_iteration  # whole PPO iterations
+    ts = learner.init(jax.random.PRNGKey(seed))
+    ckpt, curve_file, best_file = (
+        folder / "checkpoint.msgpack",
+        folder / "curve.json",
+        folder / "best.msgpack",
+    )
+    curve: list[dict[str, float]] = []
+    if ckpt.exists() and curve_file.exists():
+        ts = serialization.from_bytes(ts, ckpt.read_bytes())
+        curve = json.loads(curve_file.read_text())
+        log(f"resumed at {curve[-1]['steps'] if curve else 0:.0f} steps from {ckpt}")
+    elif init_policy is not None:
+        ts = load_policy(ts, MlpPolicy.load(init_policy), init_log_std)
+        log(f"actor initialised from {init_policy}")
+    log(
+        f"{mesh.devices.size} device(s), {n} envs, "
+        f"{learner.inputs - learner.actor_inputs} privileged critic inputs"
+    )
+    done_steps = int(curve[-1]["steps"]) if curve else 0
+    wall0 = curve[-1]["wall_s"] if curve else 0.0
+    t_call = time.monotonic()
+    ts, run = _reset(compiled, ts, n, False)
+    force, sample = jnp.zeros(n, bool), jnp.asarray(False)
+    eval_s = 0.0
+    iteration_s = 0.0
+    evaluated = True
+    stop = False
+
+    def left() -> float:
+        return math_inf if time_budget_s is None else time_budget_s - (time.monotonic() - started)
+
+    math_inf = float("inf")
+    try:
+        while done_steps < total_timesteps and not stop:
+            chunk_end = min(done_steps + chunk, total_timesteps)
+            while done_steps < chunk_end:
+                # leave the time of one more iteration, an evaluation and the export (a margin of 5 s)
+                if left() < iteration_s + eval_s + 5.0 and done_steps > 0:
+                    stop = True
+                    break
+                t0 = time.monotonic()
+                trajs = []
+                for _ in range(settings.num_steps):
+                    ts, run, traj, _ = compiled.transition(ts, run, force, sample)
+                    trajs.append(traj)
+                ts = compiled.update(ts, trajs, run)
+                jax.block_until_ready(ts.global_step)
+                iteration_s = time.monotonic() - t0
+                done_steps += per_iteration
+                evaluated = False
+            if done_steps == (int(curve[-1]["steps"]) if curve else 0):
+                break
+            t0 = time.monotonic()
+            ev = _evaluate(compiled, ts, n, max_steps, jax.random.PRNGKey(10_000 + len(curve)))
+            eval_s = time.monotonic() - t0
+            evaluated = True
+            ended = int(np.asarray(run.ended))
+            train_success = float(np.asarray(run.succeeded)) / ended if ended else 0.0
+            run = compiled.zero_counts(run)
+            wall = wall0 + time.monotonic() - t_call
+            row = {
+                "steps": float(done_steps),
+                "wall_s": wall,
+                "success": ev[0],
+                "return": ev[1],
+                "length": ev[2],
+            }
+            row["train_success"] = train_success
+            curve.append(row)
+            _save(
+                ts,
+                curve,
+                folder,
+                best_file if ev[0] > max((r["success"] for r in curve[:-1]), default=-1.0) else None,
+            )
+            log(
+                f"{row['steps']:.3g} steps  {wall:7.1f} s  success {ev[0]:5.1%} (training episodes "
+                f"{train_success:5.1%})  return {ev[1]:8.2f}  length {ev[2]:5.1f}"
+            )
+    except KeyboardInterrupt:
+        if not evaluated:
+            # a valid last checkpoint: the last complete iteration's state, not evaluated
+            ckpt.write_bytes(serialization.to_bytes(ts))
+        log(f"stopped at {done_steps} steps; the run resumes from {folder}")
+        raise
+    if stop:
+        log(f"time budget: stopped after {time.monotonic() - started:.0f} s")
+    return learner, ts, curve
+
+
+def _save(ts: Any, curve: list[dict[str, float]], folder: Path, best: Path | None) -> None:
+    """The checkpoint, the curve and (``best`` given) the best state, each written whole (a
+    temporary file renamed), so a run stopped while writing leaves the previous ones."""
+    from flax import serialization
+
+    data = serialization.to_bytes(ts)
+    for path, payload in (
+        (folder / "checkpoint.msgpack", data),
+        (folder / "curve.json", json.dumps(curve, indent=1).encode()),
+        *(((best, data),) if best is not None else ()),
+    ):
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_bytes(payload)
+        os.replace(tmp, path)
+
+
+def load_checkpoint(ts: Any, path: str | Path) -> Any:
+    """``ts`` (a train state of the same learner) with the values saved at ``path``
+    (``checkpoint.msgpack`` or ``best.msgpack`` of a run folder)."""
+    from flax import serialization
+
+    return serialization.from_bytes(ts, Path(path).read_bytes())
+
+
+def mean_action_fn(learner: Any, ts: Any) -> Callable[[Any], Any]:
+    """The actor's deterministic action (the Gaussian's mean, clipped) of one observation (the
+    env's, without privileged inputs)."""
+    import jax.numpy as jnp
+
+    from ihrcf_env.rl.ppo_learner import normalise
+
+    k = learner.actor_inputs
+    stats = ts.obs_rms_state.replace(mean=ts.obs_rms_state.mean[:k], var=ts.obs_rms_state.var[:k])
 
     def act(obs: Any) -> Any:
-        x = algo.normalize_obs(ts.obs_rms_state, obs)
-        features = algo.actor.apply(ts.actor_ts.params, x[None], method=lambda m, o: m.features(o))
-        mean = algo.actor.apply(ts.actor_ts.params, features, method=lambda m, f: m.action_mean(f))
-        return jnp.clip(mean[0], -1.0, 1.0)
+        x = normalise(stats, jnp.asarray(obs)[None])
+        return jnp.clip(learner.mean_action(ts.actor_ts.params, x)[0], learner.low, learner.high)
 
     return act
 
 
-def export_policy(algo: Any, ts: Any, path: str | Path, **meta: Any) -> MlpPolicy:
+def export_policy(learner: Any, ts: Any, path: str | Path, **meta: Any) -> MlpPolicy:
     """Write the trained actor as an :class:`MlpPolicy` ``.npz`` at ``path``; returns it."""
     p = ts.actor_ts.params["params"]
     hidden = p["features"]
     layers = [(hidden[f"Dense_{k}"]["kernel"], hidden[f"Dense_{k}"]["bias"]) for k in range(len(hidden))]
     layers.append((p["action_mean"]["kernel"], p["action_mean"]["bias"]))
+    k = learner.actor_inputs
     rms = ts.obs_rms_state
-    name = getattr(algo.actor.activation, "__name__", "swish")
-    activation = {"silu": "swish", "swish": "swish", "tanh": "tanh", "relu": "relu"}[name]
+    activation = {"silu": "swish", "swish": "swish", "tanh": "tanh", "relu": "relu"}[learner.activation]
     policy = mlp_from_arrays(
-        [(np.asarray(k), np.asarray(b)) for k, b in layers],
-        np.asarray(rms.mean),
-        np.asarray(rms.var),
+        [(np.asarray(w), np.asarray(b)) for w, b in layers],
+        np.asarray(rms.mean)[:k],
+        np.asarray(rms.var)[:k],
         activation=activation,
         **meta,
     )
@@ -215,10 +444,12 @@ def export_policy(algo: Any, ts: Any, path: str | Path, **meta: Any) -> MlpPolic
 
 
 def load_policy(ts: Any, policy: MlpPolicy, log_std: float) -> Any:
-    """``ts`` with its actor set to ``policy`` (hidden layers, action head and observation
-    normalisation, as :func:`export_policy` wrote them) and the Gaussian's log standard deviation
-    to ``log_std`` for every action (the file does not hold it); the critic and the optimiser's
-    state are left as they are. The policy's layer sizes must be the actor's."""
+    """``ts`` with its actor set to ``policy`` (hidden layers, action head and the actor's share of
+    the observation statistics, as :func:`export_policy` wrote them) and the Gaussian's log
+    standard deviation to ``log_std`` for every action (the file does not hold it); the critic and
+    the optimiser's state are left as they are. The policy's layer sizes must be the actor's."""
+    import jax.numpy as jnp
+
     p = ts.actor_ts.params["params"]
     hidden = p["features"]
     names = [f"Dense_{k}" for k in range(len(hidden))]
@@ -244,169 +475,104 @@ def load_policy(ts: Any, policy: MlpPolicy, log_std: float) -> Any:
     new_p["action_log_std"] = jnp.full_like(p["action_log_std"], log_std)
     actor_ts = ts.actor_ts.replace(params={**ts.actor_ts.params, "params": new_p})
     rms = ts.obs_rms_state
-    if rms.mean.shape != policy.mean.shape:
-        raise ValueError(f"policy: observation size {policy.mean.shape[0]}, the env's is {rms.mean.shape[0]}")
+    k = policy.mean.shape[0]
+    if k > rms.mean.shape[0] or kernel_inputs(ts) != k:
+        raise ValueError(f"policy: observation size {k}, the actor's is {kernel_inputs(ts)}")
     # the running statistics weigh the loaded ones as many observations
     rms = rms.replace(
-        mean=jnp.asarray(policy.mean, rms.mean.dtype), var=jnp.asarray(policy.var, rms.var.dtype), count=1e6
+        mean=rms.mean.at[:k].set(jnp.asarray(policy.mean, rms.mean.dtype)),
+        var=rms.var.at[:k].set(jnp.asarray(policy.var, rms.var.dtype)),
+        count=jnp.asarray(1e6, jnp.asarray(rms.count).dtype),
     )
     return ts.replace(actor_ts=actor_ts, obs_rms_state=rms)
 
 
-def train(
-    fenv: Any,
-    out: str | Path,
-    total_timesteps: int,
-    max_steps: int,
-    settings: PPOSettings | None = None,
-    chunk_timesteps: int = 1_000_000,
-    seed: int = 0,
-    eval_envs: int = 64,
-    time_budget_s: float | None = None,
-    log: Callable[[str], None] = print,
-    init_policy: str | Path | None = None,
-    init_log_std: float = -1.0,
-) -> tuple[Any, Any, list[dict[str, float]]]:
-    """Train PPO on ``fenv`` for ``total_timesteps`` env steps in chunks of ``chunk_timesteps``,
-        resuming from ``out`` (``checkpoint.msgpack``, ``curve.json``) if a run left them there; stops
-        early when the next chunk would pass ``time_budget_s`` (s of wall time in this call). The
-        state of the chunk with the highest evaluated success rate so far is kept as ``best.msgpack``
-        (:func:`load_checkpoint`). A new run
-    (nothing to resume) starts from the actor of ``init_policy`` (an exported ``.npz``) with
-    ``init_log_std`` (:func:`load_policy`) if given. Returns
-        (algo, train state, curve: one row per chunk with steps, wall time, success rate, mean return
-        and length of the mean-action evaluation). Runs in 32-bit JAX (``jax_enable_x64`` off for the
-        call: rejax's running statistics are float32)."""
-    with jax.enable_x64(False):
-        return _train(
-            fenv,
-            out,
-            total_timesteps,
-            max_steps,
-            settings,
-            chunk_timesteps,
-            seed,
-            eval_envs,
-            time_budget_s,
-            log,
-            init_policy,
-            init_log_std,
-        )
+def kernel_inputs(ts: Any) -> int:
+    """The actor's input size (its first layer's)."""
+    return int(ts.actor_ts.params["params"]["features"]["Dense_0"]["kernel"].shape[0])
 
 
-def _train(
-    fenv: Any,
-    out: str | Path,
-    total_timesteps: int,
-    max_steps: int,
-    settings: PPOSettings | None,
-    chunk_timesteps: int,
-    seed: int,
-    eval_envs: int,
-    time_budget_s: float | None,
-    log: Callable[[str], None],
-    init_policy: str | Path | None,
-    init_log_std: float,
-) -> tuple[Any, Any, list[dict[str, float]]]:
-    if not (isinstance(init_log_std, int | float) and -5.0 <= init_log_std <= 1.0):
-        raise ValueError(f"init_log_std must be a number in [-5, 1], got {init_log_std!r}")
-    settings = settings or PPOSettings()
-    folder = Path(out)
-    folder.mkdir(parents=True, exist_ok=True)
-    per_iteration = settings.num_envs * settings.num_steps
-    chunk = max(1, -(-chunk_timesteps // per_iteration)) * per_iteration  # whole PPO iterations
-    algo = make_ppo(fenv, max_steps, settings, chunk, eval_envs)
-    ts = algo.init_state(jax.random.PRNGKey(seed))
-    ckpt, curve_file = folder / "checkpoint.msgpack", folder / "curve.json"
-    curve: list[dict[str, float]] = []
-    if ckpt.exists() and curve_file.exists():
-        ts = serialization.from_bytes(ts, ckpt.read_bytes())
-        curve = json.loads(curve_file.read_text())
-        log(f"resumed at {curve[-1]['steps'] if curve else 0:.0f} steps from {ckpt}")
-    elif init_policy is not None:
-        ts = load_policy(ts, MlpPolicy.load(init_policy), init_log_std)
-        log(f"actor initialised from {init_policy}")
-    train_fn = jax.jit(algo.train)
-    start = time.perf_counter()
-    last_chunk = 0.0
-    while (done := int(curve[-1]["steps"]) if curve else 0) < total_timesteps:
-        spent = time.perf_counter() - start
-        if time_budget_s is not None and curve and spent + last_chunk > time_budget_s:
-            log(f"time budget reached after {spent:.0f} s")
-            break
-        t0 = time.perf_counter()
-        ts, evaluation = train_fn(train_state=ts)
-        jax.block_until_ready(ts)
-        last_chunk = time.perf_counter() - t0
-        success, ret, length = (float(v) for v in np.asarray(evaluation).reshape(-1)[-3:])
-        wall = (curve[-1]["wall_s"] if curve else 0.0) + last_chunk
-        row = {"steps": float(done + chunk), "wall_s": wall, "success": success, "return": ret}
-        row["length"] = length
-        curve.append(row)
-        ckpt.write_bytes(serialization.to_bytes(ts))
-        if success > max((r["success"] for r in curve[:-1]), default=-1.0):
-            (folder / "best.msgpack").write_bytes(serialization.to_bytes(ts))
-        curve_file.write_text(json.dumps(curve, indent=1))
-        log(
-            f"{row['steps']:.3g} steps  {wall:7.1f} s  success {success:5.1%}  return {ret:8.2f}  "
-            f"length {length:5.1f}"
-        )
-    return algo, ts, curve
+def _positive_number(name: str, kind: type) -> Callable[[str], Any]:
+    def parse(text: str) -> Any:
+        try:
+            value = kind(float(text)) if kind is int else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a positive number, got {text!r}") from None
+        if not (value > 0 and value < 1e13):
+            raise argparse.ArgumentTypeError(f"{name} must be a positive number, got {text!r}")
+        return value
 
-
-def load_checkpoint(ts: Any, path: str | Path) -> Any:
-    """``ts`` (a train state of the same algorithm and settings) with the values saved at ``path``
-    (``checkpoint.msgpack`` or ``best.msgpack`` of a run folder)."""
-    return serialization.from_bytes(ts, Path(path).read_bytes())
+    return parse
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m ihrcf_env.rl.jax_ppo``: train PPO on the JAX backend's landing env (float32,
-    projected camera) and export the policy."""
+    projected camera) and export the policy. Its defaults are the recipe."""
+    d = PPOSettings()
     ap = argparse.ArgumentParser(description=main.__doc__)
     ap.add_argument("--env-id", default="ihrcf_env/DeckLanding-v2")
     ap.add_argument("--level", default="moderate")
-    ap.add_argument("--timesteps", type=float, default=1e7, help="env steps in all")
     ap.add_argument(
-        "--chunk", type=float, default=5e5, help="env steps per compiled call (a checkpoint each)"
+        "--timesteps", type=_positive_number("--timesteps", int), default=10**7, help="env steps in all"
     )
-    ap.add_argument("--time-budget", type=float, default=None, help="stop before this many s of wall time")
+    ap.add_argument(
+        "--chunk", type=_positive_number("--chunk", int), default=500_000,
+        help="env steps between checkpoints and evaluations",
+    )  # fmt: skip
+    ap.add_argument(
+        "--time-budget", type=_positive_number("--time-budget", float), default=None,
+        help="s of wall time from the command's start to the exported policy",
+    )  # fmt: skip
     ap.add_argument("--out", required=True, help="run folder (checkpoint, curve); resumes a run left there")
     ap.add_argument("--policy", default=None, help="write the trained policy here (.npz)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--init-policy", default=None, help="start a new run from this exported policy (.npz)")
     ap.add_argument(
-        "--init-log-std",
-        type=float,
-        default=-1.0,
-        help="the Gaussian's log std when starting from --init-policy",
+        "--init-log-std", type=float, default=-1.0, help="the Gaussian's log std with --init-policy"
     )
-    ap.add_argument("--num-envs", type=int, default=PPOSettings.num_envs)
-    ap.add_argument("--num-steps", type=int, default=PPOSettings.num_steps)
-    ap.add_argument("--learning-rate", type=float, default=PPOSettings.learning_rate)
-    ap.add_argument("--eval-envs", type=int, default=64, help="episodes of each chunk's evaluation")
+    ap.add_argument("--num-envs", type=_positive_number("--num-envs", int), default=d.num_envs)
+    ap.add_argument("--num-steps", type=_positive_number("--num-steps", int), default=d.num_steps)
+    ap.add_argument("--learning-rate", type=float, default=d.learning_rate)
     ap.add_argument(
-        "--export",
-        choices=("last", "best"),
-        default="last",
-        help="write the last chunk's actor, or the one with the best evaluated success rate",
+        "--devices", type=_positive_number("--devices", int), default=None,
+        help="devices (on a CPU: cores) to spread the envs over (default: the cores this process may use)",
+    )  # fmt: skip
+    ap.add_argument(
+        "--symmetric", action="store_true", help="the critic reads the observation only (no privileged truth)"
     )
+    ap.add_argument(
+        "--export", choices=("last", "best"), default="best",
+        help="write the last chunk's actor, or the one with the best evaluated success rate",
+    )  # fmt: skip
     args = ap.parse_args(argv)
-    if not (args.learning_rate > 0 and args.learning_rate < 1):
+    if not (0 < args.learning_rate < 1):
         ap.error(f"--learning-rate must be in (0, 1), got {args.learning_rate}")
-    if args.eval_envs < 1:
-        ap.error(f"--eval-envs must be a positive int, got {args.eval_envs}")
+    from ihrcf_env.vector.jax_devices import host_cores, request_host_devices
+
+    if args.devices is not None and args.devices > host_cores():
+        ap.error(f"--devices {args.devices}: this process may use {host_cores()} core(s)")
+    if args.num_envs % (args.devices or 1):
+        ap.error(f"--num-envs {args.num_envs} does not split over --devices {args.devices}")
+    request_host_devices(args.devices)
+    from ihrcf_env.fast.cache import enable_compilation_cache
     from ihrcf_env.vector.checks import time_limit
     from ihrcf_env.vector.jax_make import make_functional
 
+    enable_compilation_cache()
     max_steps = time_limit(args.env_id, None) or 600
     fenv = make_functional(args.env_id, "float32", max_steps=max_steps, level=args.level)
-    settings = PPOSettings(num_envs=args.num_envs, num_steps=args.num_steps, learning_rate=args.learning_rate)
-    algo, ts, curve = train(
-        fenv, args.out, int(args.timesteps), max_steps, settings, int(args.chunk), args.seed,
-        eval_envs=args.eval_envs, time_budget_s=args.time_budget, init_policy=args.init_policy,
-        init_log_std=args.init_log_std,
+    settings = PPOSettings(
+        num_envs=args.num_envs, num_steps=args.num_steps, learning_rate=args.learning_rate,
+        asymmetric=not args.symmetric, devices=args.devices,
     )  # fmt: skip
+    try:
+        learner, ts, curve = train(
+            fenv, args.out, args.timesteps, max_steps, settings, args.chunk, args.seed,
+            time_budget_s=args.time_budget, init_policy=args.init_policy, init_log_std=args.init_log_std,
+            started=_START,
+        )  # fmt: skip
+    except KeyboardInterrupt:
+        return 130
     if args.policy:
         last = curve[-1] if curve else {"steps": 0.0, "wall_s": 0.0}
         best = Path(args.out) / "best.msgpack"
@@ -414,11 +580,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             ts = load_checkpoint(ts, best)
             last = max(curve, key=lambda r: r["success"])
         export_policy(
-            algo, ts, args.policy, env_id=args.env_id, level=args.level, trainer="rejax PPO (JAX backend)",
+            learner, ts, args.policy, env_id=args.env_id, level=args.level, trainer="PPO (JAX backend)",
             steps=int(last["steps"]), wall_s=float(last["wall_s"]),
+            asymmetric=bool(settings.asymmetric), devices=int(settings.devices or 0),
             **({"init_policy": Path(args.init_policy).name} if args.init_policy else {}),
         )  # fmt: skip
-        print(f"policy written to {args.policy}")
+        print(f"policy written to {args.policy} ({time.monotonic() - _START:.0f} s after the start)")
     return 0
 
 

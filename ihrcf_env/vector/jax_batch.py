@@ -9,9 +9,10 @@ batch size), so that a chunk's intermediates stay in cache; the result is the vm
 A reset (a new episode drawn and its first observation) costs about two steps. A per-env
 autoreset under ``vmap`` (gymnax's ``step``: step and reset, then select) runs it for every env on
 every step, and a masked batch reset runs it for all envs whenever one ended. :func:`reset_ended`
-runs it only for the rows that ended, gathered into one block of :data:`RESET_BLOCK` rows, and for
-all rows only on the rare steps where more ended; :func:`autoreset_step` is a batched step with
-that autoreset (for trainers that step N envs at once).
+runs it only for the rows that ended, gathered into blocks of :data:`RESET_BLOCK` rows;
+:func:`autoreset_step` is a batched step with that autoreset (for trainers that step N envs at
+once). The first reset of a batch is the same step with every row forced to reset, so one compiled
+function serves the reset and the step.
 """
 
 from __future__ import annotations
@@ -48,44 +49,44 @@ def _check_positive(name: str, value: Any) -> None:
 
 def reset_ended(
     reset_one: Callable[[Any], Any],
-    key: Any,
+    keys: Any,
     batch: Any,
     ended: Any,
     *,
     block: int = RESET_BLOCK,
 ) -> Any:
-    """``batch`` (a pytree of N rows) with each row where ``ended`` is true replaced by
-    ``reset_one(k)``, ``k`` the row's own key split from ``key`` (a new draw per row and call).
-    When at most ``block`` rows ended, ``reset_one`` runs on those rows only (gathered into one
-    block, scattered back); when more ended, it runs on every row (in chunks) and the ended rows
-    take its result; when none ended, nothing runs. Rows that did not end are returned unchanged."""
+    """``batch`` (a pytree of N rows) with each row ``i`` where ``ended`` is true replaced by
+    ``reset_one(keys[i])`` (``keys``: one key per row). The ended rows are gathered into blocks of
+    ``block`` rows, and ``reset_one`` runs on as many blocks as rows ended (none when none ended);
+    the results are scattered back. Rows that did not end are returned unchanged.
+
+    ``reset_one`` is traced once: the blocks run under a ``lax.scan`` whose body computes a block
+    only while ended rows remain (``lax.cond`` on a scalar, so a skipped block costs nothing), so
+    compiling a batched step costs one reset whatever the batch size."""
     _check_positive("block", block)
     n = ended.shape[0]
     block = min(block, n)
+    blocks = -(-n // block)
     count = jnp.sum(ended.astype(jnp.int32))
-    keys = jax.random.split(key, n)
+    rows = jnp.nonzero(ended, size=blocks * block, fill_value=n)[0].reshape(blocks, block)
+    shapes = jax.eval_shape(jax.vmap(reset_one), jax.tree_util.tree_map(lambda k: k[:block], keys))
 
-    def some(batch: Any) -> Any:
-        rows = jnp.nonzero(ended, size=block, fill_value=n)[0]
-        fresh = jax.vmap(reset_one)(keys[jnp.minimum(rows, n - 1)])
-        return jax.tree_util.tree_map(
-            lambda a, b: a.at[rows].set(b.astype(a.dtype), mode="drop"), batch, fresh
-        )
+    def run(r: Any) -> Any:
+        return jax.vmap(reset_one)(jax.tree_util.tree_map(lambda k: k[jnp.minimum(r, n - 1)], keys))
 
-    def every(batch: Any) -> Any:
-        fresh = map_envs(reset_one, keys)
-        return jax.tree_util.tree_map(
-            lambda a, b: jnp.where(ended.reshape((n,) + (1,) * (a.ndim - 1)), b, a).astype(a.dtype),
-            batch,
-            fresh,
-        )
+    def skip(r: Any) -> Any:
+        return jax.tree_util.tree_map(lambda s: jnp.zeros(s.shape, s.dtype), shapes)
 
-    def few(batch: Any) -> Any:
-        return jax.lax.cond(count > 0, some, lambda b: b, batch)
+    def body(i: Any, r: Any) -> tuple[Any, Any]:
+        return i + 1, jax.lax.cond(i * block < count, run, skip, r)
 
-    # a lax.cond, not a while_loop over blocks: a loop carrying the batch compiled ~10x slower
-    # and ran the step ~3x slower even when no env ended
-    return jax.lax.cond(count > block, every, few, batch)
+    _, fresh = jax.lax.scan(body, jnp.zeros((), jnp.int32), rows)
+    flat = rows.reshape(-1)
+    return jax.tree_util.tree_map(
+        lambda a, b: a.at[flat].set(b.reshape((blocks * block,) + b.shape[2:]).astype(a.dtype), mode="drop"),
+        batch,
+        fresh,
+    )
 
 
 def autoreset_step(
@@ -95,15 +96,27 @@ def autoreset_step(
     state: Any,
     actions: Any,
     *,
+    force_reset: Any = None,
+    finish: Callable[[Any, Any], tuple[Any, Any]] | None = None,
     chunk: int = CHUNK,
     block: int = RESET_BLOCK,
 ) -> tuple[Any, Any, Any, Any, Any]:
     """One step of N envs with same-step autoreset, the batched form of gymnax's ``step``:
     ``step_one(key, state, action) -> (obs, state, reward, done, info)`` for every env (in chunks
-    of ``chunk``), then the envs that are done get ``reset_one(key) -> (obs, state)`` (their new
-    first observation and state; reward, done and info stay the step's). ``keys`` has one key per
-    env."""
+    of ``chunk``), then the envs that are done, or where ``force_reset`` (a bool per env, optional)
+    is true, get ``reset_one(key) -> (obs, state)`` (their new first observation and state; reward,
+    done and info stay the step's). ``keys`` has one key per env; each env's reset draws from its own
+    key, so the result of an env does not depend on the others (nor on how the batch is split).
+
+    With ``finish``, ``step_one`` and ``reset_one`` return an unfinished reading in place of the
+    observation and ``finish(reading, state) -> (obs, state)`` makes the observation once per env,
+    after the resets (for the landing task: the estimator stage runs once per env and step, on the
+    new episode's first reading where one started, instead of once in the step and once more in
+    the reset)."""
     split = jax.vmap(jax.random.split)(keys)
     obs, state, reward, done, info = map_envs(step_one, split[:, 0], state, actions, chunk=chunk)
-    obs, state = reset_ended(reset_one, split[0, 1], (obs, state), done, block=block)
+    ended = done if force_reset is None else done | force_reset
+    obs, state = reset_ended(reset_one, split[:, 1], (obs, state), ended, block=block)
+    if finish is not None:
+        obs, state = map_envs(finish, obs, state, chunk=chunk)
     return obs, state, reward, done, info

@@ -110,3 +110,46 @@ class LandingFunctional:
                 "samples": feed.samples,
             }
         return obs, (env_state, obs_state), reward, done, out
+
+    # -- the staged form: the estimator stage once per env and step -------------------------------
+    def step_stage(self, key: Any, state: Any, action: Any, params: Any) -> tuple[Any, Any, Any, Any, Any]:
+        """:meth:`step` without the estimator stage: ``(reading, state, reward, terminated, info)``,
+        ``reading`` the step's ``(RawReading, Truth)`` for :meth:`finish`; ``info`` holds
+        ``outcome`` and ``is_success``."""
+        env_state, obs_state = state
+        reading, env_state, reward, done, info = st.step_env(key, env_state, action, self.step_params)
+        out = {"outcome": info.outcome, "is_success": info.outcome == jnp.asarray(_SUCCESS)}
+        return reading, (env_state, obs_state), reward, done, out
+
+    def reset_stage(self, key: Any, params: Any) -> tuple[Any, Any]:
+        """:meth:`reset` without the estimator stage: ``(reading, state)``, the stage's state that
+        of an episode's start (:meth:`finish` makes the first observation)."""
+        k1, k2 = jax.random.split(key)
+        reading, env_state = st.reset_from(self.draw(k1, params), k2, self.step_params)
+        return reading, (env_state, ob.observe_init(self.observe_params))
+
+    def finish(self, reading: Any, state: Any) -> tuple[Any, Any]:
+        """The observation of ``reading`` (:meth:`step_stage` or :meth:`reset_stage`) and the state
+        with the estimator stage advanced: ``reset_stage`` then ``finish`` is :meth:`reset`,
+        ``step_stage`` then ``finish`` is :meth:`step`."""
+        env_state, obs_state = state
+        raw, truth = reading
+        obs, obs_state, _ = ob.observe(self.observe_params, obs_state, raw, truth)
+        return obs, (env_state, obs_state)
+
+    def privileged(self, reading: Any) -> Any:
+        """The ground truth of a reading as a critic's privileged inputs (20,): the drone's
+        position relative to the deck origin (world, m), the deck origin in the body frame (m), the
+        velocity relative to the deck point under the drone (world, m/s), the drone's and the deck's
+        quaternions (x, y, z, w) and the wind (world, m/s)."""
+        _, truth = reading
+        return jnp.concatenate(
+            [
+                truth.drone_position_world - truth.deck_position_world,
+                truth.deck_position_body,
+                truth.relative_velocity,
+                truth.drone_quaternion_world,
+                truth.deck_quaternion_world,
+                truth.wind_velocity,
+            ]
+        )

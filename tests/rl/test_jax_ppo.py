@@ -1,4 +1,5 @@
-"""PPO on a functional JAX env (rejax), its checkpoints and the exported numpy policy."""
+"""PPO on a functional JAX env: its checkpoints, resumption, time budget and the exported numpy
+policy; the learner's pieces (advantages, statistics)."""
 
 from __future__ import annotations
 
@@ -16,11 +17,15 @@ from functional_toy import Drop  # noqa: E402
 from ihrcf_env.control.mlp_policy import MlpPolicy  # noqa: E402
 from ihrcf_env.rl.jax_ppo import (  # noqa: E402
     PPOSettings,
-    _mean_action,
     export_policy,
     load_checkpoint,
+    load_policy,
+    main,
+    make_learner,
+    mean_action_fn,
     train,
 )
+from ihrcf_env.rl.ppo_learner import RunningStats, Trajectory, gae, update_stats  # noqa: E402
 
 SETTINGS = PPOSettings(num_envs=16, num_steps=16, num_minibatches=4, hidden=(16, 16))
 
@@ -28,16 +33,17 @@ SETTINGS = PPOSettings(num_envs=16, num_steps=16, num_minibatches=4, hidden=(16,
 def test_train_runs_resumes_and_exports(tmp_path: Path) -> None:
     fenv = Drop()
     lines: list[str] = []
-    algo, ts, curve = train(fenv, tmp_path, 6144, 40, SETTINGS, chunk_timesteps=2048, log=lines.append)
+    learner, ts, curve = train(fenv, tmp_path, 6144, 40, SETTINGS, chunk_timesteps=2048, log=lines.append)
     assert [r["steps"] for r in curve] == [2048, 4096, 6144]
-    assert all(np.isfinite(r["return"]) for r in curve)
+    assert all(np.isfinite(r["return"]) and 0.0 <= r["train_success"] <= 1.0 for r in curve)
+    assert int(ts.global_step) == 6144
     # a second call resumes from the folder and trains on
     _, ts2, curve2 = train(fenv, tmp_path, 8192, 40, SETTINGS, chunk_timesteps=2048, log=lines.append)
     assert len(curve2) == 4 and any("resumed" in line for line in lines)
     # the exported policy acts as the trained actor's mean
-    pol = export_policy(algo, ts2, tmp_path / "p.npz", trained="toy")
+    pol = export_policy(learner, ts2, tmp_path / "p.npz", trained="toy")
     back = MlpPolicy.load(tmp_path / "p.npz")
-    act = _mean_action(algo, ts2)
+    act = mean_action_fn(learner, ts2)
     for obs in np.random.default_rng(0).normal(size=(5, 2)).astype(np.float32):
         np.testing.assert_allclose(back.act(obs), np.asarray(act(obs)), atol=2e-5)
     assert pol.meta == {"trained": "toy"}
@@ -52,40 +58,44 @@ def test_train_runs_resumes_and_exports(tmp_path: Path) -> None:
         assert float(kept.obs_rms_state.count) < float(ts2.obs_rms_state.count)
 
 
-def test_the_batched_step_resets_only_the_envs_that_ended() -> None:
-    from ihrcf_env.rl.jax_ppo import LandingPPO, gymnax_env
+def test_the_toy_is_learned() -> None:
+    """PPO lands the falling body (slower than 1 m/s at the floor) within a few thousand steps."""
+    settings = PPOSettings(num_envs=32, num_steps=16, num_minibatches=4, hidden=(32, 32), learning_rate=3e-3)
+    _, _, curve = train(Drop(), _tmp(), 60_000, 40, settings, chunk_timesteps=20_000, log=lambda _: None)
+    assert curve[-1]["success"] >= 0.9, curve
 
-    fenv = Drop()
-    env, params = gymnax_env(fenv, 40)
-    algo = LandingPPO.create(env=env, env_params=params, num_envs=8, num_steps=4, total_timesteps=32)
-    keys = jax.random.split(jax.random.PRNGKey(0), 8)
-    _, state = jax.vmap(env.reset_env, in_axes=(0, None))(keys, params)
-    inner, t = state
-    inner = {**inner, "h": inner["h"].at[:3].set(0.01)}  # three envs land this step
-    actions = jax.numpy.zeros((8, 1))
-    obs, (new, t2), reward, done, _ = jax.jit(algo.vmap_step)(keys, (inner, t), actions, params)
-    d = np.asarray(done)
-    np.testing.assert_array_equal(d, np.arange(8) < 3)
-    np.testing.assert_array_equal(np.asarray(t2), np.where(d, 0, 1))  # new episodes start at t = 0
-    assert np.all(np.asarray(new["h"])[d] >= 1.0) and np.all(np.asarray(new["h"])[~d] > 0.0)
-    np.testing.assert_allclose(np.asarray(obs)[:, 0], np.asarray(new["h"]), rtol=1e-6)
+
+def _tmp() -> Path:
+    import tempfile
+
+    return Path(tempfile.mkdtemp())
+
+
+def test_a_time_budget_stops_the_run_in_time(tmp_path: Path) -> None:
+    import time
+
+    started = time.monotonic()
+    _, _, curve = train(
+        Drop(), tmp_path, 10**9, 40, SETTINGS, chunk_timesteps=2048, log=lambda _: None, time_budget_s=25.0,
+        started=started,
+    )  # fmt: skip
+    assert time.monotonic() - started < 25.0
+    assert curve and curve[-1]["steps"] < 10**9
 
 
 def test_a_new_run_starts_from_an_exported_policy(tmp_path: Path) -> None:
-    from ihrcf_env.rl.jax_ppo import load_policy, make_ppo
-
     fenv = Drop()
-    algo, ts, _ = train(fenv, tmp_path / "a", 2048, 40, SETTINGS, chunk_timesteps=2048, log=lambda _: None)
-    pol = export_policy(algo, ts, tmp_path / "p.npz")
+    learner, ts, _ = train(fenv, tmp_path / "a", 2048, 40, SETTINGS, chunk_timesteps=2048, log=lambda _: None)
+    pol = export_policy(learner, ts, tmp_path / "p.npz")
     with jax.enable_x64(False):
-        fresh = make_ppo(fenv, 40, SETTINGS, 2048)
-        ts0 = fresh.init_state(jax.random.PRNGKey(7))
+        fresh = make_learner(fenv, SETTINGS)
+        ts0 = fresh.init(jax.random.PRNGKey(7))
         loaded = load_policy(ts0, pol, -1.5)
-        act = _mean_action(fresh, loaded)
+        act = mean_action_fn(fresh, loaded)
         for obs in np.random.default_rng(1).normal(size=(5, 2)).astype(np.float32):
             np.testing.assert_allclose(np.asarray(act(obs)), pol.act(obs), atol=2e-5)
         np.testing.assert_allclose(np.asarray(loaded.actor_ts.params["params"]["action_log_std"]), -1.5)
-        small = export_policy(algo, ts, tmp_path / "q.npz")
+        small = export_policy(learner, ts, tmp_path / "q.npz")
         small.weights[0] = small.weights[0][:8]
         small.biases[0] = small.biases[0][:8]
         with pytest.raises(ValueError, match="layer Dense_0"):
@@ -97,3 +107,71 @@ def test_a_new_run_starts_from_an_exported_policy(tmp_path: Path) -> None:
     assert any("initialised from" in line for line in lines)
     with pytest.raises(ValueError, match="init_log_std"):
         train(fenv, tmp_path / "c", 2048, 40, SETTINGS, init_policy=tmp_path / "p.npz", init_log_std=9.0)
+
+
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        ({"total_timesteps": 0}, "total_timesteps"),
+        ({"chunk_timesteps": -5}, "chunk_timesteps"),
+        ({"time_budget_s": 0}, "time_budget_s"),
+        ({"settings": PPOSettings(num_envs=0)}, "num_envs"),
+        ({"settings": PPOSettings(num_envs=16, num_steps=3, num_minibatches=5)}, "num_minibatches"),
+        ({"settings": PPOSettings(num_envs=16, devices=64)}, "devices"),
+    ],
+)
+def test_bad_arguments_are_named_before_anything_compiles(tmp_path: Path, kwargs: dict, name: str) -> None:
+    args = {"total_timesteps": 2048, "settings": SETTINGS, "chunk_timesteps": 2048, **kwargs}
+    with pytest.raises(ValueError, match=name):
+        train(Drop(), tmp_path, args.pop("total_timesteps"), 40, log=lambda _: None, **args)
+
+
+@pytest.mark.parametrize(
+    "argv, text",
+    [
+        (["--time-budget", "0"], "--time-budget"),
+        (["--time-budget", "-3"], "--time-budget"),
+        (["--timesteps", "0"], "--timesteps"),
+        (["--num-envs", "0"], "--num-envs"),
+        (["--num-envs", "abc"], "--num-envs"),
+        (["--devices", "4096"], "--devices"),
+        (["--learning-rate", "2"], "--learning-rate"),
+    ],
+)
+def test_the_command_names_a_bad_option(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], text: str
+) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["--out", str(tmp_path), *argv])
+    assert exc.value.code == 2
+    assert text in capsys.readouterr().err
+
+
+def test_advantages_follow_the_recursion() -> None:
+    T, N = 5, 3
+    rng = np.random.default_rng(0)
+    reward, value = rng.normal(size=(T, N)), rng.normal(size=(T, N))
+    done = rng.random((T, N)) < 0.3
+    last = rng.normal(size=N)
+    z = np.zeros((T, N))
+    traj = Trajectory(z, z, z, jax.numpy.asarray(reward), jax.numpy.asarray(value), jax.numpy.asarray(done))
+    adv, targets = gae(traj, jax.numpy.asarray(last), 0.9, 0.8)
+    want = np.zeros((T, N))
+    a, nxt = np.zeros(N), last
+    for t in reversed(range(T)):
+        live = 1.0 - done[t]
+        delta = reward[t] + 0.9 * nxt * live - value[t]
+        a = delta + 0.9 * 0.8 * live * a
+        want[t], nxt = a, value[t]
+    np.testing.assert_allclose(np.asarray(adv), want, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(targets), want + value, rtol=1e-5, atol=1e-6)
+
+
+def test_running_statistics_are_those_of_all_rows() -> None:
+    rng = np.random.default_rng(1)
+    rows = rng.normal(3.0, 2.0, size=(300, 4))
+    stats = RunningStats(jax.numpy.zeros(4), jax.numpy.ones(4), jax.numpy.asarray(1e-4))
+    for part in np.split(rows, 3):
+        stats = update_stats(stats, jax.numpy.asarray(part))
+    np.testing.assert_allclose(np.asarray(stats.mean), rows.mean(0), rtol=1e-3)
+    np.testing.assert_allclose(np.asarray(stats.var), rows.var(0), rtol=1e-3)
