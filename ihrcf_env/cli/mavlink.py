@@ -164,6 +164,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"real-time factor {rtf:.1f}x ({report.sim_time:.1f} s simulated in {report.wall_time:.2f} s wall, "
             f"{args.camera_model or 'env default'} camera, MAVLink on)"
         )
+        if report.steps:
+            per = (report.wall_time - report.env_time) / report.steps * 1e3
+            print(
+                f"env.step {report.env_time / report.wall_time:.0%} of the wall time; MAVLink and the loop "
+                f"{per:.2f} ms per step of {1e3 * report.sim_time / report.steps:.0f} ms simulated"
+            )
         print("messages sent (count, per simulated second, per wall second):")
         for line in loop.format_rates(report):
             print(line)

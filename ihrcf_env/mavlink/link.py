@@ -81,10 +81,9 @@ class Link:
                     why = "the port is in use" if e.errno == 98 else (e.strerror or str(e))
                     raise LinkError(f"cannot open {text}: {why}") from None
                 self.connections.append(conn)
-                if scheme == "udpout":  # a first packet: an unreachable destination fails here
-                    buf = self._pack(_heartbeat_probe())
+                if scheme == "udpout":  # an empty datagram: an unreachable destination fails here
                     try:
-                        conn.port.sendto(buf, (socket.gethostbyname(host), port))
+                        conn.port.sendto(b"", (socket.gethostbyname(host), port))
                     except OSError as e:
                         if e.errno != 111:  # refused: nobody listens yet, which is fine
                             raise LinkError(f"cannot send to {text}: {e.strerror or e}") from None
@@ -152,13 +151,6 @@ class Link:
                     self.bad_packets += 1
                     continue
                 yield msg
-
-
-def _heartbeat_probe() -> Any:
-    m = dialect()
-    return m.MAVLink_heartbeat_message(
-        m.MAV_TYPE_QUADROTOR, m.MAV_AUTOPILOT_PX4, m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 0, m.MAV_STATE_BOOT, 3
-    )
 
 
 __all__ = ["SCHEMES", "Link", "LinkError", "check_endpoint"]

@@ -133,12 +133,15 @@ class EpisodeRecord:
 
 @dataclass
 class VehicleReport:
-    """What a run did: its episodes, the simulated and wall time (s), the messages sent by type
-    and the vehicle's counters (rejected setpoints, failsafes, bad packets, ...)."""
+    """What a run did: its episodes, the simulated and wall time (s), the wall time spent inside
+    ``env.step`` (s), the messages sent by type and the vehicle's counters (rejected setpoints,
+    failsafes, bad packets, ...)."""
 
     episodes: list[EpisodeRecord] = field(default_factory=list)
     sim_time: float = 0.0
     wall_time: float = 0.0
+    env_time: float = 0.0
+    steps: int = 0
     sent: Counter[str] = field(default_factory=Counter)
     counts: Counter[str] = field(default_factory=Counter)
 
@@ -219,6 +222,12 @@ class MavlinkVehicle:
         self._touchdown: dict[str, Any] | None = None
         self._next_heartbeat = 0.0
         self._done = False
+
+    @property
+    def episode_start(self) -> float:
+        """The vehicle-clock time (s) of the current episode's env time 0 (its first step after
+        arming); a ``LANDING_TARGET`` of a frame captured at env time t is stamped ``episode_start + t``."""
+        return self._t0
 
     # -- links ---------------------------------------------------------------------------------
     def open(self) -> MavlinkVehicle:
@@ -306,7 +315,10 @@ class MavlinkVehicle:
         v_ned, rate_ned = self.vehicle.command(frames.yaw_world_to_ned(yaw_world))
         v_cmd, rate = frames.velocity_command(v_ned, rate_ned, yaw_world)
         action = np.clip(np.append(v_cmd, rate) / self.max_velocity, -1.0, 1.0)
+        t = time.perf_counter()
         obs, _, terminated, truncated, info = self.env.step(action.astype(np.float32))
+        self.report.env_time += time.perf_counter() - t
+        self.report.steps += 1
         self._steps += 1
         self._obs, self._info = obs, info
         self._state = self.env.get_wrapper_attr("drone_state")()
