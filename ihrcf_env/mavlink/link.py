@@ -3,7 +3,7 @@
 ``udpout:HOST:PORT`` sends to HOST:PORT (as PX4 SITL does to an offboard API on 14540, a ground
 station on 14550) and takes the answers on the same socket; ``udpin:HOST:PORT`` (or ``udp:``)
 listens on HOST:PORT and answers whoever sent. Every message is packed once and written to each
-link. :func:`check_endpoint` refuses a string that is not one of these, a port out of range or a
+link; each received datagram is parsed on its own. :func:`check_endpoint` refuses a string that is not one of these, a port out of range or a
 host that does not resolve; :meth:`Link.open` raises :class:`LinkError` for a port in use or a
 destination the machine cannot reach. Received bytes that are not MAVLink are counted and dropped.
 """
@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import select
 import socket
+import time
 from collections.abc import Iterator, Sequence
 from typing import Any
 
@@ -60,6 +61,9 @@ class Link:
         self.sent = 0
         m = dialect()
         self._mav = m.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
+        self._parser = m.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
+        self._parser.robust_parsing = True
+        self.receive_errors = 0
 
     def open(self) -> Link:
         """Open every link; :class:`LinkError` naming the first that fails (those opened are
@@ -134,23 +138,42 @@ class Link:
         return bool(ready)
 
     def receive(self) -> Iterator[Any]:
-        """The messages waiting on every link, decoded (non-MAVLink bytes are dropped and counted
-        in ``bad_packets``)."""
+        """The messages waiting on every link, decoded. Each datagram is parsed on its own (a
+        broken one cannot swallow the next); bytes that are not MAVLink are dropped and counted in
+        ``bad_packets``."""
         for conn in self.connections:
+            sock = conn.port
             for _ in range(10_000):  # bounded: a flood cannot hold the loop forever
                 try:
-                    msg = conn.recv_msg()
-                except Exception:  # pymavlink's parser on hostile bytes: drop, count, go on
-                    self.bad_packets += 1
-                    conn.mav.buf = bytearray()
-                    conn.mav.buf_index = 0
-                    continue
-                if msg is None:
+                    data, addr = sock.recvfrom(65_535)
+                except (BlockingIOError, InterruptedError):
                     break
-                if msg.get_type() in ("BAD_DATA", "UNKNOWN") or msg.get_msgId() < 0:
-                    self.bad_packets += 1
+                except ConnectionRefusedError:  # an ICMP answer to an earlier send: nobody listens
                     continue
-                yield msg
+                except OSError:
+                    self.receive_errors += 1
+                    break
+                if conn.udp_server:  # answer whoever sent (pymavlink's list of a listening link)
+                    conn.clients.add(addr)
+                    conn.clients_last_alive[addr] = time.time()
+                yield from self._parse(data)
+
+    def _parse(self, data: bytes) -> Iterator[Any]:
+        p = self._parser
+        p.buf, p.buf_index, p.have_prefix_error = bytearray(), 0, False
+        p.expected_length = 8  # a fresh parser's (the MAVLink 1 header and its checksum)
+        try:
+            msgs = p.parse_buffer(data) or []
+        except Exception:  # pymavlink's parser on hostile bytes: drop the datagram, count it
+            self.bad_packets += 1
+            return
+        if not msgs or p.buf_len() > 0:  # nothing decoded, or bytes left over
+            self.bad_packets += 1
+        for msg in msgs:
+            if msg.get_type() in ("BAD_DATA", "UNKNOWN") or msg.get_msgId() < 0:
+                self.bad_packets += 1
+                continue
+            yield msg
 
 
 __all__ = ["SCHEMES", "Link", "LinkError", "check_endpoint"]
