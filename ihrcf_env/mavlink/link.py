@@ -66,8 +66,10 @@ class Link:
         self.receive_errors = 0
 
     def open(self) -> Link:
-        """Open every link; :class:`LinkError` naming the first that fails (those opened are
-        closed again)."""
+        """Open every link (once: a second call does nothing); :class:`LinkError` naming the first
+        that fails (those opened are closed again)."""
+        if self.connections:
+            return self
         mavutil = import_pymavlink()
         try:
             for text in self.endpoints:

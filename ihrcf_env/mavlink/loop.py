@@ -378,7 +378,7 @@ class MavlinkVehicle:
         self._over_at = None
         self._home = self._state.position.copy()
         self.vehicle.new_episode()
-        self._event(f"episode {self._episode + 1}, seed {self._seed}: waiting for arming")
+        self._event(f"seed {self._seed} (episode {self._episode + 1}): waiting for arming")
 
     def _end_episode(self, info: Mapping[str, Any], truncated: bool) -> None:
         assert self._state is not None
@@ -399,7 +399,7 @@ class MavlinkVehicle:
             if rec.speed is not None and rec.tilt is not None and rec.offset is not None
             else ""
         )
-        self._send(messages.statustext(f"episode {self._episode + 1}: {short}"))
+        self._send(messages.statustext(f"episode end: {short}"))
 
     def _after_episode(self) -> None:
         assert self._over_at is not None

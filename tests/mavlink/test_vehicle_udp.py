@@ -23,8 +23,9 @@ from udp_helpers import (
 )
 
 from ihrcf_env.core.frames import matrix_from_quat
+from ihrcf_env.mavlink import messages
 from ihrcf_env.mavlink._pymavlink import dialect
-from ihrcf_env.mavlink.link import LinkError
+from ihrcf_env.mavlink.link import Link, LinkError
 from ihrcf_env.mavlink.loop import MavlinkVehicle, VehicleOptions
 
 m = dialect()
@@ -213,3 +214,25 @@ def test_bad_endpoints_are_refused_before_any_socket(endpoints: tuple[str, ...],
 def test_bad_options_name_themselves(field: str, value: Any) -> None:
     with pytest.raises(ValueError, match=field):
         VehicleOptions(**{field: value})
+
+
+def test_each_link_sends_from_one_socket_even_when_opened_twice() -> None:
+    port, other = free_udp_port(), free_udp_port()
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as rx:
+        rx.bind(("127.0.0.1", port))
+        rx.settimeout(0.5)
+        with Link([f"udpout:127.0.0.1:{port}", f"udpout:127.0.0.1:{other}"]) as link:
+            link.open()
+            link.open()
+            assert len(link.connections) == 2
+            for _ in range(3):
+                link.send(messages.heartbeat(False, 0))
+            sources = set()
+            try:
+                while True:
+                    data, addr = rx.recvfrom(1000)
+                    if data:
+                        sources.add(addr)
+            except TimeoutError:
+                pass
+        assert len(sources) == 1 and link.closed
