@@ -41,14 +41,18 @@ class Targets:
         self.texts: list[str] = []
 
     def poll(self) -> None:
-        while (msg := self.link.recv_match(type=["LANDING_TARGET", "STATUSTEXT"], blocking=False)) is not None:
+        while (
+            msg := self.link.recv_match(type=["LANDING_TARGET", "STATUSTEXT"], blocking=False)
+        ) is not None:
             if msg.get_type() == "STATUSTEXT":
                 self.texts.append(msg.text)
             elif msg.position_valid == 1 and msg.frame == mavutil.mavlink.MAV_FRAME_LOCAL_NED:
                 self.ned, self.seen = (msg.x, msg.y, msg.z), time.monotonic()
 
 
-def setpoint(target: tuple[float, float, float], pos: tuple[float, float, float], descent: float) -> tuple[float, ...]:
+def setpoint(
+    target: tuple[float, float, float], pos: tuple[float, float, float], descent: float
+) -> tuple[float, ...]:
     """NED velocity (m/s) towards the deck: close the horizontal offset, descend once aligned
     (slower over the last 0.6 m)."""
     dn, de = target[0] - pos[0], target[1] - pos[1]
@@ -59,8 +63,13 @@ def setpoint(target: tuple[float, float, float], pos: tuple[float, float, float]
     return GAIN * dn * scale, GAIN * de * scale, vd
 
 
-async def land_once(tel: TelemetryAsync, action: ActionAsync, offboard: OffboardAsync, targets: Targets,
-                    args: argparse.Namespace) -> str:
+async def land_once(
+    tel: TelemetryAsync,
+    action: ActionAsync,
+    offboard: OffboardAsync,
+    targets: Targets,
+    args: argparse.Namespace,
+) -> str:
     """Wait for a vehicle disarmed in the air, arm, offboard, descend; the touchdown's report."""
     while await tel.armed() or await tel.landed_state() != LandedState.IN_AIR:
         targets.poll()
@@ -74,7 +83,9 @@ async def land_once(tel: TelemetryAsync, action: ActionAsync, offboard: Offboard
     t_end = time.monotonic() + args.timeout
     while time.monotonic() < t_end:
         targets.poll()
-        if await tel.landed_state() == LandedState.ON_GROUND or any(t.startswith("episode end") for t in targets.texts):
+        if await tel.landed_state() == LandedState.ON_GROUND or any(
+            t.startswith("episode end") for t in targets.texts
+        ):
             break
         p = (await tel.position_velocity_ned()).position
         fresh = targets.ned is not None and time.monotonic() - targets.seen < STALE
@@ -114,8 +125,14 @@ async def run(args: argparse.Namespace) -> int:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--connect", default="udpin://0.0.0.0:14540", help="MAVSDK connection (default: %(default)s)")
-    ap.add_argument("--targets", default="udpin:0.0.0.0:14541", help="pymavlink link of LANDING_TARGET (default: %(default)s)")
+    ap.add_argument(
+        "--connect", default="udpin://0.0.0.0:14540", help="MAVSDK connection (default: %(default)s)"
+    )
+    ap.add_argument(
+        "--targets",
+        default="udpin:0.0.0.0:14541",
+        help="pymavlink link of LANDING_TARGET (default: %(default)s)",
+    )
     ap.add_argument("--landings", type=int, default=1, help="landings, one per episode (default: 1)")
     ap.add_argument("--descent", type=float, default=0.35, help="descent speed, m/s (default: 0.35)")
     ap.add_argument("--rate", type=float, default=40.0, help="setpoints per second, wall clock (default: 40)")

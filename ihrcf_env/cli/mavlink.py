@@ -69,7 +69,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--speed",
         type=_speed,
         default=argparse.SUPPRESS,
-        help="simulated seconds per wall second, or 'max' (as fast as it runs) (default: 1; max with --bench)",
+        help="simulated seconds per wall second, or 'max' (as fast as it runs) "
+        "(default: 1; max with --bench)",
     )
     ap.add_argument(
         "--episodes",
@@ -78,7 +79,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="exit after this many episodes (default: one episode, then stay up until Ctrl-C)",
     )
     ap.add_argument("--target", choices=TARGETS, default="fused", help="LANDING_TARGET's source")
-    ap.add_argument("--profile", choices=PROFILES, default="px4", help="LANDING_TARGET's form (docs/mavlink.md)")
+    ap.add_argument(
+        "--profile", choices=PROFILES, default="px4", help="LANDING_TARGET's form (docs/mavlink.md)"
+    )
     ap.add_argument("--system-id", type=int_in(1, 255), default=1, help="the vehicle's MAVLink system id")
     ap.add_argument(
         "--bench",
@@ -161,7 +164,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if bench:
         rtf = report.real_time_factor
         print(
-            f"real-time factor {rtf:.1f}x ({report.sim_time:.1f} s simulated in {report.wall_time:.2f} s wall, "
+            f"real-time factor {rtf:.1f}x ({report.sim_time:.1f} s simulated in "
+            f"{report.wall_time:.2f} s wall, "
             f"{args.camera_model or 'env default'} camera, MAVLink on)"
         )
         if report.steps:

@@ -437,7 +437,9 @@ class DeckLandingEnv(gym.Env):
         pos, quat, vel, ang = self.world.quad.state()
         q = np.array(quat, dtype=np.float64)
         rates = matrix_from_quat(q).T @ np.array(ang, dtype=np.float64)
-        return DroneState(self.world.time, np.array(pos, dtype=np.float64), q, np.array(vel, dtype=np.float64), rates)
+        return DroneState(
+            self.world.time, np.array(pos, dtype=np.float64), q, np.array(vel, dtype=np.float64), rates
+        )
 
     def deck_pose_body(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Ground-truth deck (position m, euler rad) in the body frame."""

@@ -1,4 +1,5 @@
-"""``python -m ihrcf_env.mavlink`` (the same command as ``ihrcf-mavlink``): see :mod:`ihrcf_env.cli.mavlink`."""
+"""``python -m ihrcf_env.mavlink`` (the same command as ``ihrcf-mavlink``): see
+:mod:`ihrcf_env.cli.mavlink`."""
 
 from ihrcf_env.cli.mavlink import main
 

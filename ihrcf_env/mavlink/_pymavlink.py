@@ -13,7 +13,9 @@ from types import ModuleType
 from typing import Any
 
 #: How to install what the MAVLink face needs.
-INSTALL_HINT = 'the MAVLink vehicle needs pymavlink (and MAVSDK for the example): pip install "ihrcf-env[mavlink]"'
+INSTALL_HINT = (
+    'the MAVLink vehicle needs pymavlink (and MAVSDK for the example): pip install "ihrcf-env[mavlink]"'
+)
 
 
 class MavlinkMissingError(ImportError):

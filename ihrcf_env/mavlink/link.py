@@ -3,9 +3,10 @@
 ``udpout:HOST:PORT`` sends to HOST:PORT (as PX4 SITL does to an offboard API on 14540, a ground
 station on 14550) and takes the answers on the same socket; ``udpin:HOST:PORT`` (or ``udp:``)
 listens on HOST:PORT and answers whoever sent. Every message is packed once and written to each
-link; each received datagram is parsed on its own. :func:`check_endpoint` refuses a string that is not one of these, a port out of range or a
-host that does not resolve; :meth:`Link.open` raises :class:`LinkError` for a port in use or a
-destination the machine cannot reach. Received bytes that are not MAVLink are counted and dropped.
+link; each received datagram is parsed on its own. :func:`check_endpoint` refuses a string that
+is not one of these, a port out of range or a host that does not resolve; :meth:`Link.open`
+raises :class:`LinkError` for a port in use or a destination the machine cannot reach. Received
+bytes that are not MAVLink are counted and dropped.
 """
 
 from __future__ import annotations

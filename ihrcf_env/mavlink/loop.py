@@ -79,7 +79,9 @@ class VehicleOptions:
 
     def __post_init__(self) -> None:
         if isinstance(self.endpoints, str) or not self.endpoints:
-            raise ValueError(f"endpoints must be a non-empty sequence of connection strings, got {self.endpoints!r}")
+            raise ValueError(
+                f"endpoints must be a non-empty sequence of connection strings, got {self.endpoints!r}"
+            )
         object.__setattr__(self, "endpoints", tuple(self.endpoints))
         for e in self.endpoints:
             try:
@@ -89,7 +91,9 @@ class VehicleOptions:
         if self.speed is not None and not (
             isinstance(self.speed, int | float) and math.isfinite(self.speed) and 0 < self.speed <= 1e6
         ):
-            raise ValueError(f"speed must be a number in (0, 1e6] or None (as fast as it runs), got {self.speed!r}")
+            raise ValueError(
+                f"speed must be a number in (0, 1e6] or None (as fast as it runs), got {self.speed!r}"
+            )
         if self.episodes is not None and not (isinstance(self.episodes, int) and self.episodes >= 1):
             raise ValueError(f"episodes must be an integer >= 1 or None, got {self.episodes!r}")
         if not (isinstance(self.seed, int) and 0 <= self.seed <= 2**32 - 1):
@@ -165,7 +169,9 @@ class MavlinkVehicle:
     Open the links with :meth:`open` (or ``with``); :meth:`close` closes the links (not the env).
     """
 
-    def __init__(self, env: gym.Env, options: VehicleOptions, log: Callable[[str], None] | None = None) -> None:
+    def __init__(
+        self, env: gym.Env, options: VehicleOptions, log: Callable[[str], None] | None = None
+    ) -> None:
         self.env, self.options = env, options
         self._print = log or (lambda text: print(text, flush=True))
         config = base_config(env)
@@ -384,7 +390,9 @@ class MavlinkVehicle:
         assert self._state is not None
         td = self._touchdown
         outcome = "truncated" if truncated else str(info.get("outcome", "terminated"))
-        rec = EpisodeRecord(self._seed, outcome, float(self._state.time), reason=str(info.get("crash_reason", "") or ""))
+        rec = EpisodeRecord(
+            self._seed, outcome, float(self._state.time), reason=str(info.get("crash_reason", "") or "")
+        )
         if td is not None:
             rec.speed = float(td["relative_vertical_speed"])
             rec.tilt = float(td["relative_tilt"])
@@ -428,7 +436,10 @@ class MavlinkVehicle:
         m = dialect()
         yaw_ned = frames.yaw_world_to_ned(_yaw(self._state.quaternion)) if self._state is not None else 0.0
         for msg in self.link.receive():
-            if msg.get_srcSystem() == self.options.system_id and msg.get_srcComponent() == self.options.component_id:
+            if (
+                msg.get_srcSystem() == self.options.system_id
+                and msg.get_srcComponent() == self.options.component_id
+            ):
                 continue  # our own packets, echoed
             kind = msg.get_type()
             if kind == "TIMESYNC":

@@ -33,26 +33,63 @@ class MessageSpec(NamedTuple):
 
 #: Every message the vehicle sends.
 MESSAGE_TABLE: tuple[MessageSpec, ...] = (
-    MessageSpec("HEARTBEAT", 0, "1 Hz (wall clock)", "-", "type QUADROTOR, autopilot PX4, base_mode "
-                "CUSTOM_MODE_ENABLED | SAFETY_ARMED, custom_mode main << 16 | sub << 24, system_status"),
+    MessageSpec(
+        "HEARTBEAT",
+        0,
+        "1 Hz (wall clock)",
+        "-",
+        "type QUADROTOR, autopilot PX4, base_mode "
+        "CUSTOM_MODE_ENABLED | SAFETY_ARMED, custom_mode main << 16 | sub << 24, system_status",
+    ),
     MessageSpec("SYS_STATUS", 1, "1 Hz", "-", "sensors present/enabled/healthy, battery unknown"),
     MessageSpec("SYSTEM_TIME", 2, "1 Hz", "-", "time_unix_usec (wall), time_boot_ms (simulated)"),
-    MessageSpec("ATTITUDE", 30, "control rate", "NED from FRD", "roll, pitch, yaw (rad), FRD body rates (rad/s)"),
-    MessageSpec("ATTITUDE_QUATERNION", 31, "control rate", "NED from FRD", "q1..q4 (w, x, y, z), FRD body rates"),
+    MessageSpec(
+        "ATTITUDE", 30, "control rate", "NED from FRD", "roll, pitch, yaw (rad), FRD body rates (rad/s)"
+    ),
+    MessageSpec(
+        "ATTITUDE_QUATERNION", 31, "control rate", "NED from FRD", "q1..q4 (w, x, y, z), FRD body rates"
+    ),
     MessageSpec("LOCAL_POSITION_NED", 32, "control rate", "LOCAL_NED", "x, y, z (m), vx, vy, vz (m/s)"),
     MessageSpec("COMMAND_ACK", 77, "per command", "-", "command, result, target_system, target_component"),
     MessageSpec("TIMESYNC", 111, "per request", "-", "tc1 (vehicle clock, ns), ts1 (the request's)"),
-    MessageSpec("DISTANCE_SENSOR", 132, "control rate, one per ToF beam", "body, downward (PITCH_270)",
-                "id 0..3, current/min/max_distance (cm; UINT16_MAX invalid), signal_quality"),
-    MessageSpec("AUTOPILOT_VERSION", 148, "per request", "-", "capabilities MAVLINK2 | COMMAND_INT | "
-                "SET_POSITION_TARGET_LOCAL_NED, flight_sw_version (package version)"),
-    MessageSpec("LANDING_TARGET", 149, "camera rate, valid estimates only", "LOCAL_NED (px4) / BODY_FRD "
-                "(ardupilot)", "time_usec (the frame's capture), x, y, z, q, distance, angle_x, angle_y, "
-                "size_x, size_y, position_valid 1, type VISION_FIDUCIAL, target_num (tag id)"),
-    MessageSpec("HOME_POSITION", 242, "0.5 Hz and per request", "LOCAL_NED", "x, y, z (the drone at arming), "
-                "latitude/longitude/altitude 0 (no global position)"),
+    MessageSpec(
+        "DISTANCE_SENSOR",
+        132,
+        "control rate, one per ToF beam",
+        "body, downward (PITCH_270)",
+        "id 0..3, current/min/max_distance (cm; UINT16_MAX invalid), signal_quality",
+    ),
+    MessageSpec(
+        "AUTOPILOT_VERSION",
+        148,
+        "per request",
+        "-",
+        "capabilities MAVLINK2 | COMMAND_INT | "
+        "SET_POSITION_TARGET_LOCAL_NED, flight_sw_version (package version)",
+    ),
+    MessageSpec(
+        "LANDING_TARGET",
+        149,
+        "camera rate, valid estimates only",
+        "LOCAL_NED (px4) / BODY_FRD (ardupilot)",
+        "time_usec (the frame's capture), x, y, z, q, distance, angle_x, angle_y, "
+        "size_x, size_y, position_valid 1, type VISION_FIDUCIAL, target_num (tag id)",
+    ),
+    MessageSpec(
+        "HOME_POSITION",
+        242,
+        "0.5 Hz and per request",
+        "LOCAL_NED",
+        "x, y, z (the drone at arming), latitude/longitude/altitude 0 (no global position)",
+    ),
     MessageSpec("EXTENDED_SYS_STATE", 245, "5 Hz", "-", "landed_state IN_AIR / LANDING / ON_GROUND"),
-    MessageSpec("STATUSTEXT", 253, "per event", "-", "mode changes, failsafes, rejected setpoints, the episode's outcome"),
+    MessageSpec(
+        "STATUSTEXT",
+        253,
+        "per event",
+        "-",
+        "mode changes, failsafes, rejected setpoints, the episode's outcome",
+    ),
 )
 
 #: Default rates (Hz, vehicle clock) of the streamed messages; at most the control rate.
@@ -79,7 +116,9 @@ class Streams:
 
     def __init__(self, dt: float) -> None:
         self.dt = dt
-        self.interval: dict[str, float | None] = {k: self._quantised(1.0 / hz) for k, hz in DEFAULT_HZ.items()}
+        self.interval: dict[str, float | None] = {
+            k: self._quantised(1.0 / hz) for k, hz in DEFAULT_HZ.items()
+        }
         self._next: dict[str, float] = dict.fromkeys(DEFAULT_HZ, 0.0)
 
     def _quantised(self, interval: float) -> float:
@@ -148,7 +187,9 @@ def heartbeat(armed: bool, custom_mode: int) -> Any:
     m = dialect()
     base = m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (m.MAV_MODE_FLAG_SAFETY_ARMED if armed else 0)
     status = m.MAV_STATE_ACTIVE if armed else m.MAV_STATE_STANDBY
-    return m.MAVLink_heartbeat_message(m.MAV_TYPE_QUADROTOR, m.MAV_AUTOPILOT_PX4, base, custom_mode, status, 3)
+    return m.MAVLink_heartbeat_message(
+        m.MAV_TYPE_QUADROTOR, m.MAV_AUTOPILOT_PX4, base, custom_mode, status, 3
+    )
 
 
 def stream(name: str, s: VehicleSample) -> list[Any]:
@@ -191,8 +232,18 @@ def stream(name: str, s: VehicleSample) -> list[Any]:
             cm = min(int(round(r * 100)), top) if ok and math.isfinite(r) else 0xFFFF
             out.append(
                 m.MAVLink_distance_sensor_message(
-                    t, 0, top, cm, m.MAV_DISTANCE_SENSOR_LASER, i, m.MAV_SENSOR_ROTATION_PITCH_270, 255,
-                    0.0, 0.0, (0.0, 0.0, 0.0, 0.0), 100 if ok else 1,
+                    t,
+                    0,
+                    top,
+                    cm,
+                    m.MAV_DISTANCE_SENSOR_LASER,
+                    i,
+                    m.MAV_SENSOR_ROTATION_PITCH_270,
+                    255,
+                    0.0,
+                    0.0,
+                    (0.0, 0.0, 0.0, 0.0),
+                    100 if ok else 1,
                 )
             )
         return out
@@ -205,7 +256,9 @@ def home_position(s: VehicleSample) -> Any:
     """``HOME_POSITION``: the local NED home (no global position: latitude/longitude/altitude 0)."""
     m = dialect()
     h = frames.world_to_ned(s.home)
-    return m.MAVLink_home_position_message(0, 0, 0, *h.tolist(), (1.0, 0.0, 0.0, 0.0), 0.0, 0.0, 0.0, usec(s.time))
+    return m.MAVLink_home_position_message(
+        0, 0, 0, *h.tolist(), (1.0, 0.0, 0.0, 0.0), 0.0, 0.0, 0.0, usec(s.time)
+    )
 
 
 def autopilot_version() -> Any:

@@ -220,7 +220,11 @@ class Vehicle:
         elif cmd == m.MAV_CMD_SET_MESSAGE_INTERVAL:
             ok = self._streams is not None and math.isfinite(p[0]) and math.isfinite(p[1])
             result = self._streams(int(p[0]), p[1]) if ok else m.MAV_RESULT_DENIED  # type: ignore[misc]
-        elif cmd in (m.MAV_CMD_REQUEST_MESSAGE, m.MAV_CMD_GET_HOME_POSITION, m.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES):
+        elif cmd in (
+            m.MAV_CMD_REQUEST_MESSAGE,
+            m.MAV_CMD_GET_HOME_POSITION,
+            m.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES,
+        ):
             wanted = {
                 m.MAV_CMD_GET_HOME_POSITION: m.MAVLINK_MSG_ID_HOME_POSITION,
                 m.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: m.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
@@ -234,9 +238,7 @@ class Vehicle:
             self.counts["unsupported_commands"] += 1
             self._event("command", f"command {cmd} not supported")
             result = m.MAV_RESULT_UNSUPPORTED
-        return m.MAVLink_command_ack_message(
-            cmd, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()
-        )
+        return m.MAVLink_command_ack_message(cmd, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
 
     def _arm(self, arm: float, force: float) -> int:
         m = dialect()
@@ -317,6 +319,7 @@ class Vehicle:
         n = self._logged[kind]
         if n <= 5 or n % 100 == 0:
             self._log(text if n <= 5 else f"{text} (x{n})")
+
 
 __all__ = [
     "AUTO_DISARM",

@@ -8,9 +8,8 @@ import subprocess
 import sys
 
 import pytest
-from udp_helpers import free_udp_port
-
 from conftest import EXAMPLES
+from udp_helpers import free_udp_port
 
 pytest.importorskip("mavsdk")
 
@@ -20,9 +19,21 @@ def _fly(landings: int, speed: float = 4.0) -> tuple[int, str, str]:
     port, targets = free_udp_port(), free_udp_port()
     vehicle = subprocess.Popen(
         [
-            sys.executable, "-m", "ihrcf_env.mavlink", "--level", "calm", "--camera-model", "projected",
-            "--speed", str(speed), "--episodes", str(landings),
-            "--out", f"udpout:127.0.0.1:{port}", "--out", f"udpout:127.0.0.1:{targets}",
+            sys.executable,
+            "-m",
+            "ihrcf_env.mavlink",
+            "--level",
+            "calm",
+            "--camera-model",
+            "projected",
+            "--speed",
+            str(speed),
+            "--episodes",
+            str(landings),
+            "--out",
+            f"udpout:127.0.0.1:{port}",
+            "--out",
+            f"udpout:127.0.0.1:{targets}",
         ],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
@@ -31,8 +42,14 @@ def _fly(landings: int, speed: float = 4.0) -> tuple[int, str, str]:
     try:
         example = subprocess.run(
             [
-                sys.executable, str(EXAMPLES / "mavsdk_landing.py"), "--connect", f"udpin://127.0.0.1:{port}",
-                "--targets", f"udpin:127.0.0.1:{targets}", "--landings", str(landings),
+                sys.executable,
+                str(EXAMPLES / "mavsdk_landing.py"),
+                "--connect",
+                f"udpin://127.0.0.1:{port}",
+                "--targets",
+                f"udpin:127.0.0.1:{targets}",
+                "--landings",
+                str(landings),
             ],
             capture_output=True,
             text=True,

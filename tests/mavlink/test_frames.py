@@ -57,8 +57,12 @@ def test_a_ned_velocity_setpoint_becomes_the_heading_frame_command() -> None:
 
 def test_body_velocity_rotates_by_the_heading_only() -> None:
     # heading east (NED yaw +90 deg): forward is east, right is south
-    np.testing.assert_allclose(frames.body_velocity_to_ned([1.0, 0.0, 0.2], math.pi / 2), [0.0, 1.0, 0.2], atol=1e-12)
-    np.testing.assert_allclose(frames.body_velocity_to_ned([0.0, 1.0, 0.0], math.pi / 2), [-1.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(
+        frames.body_velocity_to_ned([1.0, 0.0, 0.2], math.pi / 2), [0.0, 1.0, 0.2], atol=1e-12
+    )
+    np.testing.assert_allclose(
+        frames.body_velocity_to_ned([0.0, 1.0, 0.0], math.pi / 2), [-1.0, 0.0, 0.0], atol=1e-12
+    )
 
 
 def test_target_in_local_ned_adds_the_rotated_body_position() -> None:

@@ -33,9 +33,13 @@ def _command(cmd: int, *params: float, target: int = 1) -> Any:
     return _decoded(m.MAVLink_command_long_message(target, 1, cmd, 0, *p))
 
 
-def _setpoint(vx: float, vy: float, vz: float, yaw_rate: float = 0.0, frame: int = 1, mask: int = _VEL) -> Any:
+def _setpoint(
+    vx: float, vy: float, vz: float, yaw_rate: float = 0.0, frame: int = 1, mask: int = _VEL
+) -> Any:
     return _decoded(
-        m.MAVLink_set_position_target_local_ned_message(0, 1, 1, frame, mask, 0, 0, 0, vx, vy, vz, 0, 0, 0, 0, yaw_rate)
+        m.MAVLink_set_position_target_local_ned_message(
+            0, 1, 1, frame, mask, 0, 0, 0, vx, vy, vz, 0, 0, 0, 0, yaw_rate
+        )
     )
 
 
@@ -92,7 +96,12 @@ def test_failsafe_holds_after_half_a_second_without_setpoints() -> None:
 
 @pytest.mark.parametrize(
     "values",
-    [(math.nan, 0.0, 0.0, 0.0), (0.0, math.inf, 0.0, 0.0), (2 * MAX_SETPOINT_SPEED, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1e9)],
+    [
+        (math.nan, 0.0, 0.0, 0.0),
+        (0.0, math.inf, 0.0, 0.0),
+        (2 * MAX_SETPOINT_SPEED, 0.0, 0.0, 0.0),
+        (0.0, 0.0, 0.0, 1e9),
+    ],
 )
 def test_nan_or_huge_setpoints_are_rejected_counted_and_the_vehicle_holds(values: tuple[float, ...]) -> None:
     lines: list[str] = []

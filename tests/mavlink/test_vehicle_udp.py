@@ -50,7 +50,9 @@ class FrameSpy(gym.Wrapper):
             self._last = frame
             s = self.env.get_wrapper_attr("drone_state")()
             assert s.time == pytest.approx(frame.time)  # no camera latency: captured now
-            self.frames.append((float(frame.time), stage.last_estimates[self.target], s.position, s.quaternion))
+            self.frames.append(
+                (float(frame.time), stage.last_estimates[self.target], s.position, s.quaternion)
+            )
         return out
 
 
@@ -66,8 +68,13 @@ def test_landing_target_and_telemetry_match_the_env(profile: str, target: str) -
     env = FrameSpy(gym.make(ENV_ID, **ENV_OPTIONS), target)
     try:
         opts = VehicleOptions(
-            endpoints=(f"udpout:127.0.0.1:{port}",), speed=None, seed=3, target=target, profile=profile,
-            auto_arm=True, duration=3.0,
+            endpoints=(f"udpout:127.0.0.1:{port}",),
+            speed=None,
+            seed=3,
+            target=target,
+            profile=profile,
+            auto_arm=True,
+            duration=3.0,
         )
         with MavlinkVehicle(env, opts, log=lambda _t: None) as vehicle:
             runner = VehicleThread(vehicle)
@@ -209,7 +216,8 @@ def test_bad_endpoints_are_refused_before_any_socket(endpoints: tuple[str, ...],
 
 
 @pytest.mark.parametrize(
-    ("field", "value"), [("speed", 0.0), ("speed", math.nan), ("episodes", 0), ("target", "pnp"), ("profile", "x")]
+    ("field", "value"),
+    [("speed", 0.0), ("speed", math.nan), ("episodes", 0), ("target", "pnp"), ("profile", "x")],
 )
 def test_bad_options_name_themselves(field: str, value: Any) -> None:
     with pytest.raises(ValueError, match=field):

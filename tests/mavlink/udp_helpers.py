@@ -29,7 +29,9 @@ def free_udp_port() -> int:
 
 def listener(port: int) -> Any:
     """A pymavlink connection listening on 127.0.0.1:``port`` (MAVLink 2, common)."""
-    return import_pymavlink().mavlink_connection(f"udpin:127.0.0.1:{port}", dialect="common", source_system=245)
+    return import_pymavlink().mavlink_connection(
+        f"udpin:127.0.0.1:{port}", dialect="common", source_system=245
+    )
 
 
 def drain(conn: Any, settle: float = 0.2) -> list[Any]:
