@@ -39,7 +39,7 @@ MESSAGE_TABLE: tuple[MessageSpec, ...] = (
         "1 Hz (wall clock)",
         "-",
         "type QUADROTOR, autopilot PX4, base_mode "
-        "CUSTOM_MODE_ENABLED | SAFETY_ARMED, custom_mode main << 16 | sub << 24, system_status",
+        "CUSTOM_MODE_ENABLED + SAFETY_ARMED, custom_mode (main << 16) + (sub << 24), system_status",
     ),
     MessageSpec("SYS_STATUS", 1, "1 Hz", "-", "sensors present/enabled/healthy, battery unknown"),
     MessageSpec("SYSTEM_TIME", 2, "1 Hz", "-", "time_unix_usec (wall), time_boot_ms (simulated)"),
@@ -64,8 +64,8 @@ MESSAGE_TABLE: tuple[MessageSpec, ...] = (
         148,
         "per request",
         "-",
-        "capabilities MAVLINK2 | COMMAND_INT | "
-        "SET_POSITION_TARGET_LOCAL_NED, flight_sw_version (package version)",
+        "capabilities MAVLINK2, COMMAND_INT, "
+        "SET_POSITION_TARGET_LOCAL_NED; flight_sw_version (the package version)",
     ),
     MessageSpec(
         "LANDING_TARGET",
@@ -82,7 +82,13 @@ MESSAGE_TABLE: tuple[MessageSpec, ...] = (
         "LOCAL_NED",
         "x, y, z (the drone at arming), latitude/longitude/altitude 0 (no global position)",
     ),
-    MessageSpec("EXTENDED_SYS_STATE", 245, "5 Hz", "-", "landed_state IN_AIR / LANDING / ON_GROUND"),
+    MessageSpec(
+        "EXTENDED_SYS_STATE",
+        245,
+        "5 Hz",
+        "-",
+        "landed_state IN_AIR / LANDING / ON_GROUND (UNDEFINED after a crash off the deck)",
+    ),
     MessageSpec(
         "STATUSTEXT",
         253,
@@ -108,6 +114,13 @@ ON_REQUEST: frozenset[int] = frozenset({148, 242, *(s.msg_id for s in MESSAGE_TA
 
 _IDS = {s.name: s.msg_id for s in MESSAGE_TABLE}
 _NAMES = {v: k for k, v in _IDS.items()}
+
+
+def message_table_markdown() -> str:
+    """:data:`MESSAGE_TABLE` as the Markdown table of ``docs/mavlink.md``."""
+    rows = ["| message | id | rate | frame | fields |", "|---|---|---|---|---|"]
+    rows += [f"| `{s.name}` | {s.msg_id} | {s.rate} | {s.frame} | {s.fields} |" for s in MESSAGE_TABLE]
+    return "\n".join(rows)
 
 
 class Streams:
@@ -300,6 +313,7 @@ __all__ = [
     "boot_ms",
     "heartbeat",
     "home_position",
+    "message_table_markdown",
     "statustext",
     "stream",
     "timesync_reply",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -170,3 +171,10 @@ def test_message_table_ids_match_the_dialect() -> None:
     for spec in messages.MESSAGE_TABLE:
         assert getattr(m, f"MAVLINK_MSG_ID_{spec.name}") == spec.msg_id, spec.name
     assert set(messages.DEFAULT_HZ) <= {s.name for s in messages.MESSAGE_TABLE}
+
+
+def test_the_docs_show_the_message_table_as_built() -> None:
+    text = (Path(__file__).resolve().parents[2] / "docs" / "mavlink.md").read_text()
+    begin = "<!-- message table: begin (ihrcf_env.mavlink.messages.message_table_markdown) -->\n"
+    block = text[text.index(begin) + len(begin) : text.index("<!-- message table: end -->")]
+    assert block.strip() == messages.message_table_markdown()
