@@ -227,6 +227,7 @@ class MavlinkVehicle:
         self._steps = 0
         self._touchdown: dict[str, Any] | None = None
         self._next_heartbeat = 0.0
+        self._shown: tuple[bool, int] | None = None  # (armed, custom_mode) of the last heartbeat
         self._done = False
 
     @property
@@ -311,9 +312,11 @@ class MavlinkVehicle:
             self._after_episode()
         self._send_telemetry()
         wall = time.monotonic()
-        if wall >= self._next_heartbeat:
+        shown = (v.armed, v.custom_mode())
+        if wall >= self._next_heartbeat or shown != self._shown:  # at once on a change of state
             self._next_heartbeat = wall + 1.0
-            self._send(messages.heartbeat(v.armed, v.custom_mode()))
+            self._shown = shown
+            self._send(messages.heartbeat(*shown))
 
     def _step(self) -> None:
         assert self._state is not None

@@ -36,7 +36,7 @@ MESSAGE_TABLE: tuple[MessageSpec, ...] = (
     MessageSpec(
         "HEARTBEAT",
         0,
-        "1 Hz (wall clock)",
+        "1 Hz (wall clock) and at each change of armed state or mode",
         "-",
         "type QUADROTOR, autopilot PX4, base_mode "
         "CUSTOM_MODE_ENABLED + SAFETY_ARMED, custom_mode (main << 16) + (sub << 24), system_status",

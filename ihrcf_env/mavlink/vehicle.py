@@ -56,6 +56,8 @@ _VEL_IGNORE = 8 | 16 | 32
 _ACC_IGNORE = 64 | 128 | 256
 _YAW_IGNORE = 1024
 _YAW_RATE_IGNORE = 2048
+#: Event kinds a client can repeat at its message rate: logged sparingly.
+_FLOODS = frozenset({"rejected", "unsupported", "command"})
 #: Setpoint frames taken: local NED, and the heading-aligned body frames (PX4 rotates body
 #: velocities by the yaw only).
 _LOCAL_NED = 1
@@ -314,11 +316,14 @@ class Vehicle:
         self._last_setpoint_time = now
 
     def _event(self, kind: str, text: str) -> None:
-        """Log ``text``: the first 5 events of a kind, then every 100th."""
+        """Log ``text``; of the kinds a client can flood (:data:`_FLOODS`), the first 5 events
+        and then every 100th."""
         self._logged[kind] += 1
         n = self._logged[kind]
-        if n <= 5 or n % 100 == 0:
-            self._log(text if n <= 5 else f"{text} (x{n})")
+        if kind not in _FLOODS or n <= 5:
+            self._log(text)
+        elif n % 100 == 0:
+            self._log(f"{text} (x{n})")
 
 
 __all__ = [
