@@ -35,7 +35,7 @@ examples:
   ihrcf-mavlink --level calm --camera-model projected
   ihrcf-mavlink --level calm --camera-model projected --speed 4 --episodes 10 \\
       --out udpout:127.0.0.1:14540 --out udpout:127.0.0.1:14541
-  ihrcf-mavlink --level calm --camera-model projected --bench 60
+  ihrcf-mavlink --level calm --camera-model projected --bench 25
 """
 
 
