@@ -234,7 +234,9 @@ def test_random_deck_start_is_seeded_and_deck_time_option_sets_it(raw):
         env.reset(options={"deck_time": -1.0})
 
 
-def test_drone_state_is_the_truth_of_info_with_velocity_and_body_rates(make_env: Callable[..., gym.Env]) -> None:
+def test_drone_state_is_the_truth_of_info_with_velocity_and_body_rates(
+    make_env: Callable[..., gym.Env],
+) -> None:
     """``drone_state()`` (through the wrappers): the world pose of ``info``, the world velocity
     (against the positions' change over a step) and the body rates (a yaw-rate command turns it)."""
     env = make_env("ihrcf_env/DeckLanding-v1", camera_model="projected")
