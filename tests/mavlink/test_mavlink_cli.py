@@ -57,6 +57,12 @@ def test_a_port_in_use_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
     assert "--out" in err and "in use" in err
 
 
+def test_a_destination_the_machine_will_not_send_to_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
+    """The broadcast address without the broadcast option: the first send fails, at start."""
+    err = _usage_error(capsys, [*FAST, "--out", "udpout:255.255.255.255:14550"])
+    assert "--out" in err and "cannot send" in err
+
+
 def test_ctrl_c_exits_130_with_the_sockets_closed() -> None:
     port = free_udp_port()
     proc = subprocess.Popen(
