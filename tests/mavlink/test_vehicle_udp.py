@@ -244,3 +244,31 @@ def test_each_link_sends_from_one_socket_even_when_opened_twice() -> None:
             except TimeoutError:
                 pass
         assert len(sources) == 1 and link.closed
+
+
+def test_timesync_and_requested_messages_are_answered() -> None:
+    port = free_udp_port()
+    rx = listener(port)
+    env = gym.make(ENV_ID, **ENV_OPTIONS)
+    try:
+        with vehicle_thread(env, endpoints=(f"udpout:127.0.0.1:{port}",), speed=4.0):
+            assert rx.recv_match(type="HEARTBEAT", blocking=True, timeout=10) is not None
+            _send(rx, rx.mav.timesync_encode(0, 123_456_789))
+            _send(rx, rx.mav.command_long_encode(1, 1, m.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0))
+            _send(rx, rx.mav.command_long_encode(1, 1, m.MAV_CMD_GET_HOME_POSITION, 0, 0, 0, 0, 0, 0, 0, 0))
+            got: dict[str, Any] = {}
+            t_end = time.monotonic() + 5.0
+            wanted = {"TIMESYNC", "AUTOPILOT_VERSION", "HOME_POSITION", "SYSTEM_TIME", "SYS_STATUS"}
+            while time.monotonic() < t_end and not wanted <= set(got):
+                msg = rx.recv_match(blocking=True, timeout=0.5)
+                if msg is not None:
+                    got.setdefault(msg.get_type(), msg)
+            p_ned = truth_ned(env)[0]
+        assert wanted <= set(got), sorted(got)
+        assert got["TIMESYNC"].ts1 == 123_456_789 and got["TIMESYNC"].tc1 > 0
+        assert got["AUTOPILOT_VERSION"].capabilities & m.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+        home = got["HOME_POSITION"]
+        np.testing.assert_allclose([home.x, home.y, home.z], p_ned, atol=1e-3)  # the start (not armed)
+    finally:
+        env.close()
+        rx.close()
