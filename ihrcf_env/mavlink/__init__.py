@@ -11,7 +11,8 @@ Rooms: :mod:`~ihrcf_env.mavlink.frames` (env world/body <-> NED/FRD, pure functi
 :mod:`~ihrcf_env.mavlink.messages` (the message table, rates, encoders),
 :mod:`~ihrcf_env.mavlink.target` (``LANDING_TARGET`` profiles), :mod:`~ihrcf_env.mavlink.vehicle`
 (the state machine), :mod:`~ihrcf_env.mavlink.link` (UDP links), :mod:`~ihrcf_env.mavlink.loop`
-(the simulated clock and the env). Only :mod:`~ihrcf_env.mavlink.frames` imports without pymavlink.
+(the simulated clock and the env), :mod:`~ihrcf_env.mavlink.options` (its checked options) and
+:mod:`~ihrcf_env.mavlink.report` (what a run did). Only :mod:`~ihrcf_env.mavlink.frames` imports without pymavlink.
 """
 
 from typing import Any

@@ -28,7 +28,6 @@ from numpy.typing import ArrayLike, NDArray
 from ihrcf_env.core.frames import (
     as_array,
     euler_from_matrix,
-    matrix_from_euler,
     matrix_from_quat,
     quat_from_matrix,
     wrap_angle,
@@ -176,12 +175,6 @@ def deck_quat_body_frd(deck_rotation_body: ArrayLike) -> NDArray[np.float64]:
     return np.array([w, x, y, z])
 
 
-def euler_to_rotation(euler: ArrayLike) -> NDArray[np.float64]:
-    """``R = Rz(yaw) Ry(pitch) Rx(roll)`` of (roll, pitch, yaw) rad (the env's convention)."""
-    r, p, y = as_array(euler, (3,), "euler").tolist()
-    return matrix_from_euler(r, p, y)
-
-
 __all__ = [
     "FLIP",
     "Attitude",
@@ -190,7 +183,6 @@ __all__ = [
     "attitude_to_mavlink",
     "body_velocity_to_ned",
     "deck_quat_body_frd",
-    "euler_to_rotation",
     "flu_to_frd",
     "frd_to_flu",
     "ned_to_world",

@@ -23,8 +23,7 @@ import math
 import threading
 import time
 from collections import Counter, deque
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import gymnasium as gym
@@ -35,124 +34,18 @@ from ihrcf_env.core.frames import matrix_from_quat
 from ihrcf_env.envs.deck_landing import DroneState
 from ihrcf_env.mavlink import frames, messages
 from ihrcf_env.mavlink._pymavlink import dialect
-from ihrcf_env.mavlink.link import Link, check_endpoint
-from ihrcf_env.mavlink.target import PROFILES, TARGETS, DeckFix, landing_target
+from ihrcf_env.mavlink.link import Link
+from ihrcf_env.mavlink.options import DEFAULT_OUT, VehicleOptions
+from ihrcf_env.mavlink.report import EpisodeRecord, VehicleReport, format_rates
+from ihrcf_env.mavlink.target import DeckFix, landing_target
 from ihrcf_env.mavlink.vehicle import AUTO_DISARM, Mode, Vehicle
 from ihrcf_env.wrappers.estimates import base_config
 
-#: Where the vehicle sends by default (PX4 SITL's offboard API port).
-DEFAULT_OUT = "udpout:127.0.0.1:14540"
 #: The vehicle stays up this long (s, vehicle clock) after the last episode's disarm before
 #: the loop returns (``episodes`` given), so clients see the disarm.
 LINGER = 1.0
 #: Behind the pace by more than this (s of wall time), the pace restarts from now (no burst).
 MAX_LAG = 0.25
-
-
-@dataclass(frozen=True)
-class VehicleOptions:
-    """The vehicle's options, checked once here (ValueError naming the option).
-
-    Attributes:
-        endpoints: pymavlink connection strings (``udpout:HOST:PORT``, ``udpin:HOST:PORT``).
-        speed: simulated seconds per wall second (> 0); None: as fast as it runs.
-        episodes: episodes to run before :meth:`MavlinkVehicle.run` returns; None: one, then
-            stay up until stopped.
-        seed: the first episode's seed (then seed + 1, ...).
-        target: ``LANDING_TARGET``'s source: an estimator of the env or ``"truth"``.
-        profile: ``"px4"`` or ``"ardupilot"`` (:mod:`ihrcf_env.mavlink.target`).
-        system_id, component_id: the vehicle's MAVLink ids.
-        auto_arm: arm at each episode's start (no client needed; for benchmarks).
-        duration: stop after this many simulated seconds of the vehicle clock (None: no limit).
-    """
-
-    endpoints: tuple[str, ...] = (DEFAULT_OUT,)
-    speed: float | None = 1.0
-    episodes: int | None = None
-    seed: int = 0
-    target: str = "fused"
-    profile: str = "px4"
-    system_id: int = 1
-    component_id: int = 1
-    auto_arm: bool = False
-    duration: float | None = None
-
-    def __post_init__(self) -> None:
-        if isinstance(self.endpoints, str) or not self.endpoints:
-            raise ValueError(
-                f"endpoints must be a non-empty sequence of connection strings, got {self.endpoints!r}"
-            )
-        object.__setattr__(self, "endpoints", tuple(self.endpoints))
-        for e in self.endpoints:
-            try:
-                check_endpoint(e)
-            except ValueError as err:
-                raise ValueError(f"endpoints: {err}") from None
-        if self.speed is not None and not (
-            isinstance(self.speed, int | float) and math.isfinite(self.speed) and 0 < self.speed <= 1e6
-        ):
-            raise ValueError(
-                f"speed must be a number in (0, 1e6] or None (as fast as it runs), got {self.speed!r}"
-            )
-        if self.episodes is not None and not (isinstance(self.episodes, int) and self.episodes >= 1):
-            raise ValueError(f"episodes must be an integer >= 1 or None, got {self.episodes!r}")
-        if not (isinstance(self.seed, int) and 0 <= self.seed <= 2**32 - 1):
-            raise ValueError(f"seed must be an integer in [0, 2**32 - 1], got {self.seed!r}")
-        if self.target not in TARGETS:
-            raise ValueError(f"target must be one of {TARGETS}, got {self.target!r}")
-        if self.profile not in PROFILES:
-            raise ValueError(f"profile must be one of {PROFILES}, got {self.profile!r}")
-        for name in ("system_id", "component_id"):
-            v = getattr(self, name)
-            if not (isinstance(v, int) and 1 <= v <= 255):
-                raise ValueError(f"{name} must be an integer in [1, 255], got {v!r}")
-        if self.duration is not None and not (math.isfinite(self.duration) and self.duration > 0):
-            raise ValueError(f"duration must be a positive number of seconds or None, got {self.duration!r}")
-
-
-@dataclass
-class EpisodeRecord:
-    """One finished episode: seed, outcome (the env's ``info["outcome"]``, or ``"truncated"``),
-    its simulated duration (s) and, after a touchdown, the relative vertical speed (m/s), the
-    relative tilt (rad) and the offset from the tag centre (m)."""
-
-    seed: int
-    outcome: str
-    time: float
-    speed: float | None = None
-    tilt: float | None = None
-    offset: float | None = None
-    reason: str = ""
-
-    def line(self) -> str:
-        """One line: seed, outcome, time and the touchdown figures."""
-        td = (
-            f"speed {self.speed:.3f} m/s  tilt {math.degrees(self.tilt):5.2f} deg  offset {self.offset:.3f} m"
-            if self.speed is not None and self.tilt is not None and self.offset is not None
-            else "no touchdown"
-        )
-        why = f"  ({self.reason})" if self.reason else ""
-        return f"seed {self.seed:5d}  {self.outcome:9s} t {self.time:6.2f} s  {td}{why}"
-
-
-@dataclass
-class VehicleReport:
-    """What a run did: its episodes, the simulated and wall time (s), the wall time spent inside
-    ``env.step`` (s), the messages sent by type and the vehicle's counters (rejected setpoints,
-    failsafes, bad packets, ...)."""
-
-    episodes: list[EpisodeRecord] = field(default_factory=list)
-    sim_time: float = 0.0
-    wall_time: float = 0.0
-    env_time: float = 0.0
-    steps: int = 0
-    sent: Counter[str] = field(default_factory=Counter)
-    counts: Counter[str] = field(default_factory=Counter)
-
-    @property
-    def real_time_factor(self) -> float:
-        """Simulated seconds per wall second of the run."""
-        return self.sim_time / self.wall_time if self.wall_time > 0 else math.nan
 
 
 class MavlinkVehicle:
@@ -542,17 +435,6 @@ def run_vehicle(
     Ctrl-C); the links are closed on the way out, the env is the caller's."""
     with MavlinkVehicle(env, options, log) as vehicle:
         return vehicle.run()
-
-
-def format_rates(report: VehicleReport, names: Sequence[str] | None = None) -> list[str]:
-    """One line per message type sent: count, rate on the simulated clock and on the wall clock."""
-    lines = []
-    for name in names or sorted(report.sent):
-        n = report.sent.get(name, 0)
-        sim = n / report.sim_time if report.sim_time > 0 else math.nan
-        wall = n / report.wall_time if report.wall_time > 0 else math.nan
-        lines.append(f"  {name:22s} {n:7d}  {sim:7.2f} Hz simulated  {wall:8.1f} /s wall")
-    return lines
 
 
 __all__ = [

@@ -11,6 +11,7 @@ streamed message's rate (:meth:`Streams.set_interval`). Every encoder takes a
 from __future__ import annotations
 
 import math
+import time
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -235,8 +236,6 @@ def stream(name: str, s: VehicleSample) -> list[Any]:
         )
         return [m.MAVLink_sys_status_message(sensors, sensors, sensors, 0, 0xFFFF, -1, -1, 0, 0, 0, 0, 0, 0)]
     if name == "SYSTEM_TIME":
-        import time
-
         return [m.MAVLink_system_time_message(int(time.time() * 1e6), t)]
     if name == "DISTANCE_SENSOR":
         top = int(round(s.max_range * 100))
