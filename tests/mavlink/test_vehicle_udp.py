@@ -56,6 +56,15 @@ class FrameSpy(gym.Wrapper):
         return out
 
 
+class LastObservation(gym.Wrapper):
+    """Keeps the last observation the env returned."""
+
+    def step(self, action: Any) -> Any:
+        out = self.env.step(action)
+        self.last = out[0]
+        return out
+
+
 def _rot_wxyz(q: Any) -> np.ndarray:
     w, x, y, z = (float(v) for v in q)
     return matrix_from_quat([x, y, z, w])
@@ -272,3 +281,47 @@ def test_timesync_and_requested_messages_are_answered() -> None:
     finally:
         env.close()
         rx.close()
+
+
+def test_a_raw_hover_env_flies_with_the_truth_as_target() -> None:
+    """A raw env (Dict observation, no estimators): the ToF ranges from its observation, the true
+    deck pose as LANDING_TARGET at the camera rate."""
+    port = free_udp_port()
+    rx = listener(port)
+    env = LastObservation(
+        gym.make("ihrcf_env/DeckHoverRaw-v0", camera_model="projected", camera_hz=10, max_episode_steps=-1)
+    )
+    try:
+        opts = VehicleOptions(
+            endpoints=(f"udpout:127.0.0.1:{port}",),
+            speed=None,
+            target="truth",
+            profile="ardupilot",
+            auto_arm=True,
+            duration=1.0,
+        )
+        with MavlinkVehicle(env, opts, log=lambda _t: None) as vehicle:
+            runner = VehicleThread(vehicle)
+            runner.start()
+            msgs: list[Any] = []
+            while runner.alive:
+                msgs += drain(rx, settle=0.02)
+            runner.pause()
+            msgs += drain(rx)
+            t0 = vehicle.episode_start
+            deck, _ = env.get_wrapper_attr("deck_pose_body")()
+            s = env.get_wrapper_attr("drone_state")()
+            obs = env.last
+    finally:
+        env.close()
+        rx.close()
+    targets = [x for x in msgs if x.get_type() == "LANDING_TARGET"]
+    assert len(targets) == 10  # 1 s at the camera's 10 Hz (20 steps)
+    last = max(targets, key=lambda x: x.time_usec)
+    assert last.time_usec == round((t0 + s.time) * 1e6)
+    np.testing.assert_allclose([last.x, last.y, last.z], D @ deck, atol=1e-5)
+    ranges = {x.id: x for x in msgs if x.get_type() == "DISTANCE_SENSOR"}  # the last of each beam
+    valid = np.asarray(obs["ranges_valid"]).astype(bool)
+    assert valid.any()
+    for i, (r, ok) in enumerate(zip(np.asarray(obs["ranges"]).tolist(), valid.tolist(), strict=True)):
+        assert ranges[i].current_distance == (round(r * 100) if ok else 0xFFFF)
