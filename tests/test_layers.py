@@ -31,6 +31,7 @@ _ABOVE_CONFIG = (
     "ihrcf_env.wrappers",
     "ihrcf_env.vector",
     "ihrcf_env.record",
+    "ihrcf_env.mavlink",
     "ihrcf_env.control",
     "ihrcf_env.experiments",
     "ihrcf_env.cli",
@@ -54,6 +55,7 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
         "ihrcf_env.wrappers",
         "ihrcf_env.experiments",
         "ihrcf_env.cli",
+        "ihrcf_env.mavlink",
         *_LEARNING,
     ),
     # the task rules: arrays in, arrays out (numpy or jax.numpy), shared by every backend
@@ -65,15 +67,25 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
         "ihrcf_env.cli",
         *_LEARNING,
     ),
-    "envs": ("ihrcf_env.wrappers", "ihrcf_env.experiments", "ihrcf_env.cli", *_LEARNING),
-    "wrappers": ("ihrcf_env.experiments", "ihrcf_env.cli", *_LEARNING),
+    "envs": ("ihrcf_env.wrappers", "ihrcf_env.experiments", "ihrcf_env.cli", "ihrcf_env.mavlink", *_LEARNING),
+    "wrappers": ("ihrcf_env.experiments", "ihrcf_env.cli", "ihrcf_env.mavlink", *_LEARNING),
     # the vector envs sit at the wrappers' level: envs by id, stepped together
-    "vector": ("ihrcf_env.experiments", "ihrcf_env.cli", *_LEARNING),
-    "experiments": ("ihrcf_env.cli", *_LEARNING),
+    "vector": ("ihrcf_env.experiments", "ihrcf_env.cli", "ihrcf_env.mavlink", *_LEARNING),
+    "experiments": ("ihrcf_env.cli", "ihrcf_env.mavlink", *_LEARNING),
     # recordings sit on the Gymnasium API and the wrappers' public accessors, never the simulator
-    "record": ("pybullet", "ihrcf_env.sim", *_LEARNING),
+    "record": ("pybullet", "ihrcf_env.sim", "ihrcf_env.mavlink", *_LEARNING),
+    # the MAVLink vehicle (a face that runs an env, beside record/): envs, wrappers and core;
+    # cli/ imports it, it never imports cli/ (but for its own command, see COMMAND_EXCEPTIONS)
+    "mavlink": (
+        "pybullet",
+        "ihrcf_env.sim",
+        "ihrcf_env.experiments",
+        "ihrcf_env.record",
+        "ihrcf_env.cli",
+        *_LEARNING,
+    ),
     # learning glue (SB3 / RLlib) sits on the Gymnasium API: envs by id, never the simulator
-    "rl": ("pybullet", "ihrcf_env.sim", "ihrcf_env.experiments", "ihrcf_env.cli"),
+    "rl": ("pybullet", "ihrcf_env.sim", "ihrcf_env.experiments", "ihrcf_env.cli", "ihrcf_env.mavlink"),
     # the array layers (checked when their folders exist): pure rules, and the compiled backend
     "tasks": ("pybullet", "gymnasium", "ihrcf_env.fast", *_ABOVE_CONFIG, *_LEARNING),
     "fast": ("pybullet", "gymnasium", *_ABOVE_CONFIG, *_LEARNING),
@@ -90,6 +102,9 @@ ALLOWED: dict[str, tuple[str, ...]] = {
 #: ``make_config`` does: the registry of user components (sensors, noise models, faults) the
 #: options name. Importing config/ loads it not.
 LAZY_EXCEPTIONS: dict[str, tuple[str, ...]] = {"config": ("ihrcf_env.sim.registry",)}
+#: A face's own command, imported only by its ``python -m`` shim (``__main__.py``) and lazily by
+#: its package's ``main`` attribute: the one import of cli/ a layer below it makes.
+COMMAND_EXCEPTIONS: dict[str, tuple[str, ...]] = {"mavlink": ("ihrcf_env.cli.mavlink",)}
 
 
 def _layers() -> list[str]:
@@ -125,10 +140,13 @@ def _matches(name: str, prefixes: tuple[str, ...]) -> bool:
 def _violations(layer: str) -> list[str]:
     bad = []
     lazy_ok = LAZY_EXCEPTIONS.get(layer, ())
+    command = COMMAND_EXCEPTIONS.get(layer, ())
     for f in sorted((PKG / layer).rglob("*.py")):
         top = _imports(f, top_level_only=True)
         for name in _imports(f):
             if _matches(name, lazy_ok) and name not in top:
+                continue
+            if _matches(name, command) and (f.name == "__main__.py" or name not in top):
                 continue
             if _matches(name, FORBIDDEN[layer]):
                 bad.append(f"{f.relative_to(PKG)} imports {name}")

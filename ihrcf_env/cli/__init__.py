@@ -4,6 +4,7 @@
 * ``ihrcf-calibrate`` / ``python -m ihrcf_env.calibrate``: :mod:`ihrcf_env.cli.calibrate`;
 * ``ihrcf-evaluate`` / ``python -m ihrcf_env.evaluate``: :mod:`ihrcf_env.cli.evaluate`;
 * ``ihrcf-fit-detector`` / ``python -m ihrcf_env.fit_detector``: :mod:`ihrcf_env.cli.fit_detector`;
+* ``ihrcf-mavlink`` / ``python -m ihrcf_env.mavlink``: :mod:`ihrcf_env.cli.mavlink`;
 * ``ihrcf-record`` / ``python -m ihrcf_env.record``: :mod:`ihrcf_env.cli.record`.
 
 What they share (parser, argument types, output checks): :mod:`ihrcf_env.cli.common`.
@@ -15,6 +16,7 @@ COMMANDS = {
     "calibrate": "calibrate",
     "evaluate": "evaluate",
     "fit-detector": "fit_detector",
+    "mavlink": "mavlink",
     "record": "record",
 }
 

@@ -165,6 +165,28 @@ def build_parser() -> argparse.ArgumentParser:
 def add_episode_arguments(ap: argparse.ArgumentParser) -> None:
     """The arguments that choose the env and the policy (shared with ``ihrcf-record``); checked by
     :func:`_check_args`, turned into an env and a policy by :func:`make_env_and_policy`."""
+    add_env_arguments(ap)
+    ap.add_argument(
+        "--policy",
+        required=True,
+        help="scripted | scripted-forecast | blind:VZ | a saved .npz (recurrent or MLP) | a "
+        "stable-baselines3 .zip (required)",
+    )
+    ap.add_argument(
+        "--algo", choices=SB3_ALGOS, default="PPO", help="stable-baselines3 class of a .zip policy"
+    )
+    ap.add_argument(
+        "--deck-motion",
+        action="store_true",
+        help="v1 observation with the fused filter's deck motion (deck_motion=True); a saved policy "
+        "trained so is detected without it",
+    )
+
+
+def add_env_arguments(ap: argparse.ArgumentParser) -> None:
+    """The arguments that choose the env: id, level, options, first seed, camera model, sensor
+    preset, step limit (shared with ``ihrcf-mavlink``); checked by :func:`check_env_args`, turned
+    into ``gym.make`` keywords by :func:`env_kwargs`."""
     ap.add_argument(
         "--env-id",
         default=None,
@@ -179,12 +201,6 @@ def add_episode_arguments(ap: argparse.ArgumentParser) -> None:
         default=[],
         metavar="KEY=VALUE",
         help="an env option (repeatable); VALUE is read as JSON (true, 0.5, a dict) or else as text",
-    )
-    ap.add_argument(
-        "--policy",
-        required=True,
-        help="scripted | scripted-forecast | blind:VZ | a saved .npz (recurrent or MLP) | a "
-        "stable-baselines3 .zip (required)",
     )
     ap.add_argument(
         "--seed",
@@ -205,21 +221,14 @@ def add_episode_arguments(ap: argparse.ArgumentParser) -> None:
         help="sensor preset (default: the env's)",
     )
     ap.add_argument(
-        "--algo", choices=SB3_ALGOS, default="PPO", help="stable-baselines3 class of a .zip policy"
-    )
-    ap.add_argument(
         "--max-steps", type=int_in(1), default=None, help="episode limit in steps (default: the env's)"
     )
-    ap.add_argument(
-        "--deck-motion",
-        action="store_true",
-        help="v1 observation with the fused filter's deck motion (deck_motion=True); a saved policy "
-        "trained so is detected without it",
-    )
 
 
-def _check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
-    """Every check that needs no env: ``ap.error`` (exit status 2) naming the argument."""
+def check_env_args(ap: argparse.ArgumentParser, args: argparse.Namespace, episodes: int = 1) -> None:
+    """The checks of :func:`add_env_arguments` that need no env (``ap.error``, exit status 2,
+    naming the argument); fills in the defaults of ``--env-id`` and ``--seed`` and parses the
+    ``--option`` items into ``args.options``. ``episodes``: seeds used from ``--seed`` on."""
     if args.env_id is None:
         args.env_id = LANDING_V2_ID if args.level is not None else LANDING_V1_ID
     elif args.level is not None and args.env_id != LANDING_V2_ID:
@@ -227,9 +236,7 @@ def _check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
     if args.seed is None:
         args.seed = TEST_SEEDS.start if args.level is not None else 0
     args.options = _parse_options(ap, args.option)
-    if args.policy in ("scripted", FORECAST_POLICY) or args.policy.startswith("blind:"):
-        _check_baseline_options(ap, args.policy, args.options)
-    last = args.seed + args.episodes - 1
+    last = args.seed + episodes - 1
     if last > MAX_SEED:
         ap.error(f"argument --seed: the seeds {args.seed}..{last} go beyond {MAX_SEED}")
     spec_env = gym.registry.get(args.env_id)
@@ -238,6 +245,27 @@ def _check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
     if spec_env.namespace != "ihrcf_env":
         ours = ", ".join(k for k, v in gym.registry.items() if v.namespace == "ihrcf_env")
         ap.error(f"argument --env-id: {args.env_id!r} is not an ihrcf_env landing env (one of {ours})")
+
+
+def env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    """The ``gym.make`` keywords of checked :func:`add_env_arguments` (:func:`check_env_args`)."""
+    kwargs: dict[str, Any] = dict(args.options)
+    if args.level is not None:
+        kwargs["level"] = args.level
+    if args.camera_model is not None:
+        kwargs["camera_model"] = args.camera_model
+    if args.sensor_preset is not None:
+        kwargs["sensor_preset"] = args.sensor_preset
+    if args.max_steps is not None:
+        kwargs["max_episode_steps"] = args.max_steps
+    return kwargs
+
+
+def _check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Every check that needs no env: ``ap.error`` (exit status 2) naming the argument."""
+    check_env_args(ap, args, args.episodes)
+    if args.policy in ("scripted", FORECAST_POLICY) or args.policy.startswith("blind:"):
+        _check_baseline_options(ap, args.policy, args.options)
     spec = args.policy
     saved = spec.endswith((".zip", ".npz"))
     if not (
@@ -270,15 +298,7 @@ def make_env_and_policy(ap: argparse.ArgumentParser, args: argparse.Namespace) -
     options used; ``ap.error`` (exit status 2) if the env cannot be made or the policy not loaded.
     The caller closes the env."""
     spec = args.policy
-    kwargs: dict[str, Any] = dict(args.options)
-    if args.level is not None:
-        kwargs["level"] = args.level
-    if args.camera_model is not None:
-        kwargs["camera_model"] = args.camera_model
-    if args.sensor_preset is not None:
-        kwargs["sensor_preset"] = args.sensor_preset
-    if args.max_steps is not None:
-        kwargs["max_episode_steps"] = args.max_steps
+    kwargs = env_kwargs(args)
     if args.deck_motion:
         kwargs["deck_motion"] = True
     if spec == FORECAST_POLICY and "deck_forecast" not in kwargs:
@@ -352,8 +372,11 @@ if __name__ == "__main__":
 
 __all__ = [
     "DESCRIPTION",
+    "add_env_arguments",
     "add_episode_arguments",
     "build_parser",
+    "check_env_args",
+    "env_kwargs",
     "format_episode",
     "main",
     "make_env_and_policy",

@@ -60,7 +60,7 @@ Misuse raises: a bad option TypeError/ValueError naming it (before any PyBullet 
 from __future__ import annotations
 
 import math
-from typing import Any, NoReturn, SupportsIndex
+from typing import Any, NamedTuple, NoReturn, SupportsIndex
 
 import gymnasium as gym
 import numpy as np
@@ -75,7 +75,7 @@ from ihrcf_env.config.sensors import CameraConfig
 from ihrcf_env.config.world import WorldConfig
 from ihrcf_env.core.arrays import clip
 from ihrcf_env.core.checks import check_mapping
-from ihrcf_env.core.frames import euler_from_matrix, quat_from_matrix
+from ihrcf_env.core.frames import euler_from_matrix, matrix_from_quat, quat_from_matrix
 from ihrcf_env.core.profiles import MotionProfile
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.core.seeding import SeedStreams
@@ -430,11 +430,34 @@ class DeckLandingEnv(gym.Env):
     def camera_config(self) -> CameraConfig | None:
         return self.config.world.camera
 
+    def drone_state(self) -> DroneState:
+        """Ground truth of the drone now (:class:`DroneState`: world frame, body rates in the body
+        frame), for tools that report it as an autopilot would (e.g. :mod:`ihrcf_env.mavlink`)."""
+        self._check_open()
+        pos, quat, vel, ang = self.world.quad.state()
+        q = np.array(quat, dtype=np.float64)
+        rates = matrix_from_quat(q).T @ np.array(ang, dtype=np.float64)
+        return DroneState(
+            self.world.time, np.array(pos, dtype=np.float64), q, np.array(vel, dtype=np.float64), rates
+        )
+
     def deck_pose_body(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Ground-truth deck (position m, euler rad) in the body frame."""
         self._check_open()
         s = self.world.sensing.snapshot()
         return s.deck_position_body.copy(), euler_from_matrix(s.deck_rotation_body)
+
+
+class DroneState(NamedTuple):
+    """The drone's true state at simulated ``time`` (s): ``position`` (m) and ``velocity`` (m/s)
+    in the world frame, ``quaternion`` (x, y, z, w, world from body) and the body ``rates`` (rad/s,
+    body frame FLU)."""
+
+    time: float
+    position: NDArray[np.float64]
+    quaternion: NDArray[np.float64]
+    velocity: NDArray[np.float64]
+    rates: NDArray[np.float64]
 
 
 def _reward_info(terms: tuple[Any, ...]) -> tuple[float, dict[str, float]]:

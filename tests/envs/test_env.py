@@ -232,3 +232,23 @@ def test_random_deck_start_is_seeded_and_deck_time_option_sets_it(raw):
     np.testing.assert_allclose(d["deck_position_world"], home + off, atol=1e-6)
     with pytest.raises(ValueError, match="deck_time"):
         env.reset(options={"deck_time": -1.0})
+
+
+def test_drone_state_is_the_truth_of_info_with_velocity_and_body_rates(
+    make_env: Callable[..., gym.Env],
+) -> None:
+    """``drone_state()`` (through the wrappers): the world pose of ``info``, the world velocity
+    (against the positions' change over a step) and the body rates (a yaw-rate command turns it)."""
+    env = make_env("ihrcf_env/DeckLanding-v1", camera_model="projected")
+    env.reset(seed=4)
+    positions = []
+    for _ in range(8):
+        _, _, _, _, info = env.step(np.array([0.5, -0.3, 0.2, 0.6], np.float32))
+        positions.append(np.asarray(info["drone_position_world"]))
+    s = env.get_wrapper_attr("drone_state")()
+    assert s.time == pytest.approx(info["time"])
+    np.testing.assert_allclose(s.position, info["drone_position_world"])
+    np.testing.assert_allclose(s.quaternion, info["drone_quaternion_world"])
+    dt = 1.0 / env.unwrapped.config.world.control_hz
+    np.testing.assert_allclose(s.velocity, (positions[-1] - positions[-2]) / dt, atol=0.05)
+    assert s.rates[2] > 0.05  # turning left (a positive yaw-rate command), nearly level
