@@ -90,3 +90,29 @@ def test_the_deck_forecast_block_and_info() -> None:
     finally:
         env.close()
         ref.close()
+
+
+@pytest.mark.parametrize("mode", ["human", "rgb_array", "anything"])
+def test_render_mode_is_refused_as_on_the_pybullet_vector_env(mode: str) -> None:
+    with pytest.raises(ValueError, match="render_mode: not supported by the vector env"):
+        make(backend="jax", render_mode=mode)
+    with pytest.raises(ValueError, match="render_mode: not supported by the vector env"):
+        make(render_mode=mode)
+
+
+def test_max_episode_steps_is_bounded_by_the_episode_draws() -> None:
+    with pytest.raises(ValueError, match=r"max_episode_steps=1000000000000: .* at most 100000 steps"):
+        make(backend="jax", max_episode_steps=10**12)
+    # the gusts of all envs within MAX_DRAW_BYTES: fewer steps for more envs
+    with pytest.raises(
+        ValueError, match=r"max_episode_steps=20000: .*num_envs=65536 in float32 .* at most 2730 steps"
+    ):
+        make(65536, backend="jax", max_episode_steps=20_000, dtype="float32")
+
+
+@pytest.mark.parametrize("mode", ["sync", "async"])
+def test_backend_needs_the_vector_entry_point(mode: str) -> None:
+    with pytest.raises(ValueError, match='backend=.jax.: .*vectorization_mode="vector_entry_point"'):
+        gym.make_vec(ID, num_envs=2, vectorization_mode=mode, backend="jax")
+    with pytest.raises(ValueError, match="seeding=.paired.: an option of the native vector env only"):
+        gym.make(ID, seeding="paired")
