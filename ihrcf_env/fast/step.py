@@ -34,6 +34,7 @@ import numpy as np
 from jax import Array, lax
 
 from ihrcf_env import tasks
+from ihrcf_env.core.seeding import SeedStreams
 from ihrcf_env.fast.advance import Flight, advance, angular_velocity_between
 from ihrcf_env.fast.autopilot import controller_reset
 from ihrcf_env.fast.deck_motion import (
@@ -48,7 +49,7 @@ from ihrcf_env.fast.deck_motion import (
     sum_of_sines,
 )
 from ihrcf_env.fast.dynamics import hover_state, matrix_from_quaternion, quaternion_from_matrix
-from ihrcf_env.fast.episode import Episode, draw_episode
+from ihrcf_env.fast.episode import Episode, draw_episode, host_episode
 from ihrcf_env.fast.frames import TICK_EPS, pipe_deliver, pipe_init, pipe_push
 from ihrcf_env.fast.imu import READ_DRAWS, ImuState, imu_read, imu_reset
 from ihrcf_env.fast.linalg3 import cross, matvec
@@ -156,7 +157,10 @@ def state_spec(params: StepParams) -> EnvState:
     x64 = jax.dtypes.canonicalize_dtype(np.float64) == np.float64
     cache: dict[bool, EnvState] = p.__dict__.setdefault("_state_specs", {})
     if x64 not in cache:
-        cache[x64] = jax.eval_shape(lambda k: reset(k, p)[1], jax.random.PRNGKey(0))
+        # a host-drawn episode: every deck profile has one (the sea state is drawn on the host only)
+        with jax.ensure_compile_time_eval():  # numbers, also when called while tracing
+            episode = host_episode(p, SeedStreams.from_generator(np.random.default_rng(0)))
+        cache[x64] = jax.eval_shape(lambda e, k: reset_from(e, k, p)[1], episode, jax.random.PRNGKey(0))
     return cache[x64]
 
 
@@ -169,7 +173,7 @@ def check_tree(name: str, value: Any, spec: Any, hint: str = "") -> None:
     dtypes differ from ``spec``'s (a pytree of ``ShapeDtypeStruct``; checked at trace time)."""
     want = jax.tree_util.tree_structure(spec)
     got = jax.tree_util.tree_structure(value)
-    if got != want:
+    if str(got) != str(want):
         raise TypeError(f"{name}: not a state of these params{hint} (its structure differs: {got} != {want})")
     leaves = jax.tree_util.tree_leaves_with_path(value)
     for (path, leaf), ref in zip(leaves, jax.tree_util.tree_leaves(spec), strict=True):

@@ -183,7 +183,7 @@ class JaxVectorEnv(VectorEnv):
         """(obs, state, info) of one env's new episode."""
         with_info = getattr(self.fenv, "reset_from_info", None)
         if with_info is not None:
-            return with_info(episode, key, params)  # type: ignore[no-any-return]
+            return with_info(episode, key, params)
         obs, state = self.fenv.reset_from(episode, key, params)
         return obs, state, {}
 
