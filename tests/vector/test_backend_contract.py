@@ -50,6 +50,10 @@ def _run(env: gym.vector.VectorEnv) -> dict[str, Any]:
             out["ended"], out["ended_rows"] = info, term | trunc
             _, _, _, _, out["after"] = env.step(DOWN)
             break
+    # a masked reset and a later full reset (the JAX env: the same compiled reset as the first)
+    env.reset(options={"reset_mask": np.array([False, True])})
+    env.reset(seed=SEED + 1)
+    out["reset_traces"] = getattr(env, "reset_traces", None)
     return out
 
 
@@ -197,3 +201,42 @@ def test_the_hover_ids_have_no_jax_backend(env_id: str) -> None:
         warnings.simplefilter("ignore", DeprecationWarning)  # the deprecated aliases warn
         with pytest.raises(gym.error.Error, match="vector entry point"):
             gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point", backend="jax")
+
+
+@pytest.mark.slow
+def test_every_reset_of_the_jax_env_compiles_once(runs: dict[str, dict[str, Any]]) -> None:
+    """The first reset, an autoreset, a masked reset and a full reset: one traced (compiled) reset."""
+    assert runs["jax"]["reset_traces"] == 1
+
+
+@pytest.mark.parametrize("env_id", LANDING_IDS)
+def test_the_info_keys_and_dtypes_without_compiling(env_id: str) -> None:
+    """The JAX env's info columns from the traced shapes of its reset and step (nothing compiled):
+    the PyBullet env's keys and dtypes at a reset and at a step without touchdown."""
+    from ihrcf_env.vector.jax_env import _scatter_info
+
+    env = _make(env_id, "pybullet")
+    try:
+        _, pb_reset = env.reset(seed=SEED)
+        pb_step = env.step(np.zeros((N, 4)))[4]
+    finally:
+        env.close()
+    jenv = _make(env_id, "jax")
+    fenv = jenv.fenv  # type: ignore[attr-defined]
+    with jax.enable_x64(True):
+        episode = fenv.draw_host(np.random.default_rng(0))[1]
+        key = jax.random.PRNGKey(0)
+        shapes = jax.eval_shape(lambda e: fenv.reset_from_info(e, key, ()), episode)
+        step = jax.eval_shape(lambda s: fenv.step(key, s, jax.numpy.zeros(4), ()), shapes[1])
+    rows = np.arange(N)
+
+    def columns(info: Any) -> dict[str, Any]:
+        zeros = jax.tree_util.tree_map(lambda a: np.zeros((N, *a.shape), a.dtype), info)
+        return _scatter_info(N, (rows, fenv.host_info(zeros)))
+
+    documented = _documented()
+    for pb, jx in ((pb_reset, columns(shapes[2])), (pb_step, columns(step[4]))):
+        assert _keys(pb) - _keys(jx) == documented["pybullet"] & _keys(pb)
+        assert _keys(jx) - _keys(pb) == documented["jax"] & _keys(jx)
+        a, b = _dtypes(pb), _dtypes(jx)
+        assert {k: a[k] for k in set(a) & set(b)} == {k: b[k] for k in set(a) & set(b)}
