@@ -135,7 +135,7 @@ class LandingFunctional:
         out = self._info(raw, truth, env_state, estimates)
         out["is_success"] = info.outcome == jnp.asarray(_SUCCESS)
         out["outcome_code"] = info.outcome
-        for name, value in zip(info.terms._fields, info.terms, strict=True):
+        for name, value in zip(type(info.terms).__annotations__, info.terms, strict=True):
             out[f"reward_{name}"] = value
         p = self.step_params
         td = info.touchdown
