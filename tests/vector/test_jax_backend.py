@@ -116,3 +116,27 @@ def test_backend_needs_the_vector_entry_point(mode: str) -> None:
         gym.make_vec(ID, num_envs=2, vectorization_mode=mode, backend="jax")
     with pytest.raises(ValueError, match="seeding=.paired.: an option of the native vector env only"):
         gym.make(ID, seeding="paired")
+
+
+def test_a_state_of_another_env_is_named_at_trace_time() -> None:
+    """A state of an env without the forecast stepped in one with ``deck_forecast`` (a bare
+    AssertionError inside JAX before), and a float32 state in a float64 env: named, not compiled."""
+    from ihrcf_env.vector.jax_make import make_functional
+
+    quick = {"window": 8.0, "min_span": 4.0, "order": 8, "horizons": (0.5, 1.0)}
+    with jax.enable_x64(True):
+        plain = make_functional(ID, "float64", level="rough")
+        forecast = make_functional(ID, "float64", level="rough", deck_forecast=quick)
+        key = jax.random.PRNGKey(0)
+        episode = plain.draw_host(np.random.default_rng(0))[1]
+        state = jax.eval_shape(lambda e: plain.reset_from(e, key, ())[1], episode)
+        with pytest.raises(
+            TypeError, match=r"state\[1\]: not a state of these params \(this env's with deck_forecast\)"
+        ):
+            jax.eval_shape(lambda s: forecast.step(key, s, jax.numpy.zeros(4), ()), state)
+        with pytest.raises(TypeError, match="state must be"):
+            forecast.step(key, state[0], jax.numpy.zeros(4), ())
+    single = make_functional(ID, "float32", level="rough")
+    with jax.enable_x64(True):
+        with pytest.raises(ValueError, match=r"state\[0\]\..*float64.*expected float32"):
+            jax.eval_shape(lambda s: single.step(key, s, jax.numpy.zeros(4), ()), state)
