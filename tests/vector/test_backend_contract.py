@@ -209,10 +209,13 @@ def test_every_reset_of_the_jax_env_compiles_once(runs: dict[str, dict[str, Any]
     assert runs["jax"]["reset_traces"] == 1
 
 
-@pytest.mark.parametrize("env_id", LANDING_IDS)
-def test_the_info_keys_and_dtypes_without_compiling(env_id: str) -> None:
+@pytest.mark.parametrize(
+    ("env_id", "dtype"), [(i, "float64") for i in LANDING_IDS] + [(ihrcf_env.LANDING_V2_ID, "float32")]
+)
+def test_the_info_keys_and_dtypes_without_compiling(env_id: str, dtype: str) -> None:
     """The JAX env's info columns from the traced shapes of its reset and step (nothing compiled):
-    the PyBullet env's keys and dtypes at a reset and at a step without touchdown."""
+    the PyBullet env's keys and dtypes at a reset and at a step without touchdown, in either
+    ``dtype`` of the computation."""
     from ihrcf_env.vector.jax_env import _scatter_info
 
     env = _make(env_id, "pybullet")
@@ -221,9 +224,11 @@ def test_the_info_keys_and_dtypes_without_compiling(env_id: str) -> None:
         pb_step = env.step(np.zeros((N, 4)))[4]
     finally:
         env.close()
-    jenv = _make(env_id, "jax")
+    jenv = gym.make_vec(
+        env_id, num_envs=N, vectorization_mode="vector_entry_point", backend="jax", dtype=dtype
+    )
     fenv = jenv.fenv  # type: ignore[attr-defined]
-    with jax.enable_x64(True):
+    with jax.enable_x64(dtype == "float64"):
         episode = fenv.draw_host(np.random.default_rng(0))[1]
         key = jax.random.PRNGKey(0)
         shapes = jax.eval_shape(lambda e: fenv.reset_from_info(e, key, ()), episode)
