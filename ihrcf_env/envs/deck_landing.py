@@ -80,6 +80,7 @@ from ihrcf_env.core.profiles import MotionProfile
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.core.seeding import SeedStreams
 from ihrcf_env.envs.render import EnvRenderer
+from ihrcf_env.envs.vector_options import refuse_vector_options
 from ihrcf_env.sim.disturbances import Wind
 from ihrcf_env.sim.registry import SENSORS
 from ihrcf_env.sim.sensing import CAMERA_SENSORS, Snapshot
@@ -131,6 +132,7 @@ class DeckLandingEnv(gym.Env):
     def __init__(self, config: DeckLandingConfig | None = None, **options: Any) -> None:
         self._closed = True  # until the world exists
         if config is None:
+            refuse_vector_options(options)
             config = make_config(task=self.task_name, **{"raw": True, **options})
         elif options:
             raise TypeError(f"give either config or options, not both (got config and {sorted(options)})")

@@ -28,7 +28,6 @@ import numpy as np
 from ihrcf_env.control.policies import LANDING_CONFIGS, ScriptedLanding
 from ihrcf_env.core.metrics import wilson_interval
 from ihrcf_env.experiments.episode import run_episode
-from ihrcf_env.tasks import outcome_name
 
 __all__ = ["BackendOutcomes", "jax_outcomes", "main", "pybullet_outcomes"]
 
@@ -113,7 +112,7 @@ def jax_outcomes(level: str, seeds: Sequence[int], dtype: str = "float64") -> Ba
             obs, _, term, trunc, info = env.step(actions)
             for i in np.flatnonzero(term | trunc):
                 if result[i] is None:
-                    result[i] = outcome_name(int(info["outcome"][i])) if term[i] else "timeout"
+                    result[i] = str(info["outcome"][i]) if term[i] else "timeout"
             if all(r is not None for r in result):
                 break
         return BackendOutcomes("jax", tuple(r or "timeout" for r in result))

@@ -44,8 +44,13 @@ __all__ = [
     "DeckConsts",
     "StepParams",
     "ToFConsts",
+    "FLOAT_DTYPES",
+    "check_float_dtype",
     "make_params",
 ]
+
+#: The float types a step computes in.
+FLOAT_DTYPES = ("float32", "float64")
 
 #: Faults the step models (others are refused).
 SUPPORTED_FAULTS = ("camera_dropout", "tof_dead")
@@ -58,6 +63,9 @@ MIN_HEIGHT_RATIO = 0.5
 RAY_MARGIN_M = 0.002
 #: Tolerance (physics ticks) of the sample-clock arithmetic.
 TICK_EPS = 1e-6
+#: Longest episode (control steps) ``max_steps`` draws gusts for: every episode draw holds the
+#: gusts of ``max_steps`` steps (a few hundred bytes a step per env; later steps hold the last gust).
+MAX_STEPS = 100_000
 
 
 def _drone_reach(centres: np.ndarray, halves: np.ndarray) -> float:
@@ -185,6 +193,19 @@ def flat_observation(raw: Any, truth: Any) -> jax.Array:
     return jnp.concatenate(parts)
 
 
+def check_float_dtype(dtype: Any, name: str = "dtype") -> np.dtype:
+    """``dtype`` (float32 or float64 in any spelling numpy reads: ``jnp.float32``, ``np.float64``,
+    ``"float32"``) as a numpy dtype; TypeError naming ``name`` otherwise (float16, integers, bool,
+    None: numpy would read None as float64)."""
+    try:
+        dt = None if dtype is None or isinstance(dtype, bool) else np.dtype(dtype)
+    except TypeError:
+        dt = None
+    if dt is None or dt.name not in FLOAT_DTYPES:
+        raise TypeError(f"{name} must be float32 or float64 (e.g. jnp.float32, 'float64'), got {dtype!r}")
+    return dt
+
+
 def make_params(
     config: DeckLandingConfig,
     observe: Callable[..., Any] | None = None,
@@ -197,8 +218,12 @@ def make_params(
     ``dtype`` the float type of the state (float64 needs ``jax_enable_x64``); ``max_steps`` the
     longest episode (control steps) the wind's gusts are drawn for (later times hold the last
     gust). ValueError naming the option the step cannot honour."""
-    if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
-        raise ValueError(f"max_steps must be a positive int, got {max_steps!r}")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int) or not 1 <= max_steps <= MAX_STEPS:
+        raise ValueError(
+            f"max_steps must be an int in [1, {MAX_STEPS}] (control steps the gusts are drawn for), "
+            f"got {max_steps!r}"
+        )
+    dtype = check_float_dtype(dtype)
     if not isinstance(config, DeckLandingConfig):
         raise TypeError(f"config must be a DeckLandingConfig (ihrcf_env.make_config), got {config!r}")
     _refuse(config)

@@ -30,9 +30,11 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import Array, lax
 
 from ihrcf_env import tasks
+from ihrcf_env.core.seeding import SeedStreams
 from ihrcf_env.fast.advance import Flight, advance, angular_velocity_between
 from ihrcf_env.fast.autopilot import controller_reset
 from ihrcf_env.fast.deck_motion import (
@@ -47,7 +49,7 @@ from ihrcf_env.fast.deck_motion import (
     sum_of_sines,
 )
 from ihrcf_env.fast.dynamics import hover_state, matrix_from_quaternion, quaternion_from_matrix
-from ihrcf_env.fast.episode import Episode, draw_episode
+from ihrcf_env.fast.episode import Episode, draw_episode, host_episode
 from ihrcf_env.fast.frames import TICK_EPS, pipe_deliver, pipe_init, pipe_push
 from ihrcf_env.fast.imu import READ_DRAWS, ImuState, imu_read, imu_reset
 from ihrcf_env.fast.linalg3 import cross, matvec
@@ -59,6 +61,8 @@ from ihrcf_env.fast.state import EnvState, ReadDraws, StepDraws
 from ihrcf_env.fast.wind import WindEpisode, wind_episode, wind_force, wind_velocity
 
 __all__ = [
+    "INVALID_ACTION",
+    "INVALID_ACTION_NAME",
     "MAX_NAV_VELOCITY",
     "MAX_SENSOR_AGE",
     "StepInfo",
@@ -69,12 +73,19 @@ __all__ = [
     "step",
     "step_env",
     "step_with",
+    "state_spec",
 ]
 
 #: Upper bound (s) of ``camera_age`` (the env's).
 MAX_SENSOR_AGE = 10.0
 #: Bound (m/s) of ``nav_velocity`` (the env's).
 MAX_NAV_VELOCITY = 20.0
+#: The outcome code of a step given a non-finite action (NaN or inf): the step flies the zero
+#: command and the episode ends as a crash (after the codes of :data:`ihrcf_env.tasks.OUTCOME_NAMES`;
+#: ``tasks.is_crash`` holds for it). The Gymnasium fronts refuse such an action before stepping.
+INVALID_ACTION = len(tasks.OUTCOME_NAMES)
+#: The name of :data:`INVALID_ACTION`.
+INVALID_ACTION_NAME = "invalid_action"
 
 
 class StepInfo(NamedTuple):
@@ -106,6 +117,11 @@ def _check_params(params: Any) -> StepParams:
 
 
 def _check_key(key: Any, name: str = "key") -> Array:
+    if not isinstance(key, jax.Array | np.ndarray):
+        raise TypeError(
+            f"{name} must be a jax.random key (jax.random.key or PRNGKey), "
+            f"got {type(key).__name__} {key!r:.40}"
+        )
     k = jnp.asarray(key) if not isinstance(key, jax.Array) else key
     if jnp.issubdtype(k.dtype, jax.dtypes.prng_key):
         if k.shape != ():
@@ -117,18 +133,61 @@ def _check_key(key: Any, name: str = "key") -> Array:
     return k
 
 
-def _check_action(action: Any, p: StepParams) -> Array:
-    a = jnp.asarray(action)
+def _check_action(action: Any, p: StepParams) -> tuple[Array, Array]:
+    """The action clipped to [-1, 1] in the params' dtype, the zero command where it is not finite,
+    and whether it was finite (:data:`INVALID_ACTION`)."""
+    if not isinstance(action, jax.Array | np.ndarray | np.number | list | tuple | int | float) or isinstance(
+        action, bool
+    ):
+        raise TypeError(f"action must be 4 real numbers (shape (4,)), got {type(action).__name__}")
+    a = jnp.asarray(action) if not isinstance(action, jax.Array) else action
     if a.shape != (4,):
         raise ValueError(f"action must have shape (4,) per env, got {a.shape}")
     if not jnp.issubdtype(a.dtype, jnp.floating) and not jnp.issubdtype(a.dtype, jnp.integer):
         raise TypeError(f"action must be real numbers, got dtype {a.dtype}")
-    return jnp.clip(a.astype(p.dtype), -1.0, 1.0)
+    a = a.astype(p.dtype)
+    finite = jnp.all(jnp.isfinite(a))
+    return jnp.where(finite, jnp.clip(a, -1.0, 1.0), jnp.zeros_like(a)), finite
 
 
-def _check_state(state: Any) -> EnvState:
+def state_spec(params: StepParams) -> EnvState:
+    """The shapes and dtypes (``jax.ShapeDtypeStruct`` leaves) of a state of ``params`` in the
+    current x64 mode (traced once per params and mode, nothing computed)."""
+    p = _check_params(params)
+    x64 = jax.dtypes.canonicalize_dtype(np.float64) == np.float64
+    cache: dict[bool, EnvState] = p.__dict__.setdefault("_state_specs", {})
+    if x64 not in cache:
+        # a host-drawn episode: every deck profile has one (the sea state is drawn on the host only)
+        with jax.ensure_compile_time_eval():  # numbers, also when called while tracing
+            episode = host_episode(p, SeedStreams.from_generator(np.random.default_rng(0)))
+        cache[x64] = jax.eval_shape(lambda e, k: reset_from(e, k, p)[1], episode, jax.random.PRNGKey(0))
+    return cache[x64]
+
+
+def _path_text(path: Any) -> str:
+    return "".join(f".{k.name}" if hasattr(k, "name") else f"[{getattr(k, 'idx', k)}]" for k in path)
+
+
+def check_tree(name: str, value: Any, spec: Any, hint: str = "") -> None:
+    """TypeError / ValueError naming ``name`` (and the field) when ``value``'s structure, shapes or
+    dtypes differ from ``spec``'s (a pytree of ``ShapeDtypeStruct``; checked at trace time)."""
+    want = jax.tree_util.tree_structure(spec)
+    got = jax.tree_util.tree_structure(value)
+    if str(got) != str(want):
+        raise TypeError(f"{name}: not a state of these params{hint} (its structure differs: {got} != {want})")
+    leaves = jax.tree_util.tree_leaves_with_path(value)
+    for (path, leaf), ref in zip(leaves, jax.tree_util.tree_leaves(spec), strict=True):
+        shape, dtype = jnp.shape(leaf), jnp.result_type(leaf)
+        if shape != ref.shape or dtype != ref.dtype:
+            raise ValueError(
+                f"{name}{_path_text(path)}: {dtype}{list(shape)}, expected {ref.dtype}{list(ref.shape)}{hint}"
+            )
+
+
+def _check_state(state: Any, p: StepParams) -> EnvState:
     if not isinstance(state, EnvState):
         raise TypeError(f"state must be an EnvState (from reset), got {type(state).__name__}")
+    check_tree("state", state, state_spec(p), f" (the params' dtype is {np.dtype(p.dtype).name})")
     return state
 
 
@@ -458,8 +517,8 @@ def step_with(
 ) -> tuple[Any, EnvState, Array, Array, StepInfo]:
     """One control step with its noise given: (obs, state, reward, done, info)."""
     p = _check_params(params)
-    st = _check_state(state)
-    a = _check_action(action, p)
+    st = _check_state(state, p)
+    a, finite = _check_action(action, p)
     dtype, S, dt = p.dtype, p.substeps, p.dt
     ep = st.episode
     setpoint = a * jnp.asarray(p.max_velocity, dtype)
@@ -570,6 +629,7 @@ def step_with(
     offset = tasks.tag_offset(s)
     radius = goal.success_radius if goal is not None else None
     code = tasks.classify(s, td, task.thresholds, task.arena, radius, offset)
+    code = jnp.where(finite, code, INVALID_ACTION)
     terms: Any
     if goal is not None:
         terms, phi = tasks.landing_reward(

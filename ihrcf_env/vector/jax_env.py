@@ -17,11 +17,18 @@ continue that generator), so a seed gives the same episode on both backends; ``s
 draws them inside the compiled step from the env's JAX key (the same distributions, no host work,
 no pairing). The per-step sensor noise always comes from each env's JAX key (derived from its
 episode key: deterministic for a seed, independent of ``num_envs``).
+
+``info`` is the PyBullet vector env's: a functional env with ``reset_from_info`` gives the reset's
+info, and its ``host_info`` turns the compiled arrays into the PyBullet env's columns (strings,
+float64); an env reset by a step (next-step autoreset) shows its reset's info in that step, as the
+PyBullet vector env does. Every reset (the first, a full one, a masked one, an autoreset) runs one
+compiled function: on a block of :data:`RESET_ROWS` rows when that many or fewer are reset, on all
+``num_envs`` rows otherwise (one compilation when ``num_envs <= RESET_ROWS``).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Any, Protocol
 
 import gymnasium as gym
@@ -41,10 +48,12 @@ from ihrcf_env.vector.checks import (
     time_limit,
 )
 
-__all__ = ["MAX_JAX_ENVS", "SEEDINGS", "FunctionalEnv", "JaxVectorEnv", "bucket"]
+__all__ = ["MAX_JAX_ENVS", "RESET_ROWS", "SEEDINGS", "FunctionalEnv", "JaxVectorEnv", "reset_size"]
 
 #: Most envs of one JAX vector env.
 MAX_JAX_ENVS = 65536
+#: Rows of the block a reset of few envs runs on (more: all ``num_envs`` rows).
+RESET_ROWS = 16
 #: The ways a JAX vector env draws its episodes (module docstring).
 SEEDINGS = ("paired", "jax")
 
@@ -58,7 +67,10 @@ class FunctionalEnv(Protocol):
     PyBullet env draws it; ``draw(key, params)`` draws one in JAX; ``reset_from(episode, key,
     params) -> (obs, state)``; ``step(key, state, action, params) -> (obs, state, reward,
     terminated, info)`` with ``info`` a dict of arrays. ``episode_key(rng)`` is the integer key of
-    the episode ``draw_host`` would draw next (the JAX noise key derives from it)."""
+    the episode ``draw_host`` would draw next (the JAX noise key derives from it). Optional:
+    ``reset_from_info(episode, key, params) -> (obs, state, info)`` (the reset's info) and
+    ``host_info(info) -> dict`` (the vector info's columns of rows of the compiled info; a
+    ``_key`` entry narrows the rows of ``key``)."""
 
     @property
     def params(self) -> Any: ...
@@ -78,10 +90,12 @@ class FunctionalEnv(Protocol):
     def step(self, key: Any, state: Any, action: Any, params: Any) -> tuple[Any, Any, Any, Any, Any]: ...
 
 
-def bucket(n: int) -> int:
-    """The padded batch size of ``n`` rows reset at once: the next power of two (so that a few
-    compiled reset functions serve any count)."""
-    return 1 << max(0, int(n) - 1).bit_length()
+def reset_size(rows: int, num_envs: int) -> int:
+    """The padded row count of a reset of ``rows`` envs of ``num_envs``: a block of
+    :data:`RESET_ROWS` (at most ``num_envs``) or all rows, so that one or two compiled shapes serve
+    every reset."""
+    block = min(RESET_ROWS, num_envs)
+    return block if rows <= block else num_envs
 
 
 class JaxVectorEnv(VectorEnv):
@@ -138,8 +152,9 @@ class JaxVectorEnv(VectorEnv):
         with jax.enable_x64(self._x64):
             self._params = jax.tree_util.tree_map(jax.numpy.asarray, params)
         self._step_fn = jax.jit(self._batched_step)
-        self._reset_fns: dict[int, Callable[..., Any]] = {}
-        self._draw_fn = jax.jit(jax.vmap(fenv.draw, in_axes=(0, None)))
+        self._reset_fn = jax.jit(self._reset_rows_fn)
+        #: how often the reset was traced (each trace is a compilation)
+        self.reset_traces = 0
 
     # -- compiled pieces -------------------------------------------------------------------
     def _batched_step(self, state: Any, keys: Any, actions: Any, stepping: Any, params: Any) -> Any:
@@ -164,42 +179,62 @@ class JaxVectorEnv(VectorEnv):
         keys = jnp.where(stepping[:, None], new_keys, keys)
         return obs, state, reward, terminated, info, keys
 
-    def _reset_fn(self, size: int) -> Callable[..., Any]:
-        """The compiled reset of ``size`` rows (episodes given, or drawn in JAX) scattered into
-        the batch state at ``rows`` (rows = num_envs: padding, dropped)."""
-        fn = self._reset_fns.get(size)
-        if fn is not None:
-            return fn
+    def _reset_one(self, episode: Any, key: Any, params: Any) -> tuple[Any, Any, Any]:
+        """(obs, state, info) of one env's new episode."""
+        with_info = getattr(self.fenv, "reset_from_info", None)
+        if with_info is not None:
+            return with_info(episode, key, params)
+        obs, state = self.fenv.reset_from(episode, key, params)
+        return obs, state, {}
+
+    def _reset_rows_fn(
+        self, state: Any, keys: Any, obs: Any, rows: Any, episodes: Any, row_keys: Any, params: Any
+    ) -> Any:
+        """The reset of the rows ``rows`` (episodes given, or drawn in JAX when None) scattered into
+        the batch ``state``, ``keys`` and ``obs`` (a row ``num_envs``: padding, dropped); also the
+        reset rows' info (unscattered)."""
         import jax
 
+        self.reset_traces += 1  # a Python side effect: runs once per trace
         fenv = self.fenv
-
-        def reset_rows(
-            state: Any, keys: Any, obs: Any, rows: Any, episodes: Any, row_keys: Any, params: Any
-        ) -> Any:
-            if episodes is None:
-                split = jax.vmap(jax.random.split)(row_keys)
-                row_keys, draw_keys = split[:, 0], split[:, 1]
-                episodes = jax.vmap(fenv.draw, in_axes=(0, None))(draw_keys, params)
+        if episodes is None:
             split = jax.vmap(jax.random.split)(row_keys)
-            row_keys, reset_keys = split[:, 0], split[:, 1]
-            new_obs, new_state = jax.vmap(fenv.reset_from, in_axes=(0, 0, None))(episodes, reset_keys, params)
+            row_keys, draw_keys = split[:, 0], split[:, 1]
+            episodes = jax.vmap(fenv.draw, in_axes=(0, None))(draw_keys, params)
+        split = jax.vmap(jax.random.split)(row_keys)
+        row_keys, reset_keys = split[:, 0], split[:, 1]
+        reset_all = jax.vmap(self._reset_one, in_axes=(0, 0, None))
+        new_obs, new_state, info = reset_all(episodes, reset_keys, params)
 
-            def put(batch: Any, rows_value: Any) -> Any:
-                return batch.at[rows].set(rows_value, mode="drop")
+        def put(batch: Any, rows_value: Any) -> Any:
+            return batch.at[rows].set(rows_value.astype(batch.dtype), mode="drop")
 
-            if state is None:
-                state = new_state
-                obs = new_obs
-            else:
-                state = jax.tree_util.tree_map(put, state, new_state)
-                obs = put(obs, new_obs)
-            keys = put(keys, row_keys) if keys is not None else row_keys
-            return state, keys, obs
+        state = jax.tree_util.tree_map(put, state, new_state)
+        return state, put(keys, row_keys), put(obs, new_obs), info
 
-        fn = jax.jit(reset_rows)
-        self._reset_fns[size] = fn
-        return fn
+    def _empty_batch(self, episodes: Any, row_keys: Any) -> tuple[Any, Any, Any]:
+        """Zero arrays of the batch state, keys and observations (the rows before their first
+        reset), shaped by tracing the reset (nothing is compiled)."""
+        import jax
+        import jax.numpy as jnp
+
+        def first(episode: Any, key: Any) -> Any:
+            obs, state, _ = self._reset_one(episode, key, self._params)
+            return obs, state
+
+        one = jax.tree_util.tree_map(lambda a: a[0], (episodes, row_keys)) if episodes is not None else None
+        if one is None:
+            k = row_keys[0]
+            shapes = jax.eval_shape(lambda k: first(self.fenv.draw(k, self._params), k), k)
+        else:
+            shapes = jax.eval_shape(first, *one)
+        n = self.num_envs
+
+        def zeros(s: Any) -> Any:
+            return jnp.zeros((n, *s.shape), s.dtype)
+
+        obs, state = jax.tree_util.tree_map(zeros, shapes)
+        return state, jnp.zeros((n, *row_keys.shape[1:]), row_keys.dtype), obs
 
     # -- reset -------------------------------------------------------------------------------
     def reset(
@@ -218,17 +253,18 @@ class JaxVectorEnv(VectorEnv):
         for i in rows:
             if seeds[i] is not None or self._state is None:
                 self._rngs[i] = gym_seeding.np_random(seeds[i])[0]
-        self._reset_rows(rows)
+        info = self._reset_rows(rows)
         assert self._obs is not None
-        return self._obs.copy(), self._info_rows({}, rows)
+        return self._obs.copy(), _scatter_info(self.num_envs, (rows, info))
 
-    def _reset_rows(self, rows: NDArray[np.intp]) -> None:
-        """New episodes for ``rows`` (their step counters and pending autoresets cleared)."""
+    def _reset_rows(self, rows: NDArray[np.intp]) -> dict[str, Any]:
+        """New episodes for ``rows`` (their step counters and pending autoresets cleared); the
+        reset rows' info columns (one row per entry of ``rows``)."""
         import jax
         import jax.numpy as jnp
 
         n = self.num_envs
-        size = n if self._state is None else bucket(rows.size)
+        size = reset_size(rows.size, n)
         padded = np.full(size, n, dtype=np.int32)
         padded[: rows.size] = rows
         episode_keys = np.zeros(size, dtype=np.uint64)
@@ -246,20 +282,22 @@ class JaxVectorEnv(VectorEnv):
                 jnp.asarray((episode_keys >> np.uint64(32)).astype(np.uint32)),
                 jnp.asarray((episode_keys & np.uint64(0xFFFFFFFF)).astype(np.uint32)),
             )
-            fn = self._reset_fn(size)
-            first = self._state is None
-            self._state, self._keys, obs = fn(
-                self._state,
-                self._keys,
-                None if first else jnp.asarray(self._obs),
-                None if first else jnp.asarray(padded),
-                episodes,
-                row_keys,
-                self._params,
+            if self._state is None:
+                self._state, self._keys, obs = self._empty_batch(episodes, row_keys)
+            else:
+                obs = jnp.asarray(self._obs)
+            self._state, self._keys, obs, info = self._reset_fn(
+                self._state, self._keys, obs, jnp.asarray(padded), episodes, row_keys, self._params
             )
         self._obs = np.asarray(obs)
         self._elapsed[rows] = 0
         self._autoreset[rows] = False
+        return self._host_info(jax.tree_util.tree_map(lambda a: np.asarray(a)[: rows.size], info))
+
+    def _host_info(self, info: dict[str, Any]) -> dict[str, Any]:
+        """The functional env's ``host_info`` of rows of compiled info (numpy arrays)."""
+        host = getattr(self.fenv, "host_info", None)
+        return host(info) if host is not None else info
 
     # -- step ---------------------------------------------------------------------------------
     def step(self, actions: Any) -> StepReturn:
@@ -274,8 +312,7 @@ class JaxVectorEnv(VectorEnv):
             raise gym.error.ResetNeeded("step: reset the vector env first")
         n = self.num_envs
         reset_rows = np.flatnonzero(self._autoreset)
-        if reset_rows.size:
-            self._reset_rows(reset_rows)
+        reset_info = self._reset_rows(reset_rows) if reset_rows.size else {}
         stepping = ~np.isin(np.arange(n), reset_rows)
         with jax.enable_x64(self._x64):
             dt = jnp.float64 if self._x64 else jnp.float32
@@ -290,41 +327,32 @@ class JaxVectorEnv(VectorEnv):
         trunc = stepping & ~term & (limit is not None) & (self._elapsed >= (limit or 0))
         assert self._obs is not None
         out_obs = np.where(stepping.reshape((-1,) + (1,) * (obs_np.ndim - 1)), obs_np, self._obs)
-        step_info = _to_numpy(info)
-        infos = self._info_rows(step_info, np.flatnonzero(stepping))
         ended = np.flatnonzero(term | trunc)
         self._obs = out_obs
+        info_np = _to_numpy(info)
         if self.autoreset_mode == AutoresetMode.SAME_STEP and ended.size:
             final_obs = out_obs[ended].copy()
             done = np.zeros(n, dtype=bool)
             done[ended] = True
-            final_info = _mask_rows(infos, done)
-            self._reset_rows(ended)
+            going = np.flatnonzero(stepping & ~done)
+            final_info = _scatter_info(n, (ended, self._host_info(_take(info_np, ended))))
+            new_info = self._reset_rows(ended)
             out_obs = self._obs.copy()
             fo = np.full(n, None, dtype=object)
             for j, i in enumerate(ended):
                 fo[i] = final_obs[j]
-            infos = {
-                **infos,
-                "final_obs": fo,
-                "_final_obs": done,
-                "final_info": final_info,
-                "_final_info": done,
-            }
+            infos = _scatter_info(
+                n,
+                (going, self._host_info(_take(info_np, going))),
+                (reset_rows, reset_info),
+                (ended, new_info),
+            )
+            infos.update(final_obs=fo, _final_obs=done, final_info=final_info, _final_info=done.copy())
         else:
+            rows = np.flatnonzero(stepping)
+            infos = _scatter_info(n, (rows, self._host_info(_take(info_np, rows))), (reset_rows, reset_info))
             self._autoreset = term | trunc
         return out_obs.copy(), rewards, term, trunc, infos
-
-    def _info_rows(self, step_info: dict[str, NDArray[Any]], rows: NDArray[np.intp]) -> dict[str, Any]:
-        """The vector ``info``: each key of the step's info, marked for ``rows``."""
-        n = self.num_envs
-        mask = np.zeros(n, dtype=bool)
-        mask[rows] = True
-        out: dict[str, Any] = {}
-        for key, value in step_info.items():
-            out[key] = self._info_rows(value, rows) if isinstance(value, dict) else value
-            out[f"_{key}"] = mask.copy()
-        return out
 
     # -- closing ------------------------------------------------------------------------------
     def close_extras(self, **kwargs: Any) -> None:
@@ -338,16 +366,55 @@ class JaxVectorEnv(VectorEnv):
 
 
 def _to_numpy(info: Any) -> Any:
-    """``info`` (a dict of arrays, possibly nested) with numpy arrays."""
-    return {k: _to_numpy(v) if isinstance(v, dict) else np.asarray(v) for k, v in info.items()}
+    """``info`` (a dict of arrays or NamedTuples of arrays, possibly nested) with numpy arrays."""
+    import jax
+
+    return jax.tree_util.tree_map(np.asarray, info)
 
 
-def _mask_rows(infos: dict[str, Any], rows: NDArray[np.bool_]) -> dict[str, Any]:
-    """A vector ``info`` whose masks (``_key``, at every level) are and-ed with ``rows``."""
-    return {
-        k: _mask_rows(v, rows) if isinstance(v, dict) else (v & rows if k.startswith("_") else v)
-        for k, v in infos.items()
-    }
+def _take(info: Any, rows: NDArray[Any]) -> Any:
+    """The rows ``rows`` (indices or a bool mask) of every array of ``info``."""
+    import jax
+
+    return jax.tree_util.tree_map(lambda a: np.asarray(a)[rows], info)
+
+
+def _scatter_info(n: int, *parts: tuple[NDArray[np.intp], dict[str, Any]]) -> dict[str, Any]:
+    """The vector ``info`` of ``n`` envs from ``parts``, each (rows, columns): ``columns[key]`` holds
+    one entry per row of ``rows`` (a nested dict: a nested info), ``columns["_" + key]`` (optional,
+    a bool per row) the rows that have ``key``. As Gymnasium's vector envs give it (and
+    :func:`~ihrcf_env.vector.info.stack_infos`): each key an array over the envs (zeros, or None in
+    an object array, where absent) and its ``_key`` mask."""
+    order: list[str] = []
+    for _, cols in parts:
+        order += [k for k in cols if not k.startswith("_") and k not in order]
+    out: dict[str, Any] = {}
+    for key in order:
+        pieces = []
+        for rows, cols in parts:
+            if key not in cols:
+                continue
+            value, have = cols[key], cols.get(f"_{key}")
+            if have is not None:
+                rows, value = rows[have], _take(value, have)
+            pieces.append((rows, value))
+        mask = np.zeros(n, dtype=bool)
+        for rows, _ in pieces:
+            mask[rows] = True
+        first = pieces[0][1]
+        if isinstance(first, dict):
+            out[key] = _scatter_info(n, *pieces)
+        else:
+            first = np.asarray(first)
+            if first.dtype == object:
+                column = np.full(n, None, dtype=object)
+            else:
+                column = np.zeros((n, *first.shape[1:]), dtype=first.dtype)
+            for rows, value in pieces:
+                column[rows] = value
+            out[key] = column
+        out[f"_{key}"] = mask
+    return out
 
 
 def _key_of(hi: Any, lo: Any) -> Any:

@@ -5,7 +5,8 @@
 :func:`make_jax_vector_env` puts the Gymnasium vector env front on it. The backend has one camera,
 the projected one with corner output (:data:`JAX_DEFAULTS`); options it cannot honour (the rendered
 camera, user sensors, estimators, noise models, faults or disturbances) raise ValueError naming
-them before anything is compiled.
+them before anything is compiled, as do the options no vector env takes (``render_mode``) and a
+step limit whose episode draws would not fit in memory (:data:`MAX_DRAW_BYTES`).
 """
 
 from __future__ import annotations
@@ -15,15 +16,43 @@ from typing import Any
 from gymnasium.vector import AutoresetMode
 
 from ihrcf_env.config.make import make_config
-from ihrcf_env.vector.checks import time_limit
-from ihrcf_env.vector.jax_env import JaxVectorEnv
+from ihrcf_env.core.checks import check_int
+from ihrcf_env.vector.checks import check_options, time_limit
+from ihrcf_env.vector.jax_env import MAX_JAX_ENVS, JaxVectorEnv
 
-__all__ = ["BACKENDS", "JAX_DEFAULTS", "make_functional", "make_jax_vector_env"]
+__all__ = [
+    "BACKENDS",
+    "JAX_DEFAULTS",
+    "MAX_DRAW_BYTES",
+    "check_episode_steps",
+    "make_functional",
+    "make_jax_vector_env",
+]
 
 #: The vector envs' backends.
 BACKENDS = ("pybullet", "jax")
 #: The camera of the JAX backend (the defaults it puts before the user's options).
 JAX_DEFAULTS: dict[str, Any] = {"camera_model": "projected", "camera_output": "corners"}
+#: Most bytes of the episode draws of all envs (each episode holds its gusts for the whole step
+#: limit: three floats a control step).
+MAX_DRAW_BYTES = 2**31
+
+
+def check_episode_steps(max_episode_steps: int, num_envs: int, dtype: str) -> int:
+    """``max_episode_steps`` checked against what the JAX backend draws per episode: at most
+    :data:`~ihrcf_env.fast.params.MAX_STEPS`, and the gusts of all ``num_envs`` episodes within
+    :data:`MAX_DRAW_BYTES`; ValueError naming it, with the bound, otherwise."""
+    from ihrcf_env.fast.params import MAX_STEPS
+
+    per_step = 3 * (8 if dtype == "float64" else 4) * num_envs
+    bound = min(MAX_STEPS, MAX_DRAW_BYTES // per_step)
+    if max_episode_steps > bound:
+        raise ValueError(
+            f"max_episode_steps={max_episode_steps}: the JAX backend draws each episode's gusts for "
+            f"the whole step limit ({per_step // num_envs} bytes a step per env), so with "
+            f"num_envs={num_envs} in {dtype} it takes at most {bound} steps (-1: no limit)"
+        )
+    return max_episode_steps
 
 
 def _task_of(env_id: str) -> str:
@@ -64,7 +93,13 @@ def make_jax_vector_env(
 ) -> JaxVectorEnv:
     """The JAX vector env of ``num_envs`` episodes of ``env_id`` (module docstring). It carries the
     functional env's ``config``, ``obs_slices`` and ``obs_scales``."""
+    check_options(options)
+    n = check_int("num_envs", num_envs, low=1, high=MAX_JAX_ENVS)
+    if dtype not in ("float64", "float32"):
+        raise ValueError(f"dtype must be 'float64' or 'float32', got {dtype!r}")
     limit = time_limit(env_id, max_episode_steps)
+    if limit is not None:
+        check_episode_steps(limit, n, dtype)
     fenv = make_functional(env_id, dtype, max_steps=limit or 600, **options)
     env = JaxVectorEnv(env_id, fenv, num_envs, autoreset_mode, max_episode_steps, seeding, dtype)
     env.config = fenv.config  # type: ignore[attr-defined]

@@ -65,6 +65,7 @@ from ihrcf_env.core.estimators import (
     check_estimator_names,
 )
 from ihrcf_env.core.forecast import ForecastOptions
+from ihrcf_env.envs.vector_options import refuse_vector_options
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
 from ihrcf_env.wrappers.forecast_feed import FORECAST, ForecastFeed
 from ihrcf_env.wrappers.layout import Block, Field, Layout, build_layout
@@ -394,6 +395,7 @@ def make_deck_hover(**options: Any) -> gym.Env:
     before the env is built; if the wrapper still fails, the env is closed before the error
     propagates. Without the image in the observation (``keep_image=False`` or ``flatten=True``)
     the rendered camera renders only the tag's window (``camera_output="corners"``, unless given)."""
+    refuse_vector_options(options)
     config = make_config(task="hover", **options)
     from ihrcf_env.envs.deck_landing import DeckLandingEnv
 

@@ -84,6 +84,7 @@ from ihrcf_env.core.landing_layout import (
     sensor_fields,
 )
 from ihrcf_env.core.landing_layout import landing_blocks as core_landing_blocks
+from ihrcf_env.envs.vector_options import refuse_vector_options
 from ihrcf_env.wrappers.estimates import GROUND_TRUTH, base_config
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
 from ihrcf_env.wrappers.forecast_feed import FORECAST, ForecastFeed, forecast_fields
@@ -370,6 +371,7 @@ def make_landing(task: str, config: DeckLandingConfig | None = None, **options: 
     rendered camera renders only the tag's window (``camera_output="corners"`` unless given).
     Everything is checked before any physics client exists; a failed wrapper closes the env."""
     if config is None:
+        refuse_vector_options(options)
         config = make_config(task=task, **options)
     else:
         _check_resolved(task, config, options)

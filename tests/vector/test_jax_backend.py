@@ -90,3 +90,53 @@ def test_the_deck_forecast_block_and_info() -> None:
     finally:
         env.close()
         ref.close()
+
+
+@pytest.mark.parametrize("mode", ["human", "rgb_array", "anything"])
+def test_render_mode_is_refused_as_on_the_pybullet_vector_env(mode: str) -> None:
+    with pytest.raises(ValueError, match="render_mode: not supported by the vector env"):
+        make(backend="jax", render_mode=mode)
+    with pytest.raises(ValueError, match="render_mode: not supported by the vector env"):
+        make(render_mode=mode)
+
+
+def test_max_episode_steps_is_bounded_by_the_episode_draws() -> None:
+    with pytest.raises(ValueError, match=r"max_episode_steps=1000000000000: .* at most 100000 steps"):
+        make(backend="jax", max_episode_steps=10**12)
+    # the gusts of all envs within MAX_DRAW_BYTES: fewer steps for more envs
+    with pytest.raises(
+        ValueError, match=r"max_episode_steps=20000: .*num_envs=65536 in float32 .* at most 2730 steps"
+    ):
+        make(65536, backend="jax", max_episode_steps=20_000, dtype="float32")
+
+
+@pytest.mark.parametrize("mode", ["sync", "async"])
+def test_backend_needs_the_vector_entry_point(mode: str) -> None:
+    with pytest.raises(ValueError, match='backend=.jax.: .*vectorization_mode="vector_entry_point"'):
+        gym.make_vec(ID, num_envs=2, vectorization_mode=mode, backend="jax")
+    with pytest.raises(ValueError, match="seeding=.paired.: an option of the native vector env only"):
+        gym.make(ID, seeding="paired")
+
+
+def test_a_state_of_another_env_is_named_at_trace_time() -> None:
+    """A state of an env without the forecast stepped in one with ``deck_forecast`` (a bare
+    AssertionError inside JAX before), and a float32 state in a float64 env: named, not compiled."""
+    from ihrcf_env.vector.jax_make import make_functional
+
+    quick = {"window": 8.0, "min_span": 4.0, "order": 8, "horizons": (0.5, 1.0)}
+    with jax.enable_x64(True):
+        plain = make_functional(ID, "float64", level="rough")
+        forecast = make_functional(ID, "float64", level="rough", deck_forecast=quick)
+        key = jax.random.PRNGKey(0)
+        episode = plain.draw_host(np.random.default_rng(0))[1]
+        state = jax.eval_shape(lambda e: plain.reset_from(e, key, ())[1], episode)
+        with pytest.raises(
+            TypeError, match=r"state\[1\]: not a state of these params \(this env's with deck_forecast\)"
+        ):
+            jax.eval_shape(lambda s: forecast.step(key, s, jax.numpy.zeros(4), ()), state)
+        with pytest.raises(TypeError, match="state must be"):
+            forecast.step(key, state[0], jax.numpy.zeros(4), ())
+    single = make_functional(ID, "float32", level="rough")
+    with jax.enable_x64(True):
+        with pytest.raises(ValueError, match=r"state\[0\]\..*float64.*expected float32"):
+            jax.eval_shape(lambda s: single.step(key, s, jax.numpy.zeros(4), ()), state)

@@ -14,7 +14,7 @@ jnp = jax.numpy
 
 from functional_toy import Drop  # noqa: E402
 
-from ihrcf_env.vector.jax_env import JaxVectorEnv, bucket  # noqa: E402
+from ihrcf_env.vector.jax_env import RESET_ROWS, JaxVectorEnv, reset_size  # noqa: E402
 
 ID = "ihrcf_env/DeckLanding-v2"  # for its spec only (the step limit is overridden)
 
@@ -120,11 +120,27 @@ def test_bad_input_is_named() -> None:
         env.step(np.zeros((2, 1)))
 
 
-def test_resets_compile_per_bucket_only() -> None:
-    assert [bucket(k) for k in (1, 2, 3, 5, 8, 9)] == [1, 2, 4, 8, 8, 16]
-    env = make(8, max_episode_steps=1)
+def test_every_reset_shares_one_compiled_function() -> None:
+    """The first reset, a masked reset, a later full reset and the autoresets: one trace (one
+    compilation) of the reset when num_envs <= RESET_ROWS; the step traces once."""
+    assert [reset_size(k, 4) for k in (1, 3, 4)] == [4, 4, 4]
+    assert [reset_size(k, 64) for k in (1, RESET_ROWS, RESET_ROWS + 1, 64)] == [16, 16, 64, 64]
+    env = make(4, max_episode_steps=2)
     env.reset(seed=0)
-    for _ in range(6):
-        env.step(np.zeros((8, 1)))
-    assert set(env._reset_fns) <= {8}
+    env.step(np.zeros((4, 1)))
+    env.reset(options={"reset_mask": np.array([False, True, False, False])})
+    env.reset(seed=5)
+    for _ in range(5):  # autoresets of every env
+        env.step(np.zeros((4, 1)))
+    assert env.reset_traces == 1
+    assert env._reset_fn._cache_size() == 1  # type: ignore[attr-defined]
     assert env._step_fn._cache_size() == 1  # type: ignore[attr-defined]
+
+
+def test_many_envs_reset_in_two_shapes_at_most() -> None:
+    env = make(RESET_ROWS + 4, max_episode_steps=1)
+    env.reset(seed=0)
+    env.reset(options={"reset_mask": np.arange(RESET_ROWS + 4) < 3})
+    for _ in range(3):
+        env.step(np.zeros((RESET_ROWS + 4, 1)))
+    assert env.reset_traces == 2  # a block of RESET_ROWS rows and all rows
