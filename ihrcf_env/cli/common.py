@@ -113,6 +113,12 @@ def check_output(ap: argparse.ArgumentParser, option: str, path: str | Path) -> 
     return out
 
 
+def interrupted(name: str) -> int:
+    """Report a Ctrl-C of ``ihrcf-<name>`` with one line on stderr; :data:`EXIT_INTERRUPTED`."""
+    print(f"\nihrcf-{name}: interrupted", file=sys.stderr, flush=True)
+    return EXIT_INTERRUPTED
+
+
 def command_main(name: str) -> Callable[[Callable[..., int]], Callable[..., int]]:
     """Decorate the ``main(argv)`` of the command ``ihrcf-<name>``: Ctrl-C (KeyboardInterrupt)
     ends it with a one-line message on stderr and the exit status :data:`EXIT_INTERRUPTED`, no
@@ -124,8 +130,7 @@ def command_main(name: str) -> Callable[[Callable[..., int]], Callable[..., int]
             try:
                 return main(argv)
             except KeyboardInterrupt:
-                print(f"\nihrcf-{name}: interrupted", file=sys.stderr, flush=True)
-                return EXIT_INTERRUPTED
+                return interrupted(name)
 
         return run
 
@@ -169,6 +174,7 @@ __all__ = [
     "HelpFormatter",
     "check_output",
     "int_in",
+    "interrupted",
     "make_parser",
     "seed_type",
     "write_whole",
