@@ -9,6 +9,7 @@ import socket
 import stat
 import sys
 import tempfile
+import warnings
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import SimpleNamespace
@@ -217,7 +218,8 @@ class RecordEpisode(gym.Wrapper, gym.utils.RecordConstructorArgs):
         path: the ``.rrd`` file of each episode (a str or os.PathLike); ``{seed}`` and ``{episode}``
             (0-based count) in it are filled in at each reset; an unseeded reset fills ``{seed}``
             with ``none``, so a format spec (``{seed:05d}``) is refused here. A path without them
-            is overwritten by each episode: only the last one is kept. An existing file is
+            is overwritten by each episode: only the last one is kept (a UserWarning says so the
+            first time). An existing file is
             replaced only if its name ends in ``.rrd``. None with ``spawn=True``.
         spawn: send each episode to a Rerun viewer (started if none runs) instead of a file.
         keep: a callable given an episode's last ``info`` that returns whether to write it (a
@@ -262,6 +264,7 @@ class RecordEpisode(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.keep = keep
         self.application_id = str(application_id)
         self.written: list[Path] = []
+        self._warned_overwrite = False
         self._template = None if path is None else os.fspath(path)
         self._log: EpisodeLog | None = None
         self._info: Mapping[str, Any] = {}
@@ -359,6 +362,14 @@ class RecordEpisode(gym.Wrapper, gym.utils.RecordConstructorArgs):
             return
         out = self._path_of(self._episode, self._seed)
         _check_existing(out)  # checked again: the file may have appeared since the reset
+        if out in self.written and not self._warned_overwrite:
+            self._warned_overwrite = True
+            warnings.warn(
+                f"recording path {str(out)!r}: episode {self._episode} replaces an earlier episode's "
+                "recording (put {episode} or {seed} in the path to keep each one)",
+                UserWarning,
+                stacklevel=3,
+            )
         target = Path(os.path.realpath(out))  # a symbolic link to a recording stays a link
         try:
             target.parent.mkdir(parents=True, exist_ok=True)

@@ -156,11 +156,13 @@ def test_bad_path_and_keep_are_named(tmp_path: Path) -> None:
 
 
 def test_a_fixed_path_keeps_the_last_episode(tmp_path: Path) -> None:
-    """Documented: a path without ``{seed}``/``{episode}`` is overwritten by each episode."""
+    """A path without ``{seed}``/``{episode}`` is overwritten by each episode: documented, and a
+    warning the first time it happens."""
     assert "overwritten by each episode" in (RecordEpisode.__doc__ or "")
     env = RecordEpisode(_env(), tmp_path / "x.rrd")
     _fly(env, seed=1)
-    _fly(env, seed=2)
+    with pytest.warns(UserWarning, match=r"replaces an earlier episode's recording"):
+        _fly(env, seed=2)
     env.close()
     assert env.written == [tmp_path / "x.rrd"] * 2 and [p.name for p in tmp_path.iterdir()] == ["x.rrd"]
 
