@@ -219,8 +219,8 @@ class RecordEpisode(gym.Wrapper, gym.utils.RecordConstructorArgs):
             (0-based count) in it are filled in at each reset; an unseeded reset fills ``{seed}``
             with ``none``, so a format spec (``{seed:05d}``) is refused here. A path without them
             is overwritten by each episode: only the last one is kept (a UserWarning says so the
-            first time). An existing file is
-            replaced only if its name ends in ``.rrd``. None with ``spawn=True``.
+            first time). An existing file is replaced only if its name ends in ``.rrd``. None
+            with ``spawn=True``.
         spawn: send each episode to a Rerun viewer (started if none runs) instead of a file.
         keep: a callable given an episode's last ``info`` that returns whether to write it (a
             bool); None (default): every episode.
