@@ -314,3 +314,20 @@ def test_contract_catches_a_lazy_upward_import_of_config(tmp_path: Path) -> None
     f.write_text("def g():\n    import ihrcf_env.sim.registry as registry\n    return registry\n")
     names = _imports(f)
     assert "ihrcf_env.sim.registry" in names and _matches("ihrcf_env.sim.registry", FORBIDDEN["config"])
+
+
+def test_config_checks_components_through_the_slot_the_root_fills() -> None:
+    """config/ reaches the simulator's registries only through ``ihrcf_env._components``, which the
+    package root fills: a level's faults resolve from config alone, in a fresh interpreter."""
+    code = (
+        "import sys\n"
+        "from ihrcf_env.config.make import make_config\n"
+        "print('ihrcf_env.sim.registry' in sys.modules)\n"
+        "c = make_config(task='landing-v2', level='rough', raw=True, camera_model='projected',"
+        " camera_output='corners')\n"
+        "print(sorted(name for name, _ in c.world.faults))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    before, faults = out.stdout.splitlines()
+    assert before == "False"  # importing config loads no simulator
+    assert "camera_dropout" in faults
