@@ -22,6 +22,7 @@ from typing import Any
 
 from gymnasium.envs.registration import register, registry
 
+from ihrcf_env._components import register_component_checks
 from ihrcf_env._version import __version__
 
 __all__ = [
@@ -105,6 +106,17 @@ for _id, _entry in _ENTRY.items():
 for _old, _new in DEPRECATED_IDS.items():
     if _old not in registry:
         register(id=_old, entry_point=_DEPRECATED_ENTRY[_old], max_episode_steps=600)
+
+
+def _simulator_components() -> Any:
+    """The simulator's registries of sensors, noise models and faults (imported when an option
+    naming them is first checked): the checks :func:`make_config` applies to those options."""
+    import ihrcf_env.sim.registry as components
+
+    return components
+
+
+register_component_checks(_simulator_components)
 
 
 def make_config(**options: Any) -> Any:

@@ -1,7 +1,8 @@
-"""``python -m ihrcf_env.calibrate`` (the same command as ``ihrcf-calibrate``):
-see :mod:`ihrcf_env.cli.calibrate`."""
+"""``python -m ihrcf_env.calibrate`` (the same command as ``ihrcf-calibrate``): see
+:mod:`ihrcf_env.cli.calibrate`. A launcher (:func:`ihrcf_env.cli.launch.launch`): the command is
+imported when it runs, so a Ctrl-C during its start-up exits with status 130."""
 
-from ihrcf_env.cli.calibrate import main
+from ihrcf_env.cli.launch import launch
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(launch("calibrate"))

@@ -89,6 +89,30 @@ def test_every_spec_serialises(env_id: str) -> None:
         made.close()
 
 
+@pytest.mark.parametrize("env_id", ihrcf_env.ENV_IDS)
+def test_a_made_envs_spec_remakes_it_through_json(env_id: str) -> None:
+    """``gym.make(EnvSpec.from_json(env.spec.to_json()))`` re-makes the env: the wrappers record
+    their options in the form JSON gives back (lists, dicts of FusedParams' fields), so the
+    re-made wrappers' specs match the saved ones; the same observations on a seed."""
+    options: dict[str, Any] = {"estimators": ("ihrcf", "fused")} if "Raw" not in env_id else {}
+    if env_id == ihrcf_env.LANDING_V2_ID:
+        options["deck_forecast"] = True
+    made = _make(env_id, **options)
+    try:
+        assert made.spec is not None
+        text = made.spec.to_json()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            again = gym.make(gym.envs.registration.EnvSpec.from_json(text))
+        try:
+            assert again.spec is not None and again.spec.to_json() == text
+            np.testing.assert_allclose(_flat(again.reset(seed=3)[0]), _flat(made.reset(seed=3)[0]))
+        finally:
+            again.close()
+    finally:
+        made.close()
+
+
 @pytest.mark.parametrize("env_id", ihrcf_env.VECTOR_IDS)
 def test_the_vector_entry_point_makes_the_vector_env(env_id: str) -> None:
     env = gym.make_vec(env_id, num_envs=2, **FAST)

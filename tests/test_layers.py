@@ -75,13 +75,12 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
     # recordings sit on the Gymnasium API and the wrappers' public accessors, never the simulator
     "record": ("pybullet", "ihrcf_env.sim", "ihrcf_env.mavlink", *_LEARNING),
     # the MAVLink vehicle (a face that runs an env, beside record/): envs, wrappers and core;
-    # cli/ imports it, it never imports cli/ (but for its own command, see COMMAND_EXCEPTIONS)
+    # cli/ imports it, it never imports cli/ (but for its ``python -m`` launcher: see LAUNCHERS)
     "mavlink": (
         "pybullet",
         "ihrcf_env.sim",
         "ihrcf_env.experiments",
         "ihrcf_env.record",
-        "ihrcf_env.cli",
         *_LEARNING,
     ),
     # learning glue (SB3 / RLlib) sits on the Gymnasium API: envs by id, never the simulator
@@ -94,17 +93,25 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
 OPTIONAL_LAYERS = ("tasks", "fast")
 #: What the pure layers may import at all: the standard library, these packages, and these
 #: ihrcf_env modules (the package root is above every layer: its version is ``ihrcf_env._version``).
+#: ``ihrcf_env._components`` is the slot where the package root registers the simulator's checks of
+#: the options naming user components (sensors, noise models, faults); like ``_version`` it imports
+#: nothing of the package (:func:`test_leaf_modules_import_nothing_of_the_package`).
 ALLOWED: dict[str, tuple[str, ...]] = {
     "core": ("numpy", "scipy", "cv2", "threadpoolctl", "ihrcf_env.core", "ihrcf_env._version"),
-    "config": ("numpy", "scipy", "ihrcf_env.core", "ihrcf_env.config", "ihrcf_env._version"),
+    "config": (
+        "numpy",
+        "scipy",
+        "ihrcf_env.core",
+        "ihrcf_env.config",
+        "ihrcf_env._version",
+        "ihrcf_env._components",
+    ),
 }
-#: The one lazy import of config/ from a layer above it, inside a function that runs when
-#: ``make_config`` does: the registry of user components (sensors, noise models, faults) the
-#: options name. Importing config/ loads it not.
-LAZY_EXCEPTIONS: dict[str, tuple[str, ...]] = {"config": ("ihrcf_env.sim.registry",)}
-#: A face's own command, imported only by its ``python -m`` shim (``__main__.py``) and lazily by
-#: its package's ``main`` attribute: the one import of cli/ a layer below it makes.
-COMMAND_EXCEPTIONS: dict[str, tuple[str, ...]] = {"mavlink": ("ihrcf_env.cli.mavlink",)}
+#: Modules at the package root that every layer may import: they import nothing of the package.
+LEAF_MODULES = ("_version", "_components")
+#: Lazy imports (inside functions) a layer may make of a layer above it: none. core/ and config/
+#: import nothing upward, at the top of a module or inside a function.
+LAZY_EXCEPTIONS: dict[str, tuple[str, ...]] = {}
 
 
 def _layers() -> list[str]:
@@ -140,13 +147,10 @@ def _matches(name: str, prefixes: tuple[str, ...]) -> bool:
 def _violations(layer: str) -> list[str]:
     bad = []
     lazy_ok = LAZY_EXCEPTIONS.get(layer, ())
-    command = COMMAND_EXCEPTIONS.get(layer, ())
     for f in sorted((PKG / layer).rglob("*.py")):
         top = _imports(f, top_level_only=True)
         for name in _imports(f):
             if _matches(name, lazy_ok) and name not in top:
-                continue
-            if _matches(name, command) and (f.name == "__main__.py" or name not in top):
                 continue
             if _matches(name, FORBIDDEN[layer]):
                 bad.append(f"{f.relative_to(PKG)} imports {name}")
@@ -260,3 +264,88 @@ def test_every_package_is_installed() -> None:
     listed = set(tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
     found = {".".join(p.parent.relative_to(root).parts) for p in (root / "ihrcf_env").rglob("__init__.py")}
     assert found - listed == set()
+
+
+def test_leaf_modules_import_nothing_of_the_package() -> None:
+    """``ihrcf_env._version`` and ``ihrcf_env._components`` sit below every layer."""
+    for name in LEAF_MODULES:
+        names = _imports(PKG / f"{name}.py") | _dynamic_imports(PKG / f"{name}.py")
+        assert [n for n in names if _matches(n, ("ihrcf_env",))] == [], name
+
+
+#: The ``python -m`` launchers outside cli/: each runs :func:`ihrcf_env.cli.launch.launch` under
+#: ``if __name__ == "__main__"`` and nothing else. Python runs them only for ``python -m``; no module
+#: imports them (``import ihrcf_env.record`` does not load ``record/__main__.py``).
+LAUNCHERS = (
+    "benchmark.py",
+    "calibrate.py",
+    "evaluate.py",
+    "fit_detector.py",
+    "mavlink/__main__.py",
+    "record/__main__.py",
+)
+
+
+def _library_files() -> list[Path]:
+    return sorted(f for f in PKG.rglob("*.py") if f.relative_to(PKG).parts[0] != "cli")
+
+
+def test_no_library_module_imports_the_command_lines() -> None:
+    """The command lines import the library, never the reverse: no module outside cli/ imports
+    ``ihrcf_env.cli`` (lazily or by name through importlib), except the ``python -m`` launchers."""
+    bad = []
+    for f in _library_files():
+        rel = f.relative_to(PKG).as_posix()
+        if rel in LAUNCHERS:
+            continue
+        names = _imports(f) | _dynamic_imports(f)
+        bad += [f"{rel} imports {n}" for n in sorted(names) if _matches(n, ("ihrcf_env.cli",))]
+    assert bad == []
+
+
+@pytest.mark.parametrize("launcher", LAUNCHERS)
+def test_launchers_are_only_launchers(launcher: str) -> None:
+    """A launcher imports only :mod:`ihrcf_env.cli.launch` and calls it under ``__main__``; no
+    module imports a launcher."""
+    tree = ast.parse((PKG / launcher).read_text())
+    body = [n for n in tree.body if not (isinstance(n, ast.Expr) and isinstance(n.value, ast.Constant))]
+    assert [ast.unparse(n) for n in body[:-1]] == ["from ihrcf_env.cli.launch import launch"]
+    assert isinstance(body[-1], ast.If) and ast.unparse(body[-1].test) == "__name__ == '__main__'"
+    module = "ihrcf_env." + launcher.removesuffix(".py").replace("/", ".")
+    importers = [
+        f.relative_to(PKG).as_posix()
+        for f in PKG.rglob("*.py")
+        if module in _imports(f) or (module.endswith(".__main__") and module in _dynamic_imports(f))
+    ]
+    assert importers == []
+
+
+def test_command_modules_form_no_cycle() -> None:
+    """cli/record builds on cli/evaluate's episode arguments; cli/evaluate does not import
+    cli/record (its ``--record`` uses the library's :func:`ihrcf_env.record.record_failures`)."""
+    assert not any(_matches(n, ("ihrcf_env.cli.record",)) for n in _imports(PKG / "cli" / "evaluate.py"))
+
+
+def test_contract_catches_a_lazy_upward_import_of_config(tmp_path: Path) -> None:
+    """The check of config/ reads imports inside functions (the registry was once imported so)."""
+    f = tmp_path / "m.py"
+    f.write_text("def g():\n    import ihrcf_env.sim.registry as registry\n    return registry\n")
+    names = _imports(f)
+    assert "ihrcf_env.sim.registry" in names and _matches("ihrcf_env.sim.registry", FORBIDDEN["config"])
+
+
+def test_config_checks_components_through_the_slot_the_root_fills() -> None:
+    """config/ reaches the simulator's registries only through ``ihrcf_env._components``, which the
+    package root fills: a level's faults resolve from config alone, in a fresh interpreter."""
+    code = (
+        "import sys\n"
+        "from ihrcf_env.config.make import make_config\n"
+        "print('ihrcf_env.sim.registry' in sys.modules)\n"
+        "c = make_config(task='landing-v2', level='rough', raw=True, camera_model='projected',"
+        " camera_output='corners')\n"
+        "print(sorted(name for name, _ in c.world.faults))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    before, faults = out.stdout.splitlines()
+    assert before == "False"  # importing config loads no simulator
+    assert "camera_dropout" in faults

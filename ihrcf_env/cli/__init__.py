@@ -7,7 +7,9 @@
 * ``ihrcf-mavlink`` / ``python -m ihrcf_env.mavlink``: :mod:`ihrcf_env.cli.mavlink`;
 * ``ihrcf-record`` / ``python -m ihrcf_env.record``: :mod:`ihrcf_env.cli.record`.
 
-What they share (parser, argument types, output checks): :mod:`ihrcf_env.cli.common`.
+What they share (parser, argument types, output checks): :mod:`ihrcf_env.cli.common`. The console
+scripts and the ``python -m`` launchers start them through :mod:`ihrcf_env.cli.launch` (a Ctrl-C
+during start-up exits 130). The command lines import the library, never the reverse.
 """
 
 #: Command name -> module under ihrcf_env.cli (the console script is ``ihrcf-<name>``).

@@ -1,7 +1,8 @@
 """What the command lines share: the parser, argument types, output checks, writing a file whole.
 
 Every command is installed as a console script (``ihrcf-<name>``, pointing at
-``ihrcf_env.cli.<name>:main``) and runs as ``python -m ihrcf_env.<name>``; its ``--help`` is plain
+:mod:`ihrcf_env.cli.launch`, which runs ``ihrcf_env.cli.<name>.main``) and runs as ``python -m
+ihrcf_env.<name>``; its ``--help`` is plain
 text that states every default. Arguments are checked before any simulation starts: seeds,
 counts and output files (the folder exists and is writable, the path is not a folder), so a bad
 argument fails at once with a message naming it (argparse's exit status 2), not after a long
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import functools
 import math
 import os
@@ -91,15 +93,30 @@ def real_in(low: float, high: float, *, low_open: bool = False) -> Callable[[str
 seed_type = int_in(0, MAX_SEED)
 
 
+def special_file(path: str | Path) -> bool:
+    """Whether ``path`` exists and is neither a regular file nor a folder (a device, a FIFO, a
+    socket, or a symbolic link to one): writing a file whole would replace it."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return False
+    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
 def check_output(ap: argparse.ArgumentParser, option: str, path: str | Path) -> Path:
-    """``path`` as a file the command may write, or ``ap.error`` naming ``option``: not a folder,
-    and a file can be created (tried, then removed) in its folder or, where that folder does not
-    exist yet, in its nearest existing ancestor (the missing folders are made when writing)."""
+    """``path`` as a file the command may write, or ``ap.error`` naming ``option``: not a folder
+    nor an existing special file (device, FIFO, socket), and a file can be created (tried, then
+    removed) in its folder or, where that folder does not exist yet, in its nearest existing
+    ancestor (the missing folders are made when writing)."""
     if not str(path).strip():
         ap.error(f"argument {option}: an empty file name")
     out = Path(path)
     if out.is_dir():
         ap.error(f"argument {option}: {str(out)!r} is a folder; give a file name")
+    if special_file(out):
+        ap.error(
+            f"argument {option}: {str(out)!r} exists and is not a regular file (a device, FIFO or socket)"
+        )
     parent = out.parent
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
@@ -113,6 +130,12 @@ def check_output(ap: argparse.ArgumentParser, option: str, path: str | Path) -> 
     return out
 
 
+def interrupted(name: str) -> int:
+    """Report a Ctrl-C of ``ihrcf-<name>`` with one line on stderr; :data:`EXIT_INTERRUPTED`."""
+    print(f"\nihrcf-{name}: interrupted", file=sys.stderr, flush=True)
+    return EXIT_INTERRUPTED
+
+
 def command_main(name: str) -> Callable[[Callable[..., int]], Callable[..., int]]:
     """Decorate the ``main(argv)`` of the command ``ihrcf-<name>``: Ctrl-C (KeyboardInterrupt)
     ends it with a one-line message on stderr and the exit status :data:`EXIT_INTERRUPTED`, no
@@ -124,8 +147,7 @@ def command_main(name: str) -> Callable[[Callable[..., int]], Callable[..., int]
             try:
                 return main(argv)
             except KeyboardInterrupt:
-                print(f"\nihrcf-{name}: interrupted", file=sys.stderr, flush=True)
-                return EXIT_INTERRUPTED
+                return interrupted(name)
 
         return run
 
@@ -145,10 +167,15 @@ def file_mode(path: str | Path) -> int:
 
 def write_whole(path: str | Path, text: str) -> Path:
     """Write ``text`` (UTF-8) to ``path`` whole or not at all: through a temporary file beside it,
-    renamed onto ``path`` (missing folders are made); the temporary file is removed if anything
+    renamed onto ``path`` (missing folders are made; an existing special file is refused with
+    FileExistsError, never replaced); the temporary file is removed if anything
     fails. The file gets the mode a plain ``open`` would give it (:func:`file_mode`: an existing
     file keeps its own). Returns the path."""
     out = Path(path)
+    if special_file(out):  # appeared since the check: never replaced by a file
+        raise FileExistsError(
+            errno.EEXIST, "exists and is not a regular file (a device, FIFO or socket)", str(out)
+        )
     out.parent.mkdir(parents=True, exist_ok=True)
     mode = file_mode(out)
     fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
@@ -169,7 +196,9 @@ __all__ = [
     "HelpFormatter",
     "check_output",
     "int_in",
+    "interrupted",
     "make_parser",
     "seed_type",
+    "special_file",
     "write_whole",
 ]

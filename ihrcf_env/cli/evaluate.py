@@ -225,6 +225,31 @@ def add_env_arguments(ap: argparse.ArgumentParser) -> None:
     )
 
 
+#: Arguments that set an env option themselves: (attribute, flag, option key).
+FLAG_OPTIONS: tuple[tuple[str, str, str], ...] = (
+    ("level", "--level", "level"),
+    ("camera_model", "--camera-model", "camera_model"),
+    ("sensor_preset", "--sensor-preset", "sensor_preset"),
+    ("max_steps", "--max-steps", "max_episode_steps"),
+    ("deck_motion", "--deck-motion", "deck_motion"),
+)
+
+
+def _check_option_conflicts(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """``ap.error`` naming both if ``--option KEY=VALUE`` sets an option that a flag of its own
+    (``--level``, ``--camera-model``, ...) sets to another value: one value per option."""
+    for attr, flag, key in FLAG_OPTIONS:
+        given = getattr(args, attr, None)
+        if given is None or given is False or key not in args.options:
+            continue
+        if args.options[key] != given:
+            shown = "" if given is True else f" {given}"
+            ap.error(
+                f"argument --option: {key}={args.options[key]!r} conflicts with {flag}{shown}; "
+                "give the value once"
+            )
+
+
 def check_env_args(ap: argparse.ArgumentParser, args: argparse.Namespace, episodes: int = 1) -> None:
     """The checks of :func:`add_env_arguments` that need no env (``ap.error``, exit status 2,
     naming the argument); fills in the defaults of ``--env-id`` and ``--seed`` and parses the
@@ -236,6 +261,7 @@ def check_env_args(ap: argparse.ArgumentParser, args: argparse.Namespace, episod
     if args.seed is None:
         args.seed = TEST_SEEDS.start if args.level is not None else 0
     args.options = _parse_options(ap, args.option)
+    _check_option_conflicts(ap, args)
     last = args.seed + episodes - 1
     if last > MAX_SEED:
         ap.error(f"argument --seed: the seeds {args.seed}..{last} go beyond {MAX_SEED}")
@@ -328,6 +354,28 @@ def make_env_and_policy(ap: argparse.ArgumentParser, args: argparse.Namespace) -
     return env, policy, kwargs
 
 
+def _check_record_dir(ap: argparse.ArgumentParser, directory: str) -> None:
+    """``ap.error`` naming ``--record`` unless ``directory`` is a folder recordings may be written
+    into (made if missing) and the Rerun SDK is installed."""
+    from ihrcf_env.record import RecordingPathError, RerunMissingError, check_record_dir, import_rerun
+
+    try:
+        import_rerun()
+        check_record_dir(directory)
+    except (RecordingPathError, RerunMissingError) as e:
+        ap.error(f"argument --record: {e}")
+
+
+def _record_failures(ap: argparse.ArgumentParser, env: gym.Env, args: argparse.Namespace) -> gym.Env:
+    """``env`` recording its failed episodes (each with ``--record-all``) into ``--record``."""
+    from ihrcf_env.record import RecordingPathError, RerunMissingError, record_failures
+
+    try:
+        return record_failures(env, args.record, args.env_id, args.record_all)
+    except (RecordingPathError, RerunMissingError) as e:
+        ap.error(f"argument --record: {e}")
+
+
 @command_main("evaluate")
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``ihrcf-evaluate``; returns the process exit code."""
@@ -338,15 +386,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.record_all and args.record is None:
         ap.error("argument --record-all: needs --record DIR")
     if args.record is not None:
-        from ihrcf_env.cli.record import check_record_dir
-
-        check_record_dir(ap, args.record)
+        _check_record_dir(ap, args.record)
     env, policy, kwargs = make_env_and_policy(ap, args)
     try:
         if args.record is not None:
-            from ihrcf_env.cli.record import record_failures
-
-            env = record_failures(ap, env, args.record, args.env_id, args.record_all)
+            env = _record_failures(ap, env, args)
         t0 = time.perf_counter()
         results = run_episodes(
             env,

@@ -3,33 +3,36 @@
 The env and the policy are chosen by the arguments of ``ihrcf-evaluate``
 (:func:`ihrcf_env.cli.evaluate.add_episode_arguments`, checked the same way); the episode runs
 through :func:`ihrcf_env.experiments.episode.run_episode` inside
-:class:`~ihrcf_env.record.RecordEpisode`. Also the recording part of ``ihrcf-evaluate --record``
-(:func:`check_record_dir`, :func:`record_failures`).
+:class:`~ihrcf_env.record.RecordEpisode`. Every check (the output file, the Rerun SDK, the viewer
+for ``--spawn``) runs before the env is made.
 """
 
 from __future__ import annotations
 
 import argparse
-from collections.abc import Mapping, Sequence
-from pathlib import Path
-from typing import Any
-
-import gymnasium as gym
+from collections.abc import Sequence
 
 from ihrcf_env.cli.common import command_main, make_parser
 from ihrcf_env.cli.evaluate import _check_args, add_episode_arguments, format_episode, make_env_and_policy
 from ihrcf_env.experiments.episode import run_episode
-from ihrcf_env.record import RecordEpisode, RecordingPathError, RerunMissingError, check_recording_path
-from ihrcf_env.record._rerun import import_rerun
+from ihrcf_env.record import (
+    RecordEpisode,
+    RecordingPathError,
+    RerunMissingError,
+    ViewerMissingError,
+    check_recording_path,
+    check_viewer,
+    import_rerun,
+)
 
-__all__ = ["build_parser", "check_record_dir", "main", "record_failures"]
+__all__ = ["build_parser", "main"]
 
 DESCRIPTION = """\
 Fly one episode of a landing env with a policy and write a Rerun recording of it: the deck and the
 drone in 3D, the ToF beams, the camera's tag corners (and image with the rendered camera), each
 estimator's deck pose against the truth, actions, reward terms, wind, faults and the outcome, on
 the simulated-time timeline. Open the file with `rerun FILE.rrd`. Needs the [viewer] extra
-(pip install "ihrcf-env[viewer]").
+(pip install "ihrcf-env[viewer]"). An existing FILE is replaced only if its name ends in .rrd.
 
 examples:
   ihrcf-record --level rough --policy scripted --camera-model projected --out landing.rrd
@@ -38,6 +41,7 @@ examples:
 
 
 def _require_rerun(ap: argparse.ArgumentParser) -> None:
+    """``ap.error`` saying how to install the Rerun SDK if it is missing."""
     try:
         import_rerun()
     except RerunMissingError as e:
@@ -55,43 +59,11 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="the recording file to write (default: none; give --out or --spawn)",
     )
-    out.add_argument("--spawn", action="store_true", help="send the recording to a Rerun viewer (started)")
+    out.add_argument(
+        "--spawn", action="store_true", help="send the recording to a Rerun viewer (started; 'rerun' on PATH)"
+    )
     ap.set_defaults(episodes=1)
     return ap
-
-
-def check_record_dir(ap: argparse.ArgumentParser, directory: str) -> Path:
-    """``directory`` as a folder recordings may be written into (made if missing), the Rerun SDK
-    installed; else ``ap.error`` naming ``--record``."""
-    _require_rerun(ap)
-    out = Path(directory)
-    if out.exists() and not out.is_dir():
-        ap.error(f"argument --record: {directory!r} is not a folder")
-    try:
-        check_recording_path(out / "probe.rrd")
-    except RecordingPathError as e:
-        ap.error(f"argument --record: {e}")
-    return out
-
-
-def _file_stem(env_id: str) -> str:
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in env_id.rpartition("/")[2])
-
-
-def record_failures(
-    ap: argparse.ArgumentParser, env: gym.Env, directory: str, env_id: str, record_all: bool = False
-) -> gym.Env:
-    """``env`` wrapped to record each failed episode (each episode with ``record_all``) as
-    ``DIR/<env name>-seed<seed>.rrd``."""
-
-    def keep(info: Mapping[str, Any]) -> bool:
-        return record_all or info.get("outcome") != "success"
-
-    path = Path(directory) / f"{_file_stem(env_id)}-seed{{seed}}.rrd"
-    try:
-        return RecordEpisode(env, path, keep=keep)
-    except (RecordingPathError, RerunMissingError) as e:
-        ap.error(f"argument --record: {e}")
 
 
 @command_main("record")
@@ -107,12 +79,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             check_recording_path(args.out)
         except RecordingPathError as e:
             ap.error(f"argument --out: {e}")
+    if args.spawn:
+        try:
+            check_viewer()
+        except ViewerMissingError as e:
+            ap.error(f"argument --spawn: {e}")
     _check_args(ap, args)
     env, policy, _ = make_env_and_policy(ap, args)
     try:
         try:
             env = RecordEpisode(env, args.out, spawn=args.spawn)
-        except (RecordingPathError, RerunMissingError, TypeError) as e:
+        except (RecordingPathError, RerunMissingError, ViewerMissingError) as e:
             ap.error(f"cannot record {args.env_id}: {e}")
         result = run_episode(env, policy, args.seed)
     finally:

@@ -48,6 +48,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
+from ihrcf_env._components import component_checks
 from ihrcf_env.config.landing import DeckLandingConfig
 from ihrcf_env.config.levels import DEFAULT_LEVEL, LEVELS
 from ihrcf_env.config.observation import check_observation_options, resolve_checked
@@ -369,13 +370,6 @@ def _camera_part(o: _Options, preset: Mapping[str, str], has_camera: bool) -> Ca
     )
 
 
-def _components() -> Any:
-    """The registry of user components (sensors, noise models, faults) the world's options name."""
-    import ihrcf_env.sim.registry as registry
-
-    return registry
-
-
 def world_part(o: _Options, obs: Any) -> WorldConfig:
     """The :class:`WorldConfig` of the options ``o`` (``obs``: the checked observation options,
     which decide whether the rendered camera renders only the tag's window)."""
@@ -415,7 +409,7 @@ def world_part(o: _Options, obs: Any) -> WorldConfig:
         tag_id=check_int("tag_id", o["tag_id"], low=0, high=apriltag_ids() - 1),
         tag_size=check_positive("tag_size", o["tag_size"], "m", high=10.0),
     )
-    registry = _components()
+    registry = component_checks()
     extra = registry.check_sensor_names(o["sensors"])
     faults = o["faults"]
     return WorldConfig(

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from ihrcf_env.config.sensors import VL53L1X
@@ -17,6 +18,7 @@ from ihrcf_env.core.estimators import DEFAULT_ESTIMATORS, FusedParams, check_est
 from ihrcf_env.core.forecast import ForecastOptions, forecast_options
 
 __all__ = [
+    "check_fused_params",
     "MAX_RESIDUAL",
     "ObservationConfig",
     "fused_params_for_tof",
@@ -105,6 +107,26 @@ def load_calibration(calibration: object) -> Calibration:
     return Calibration.load(calibration)
 
 
+def check_fused_params(value: object) -> FusedParams | None:
+    """The ``fused_params`` option: a :class:`~ihrcf_env.core.estimators.FusedParams`, a dict of
+    some of its fields (the others default; the form a spec saved as JSON gives back) or None."""
+    if value is None or isinstance(value, FusedParams):
+        return value
+    if isinstance(value, Mapping):
+        fields = [f.name for f in dataclasses.fields(FusedParams)]
+        unknown = [k for k in value if k not in fields]
+        if unknown:
+            raise ValueError(f"fused_params: unknown parameter {unknown[0]!r}; parameters: {fields}")
+        try:
+            return FusedParams(**value)
+        except (TypeError, ValueError) as e:
+            raise type(e)(f"fused_params: {e}") from None
+    raise TypeError(
+        "fused_params must be an ihrcf_env.core.estimators.FusedParams, a dict of its fields or None, "
+        f"got {describe(value)}"
+    )
+
+
 def check_observation_options(
     *,
     raw: object = False,
@@ -126,11 +148,7 @@ def check_observation_options(
     flat = check_bool("flatten", flatten)
     residual = check_positive("max_residual", max_residual, "m", high=MAX_RESIDUAL)
     names = check_estimator_names(estimators)  # type: ignore[arg-type]
-    if fused_params is not None and not isinstance(fused_params, FusedParams):
-        raise TypeError(
-            "fused_params must be an ihrcf_env.core.estimators.FusedParams or None, got "
-            f"{describe(fused_params)}"
-        )
+    fused_params = check_fused_params(fused_params)
     priv = check_bool("privileged", privileged)
     motion = check_bool("deck_motion", deck_motion)
     if motion and "fused" not in names:

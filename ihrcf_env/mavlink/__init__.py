@@ -12,7 +12,8 @@ Rooms: :mod:`~ihrcf_env.mavlink.frames` (env world/body <-> NED/FRD, pure functi
 :mod:`~ihrcf_env.mavlink.target` (``LANDING_TARGET`` profiles), :mod:`~ihrcf_env.mavlink.vehicle`
 (the state machine), :mod:`~ihrcf_env.mavlink.link` (UDP links), :mod:`~ihrcf_env.mavlink.loop`
 (the simulated clock and the env), :mod:`~ihrcf_env.mavlink.options` (its checked options) and
-:mod:`~ihrcf_env.mavlink.report` (what a run did). Only :mod:`~ihrcf_env.mavlink.frames` imports without pymavlink.
+:mod:`~ihrcf_env.mavlink.report` (what a run did). Only :mod:`~ihrcf_env.mavlink.frames`
+imports without pymavlink.
 """
 
 from typing import Any
@@ -27,8 +28,4 @@ def __getattr__(name: str) -> Any:
         from ihrcf_env.mavlink import loop
 
         return getattr(loop, name)
-    if name == "main":  # the command (``python -m ihrcf_env.mavlink``), imported only when asked for
-        from ihrcf_env.cli.mavlink import main
-
-        return main
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

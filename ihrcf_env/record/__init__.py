@@ -1,35 +1,46 @@
 """Rerun recordings of landing and hover episodes (the optional ``[viewer]`` extra: ``rerun-sdk``).
 
-:class:`RecordEpisode` wraps an env in a user's own loop; ``ihrcf-record`` (``python -m
-ihrcf_env.record``) flies one episode with any policy ``ihrcf-evaluate`` accepts and records it;
-``ihrcf-evaluate --record DIR`` records its failed episodes. The package imports without Rerun;
-asking for a recording without it raises :class:`RerunMissingError` saying how to install it.
-What a recording holds: :mod:`ihrcf_env.record.episode_log`.
+:class:`RecordEpisode` wraps an env in a user's own loop; :func:`record_failures` wraps one to
+record its failed episodes into a folder. The commands ``ihrcf-record`` and ``ihrcf-evaluate
+--record DIR`` (:mod:`ihrcf_env.cli.record`, :mod:`ihrcf_env.cli.evaluate`) use them; this
+package imports nothing of the command lines. The package imports without Rerun; asking for a
+recording without it raises :class:`RerunMissingError` saying how to install it. What a recording
+holds: :mod:`ihrcf_env.record.episode_log`.
 """
 
-from typing import Any
-
-from ihrcf_env.record._rerun import INSTALL_HINT, RerunMissingError
+from ihrcf_env.record._rerun import INSTALL_HINT, RerunMissingError, import_rerun
 from ihrcf_env.record.episode_log import ENTITIES, TIMELINE, EpisodeLog, SceneGeometry
-from ihrcf_env.record.wrapper import RecordEpisode, RecordingPathError, check_recording_path, scene_geometry
+from ihrcf_env.record.wrapper import (
+    VIEWER_PORT,
+    RecordEpisode,
+    RecordingPathError,
+    RecordingWriteError,
+    ViewerMissingError,
+    check_record_dir,
+    check_recording_path,
+    check_viewer,
+    find_viewer,
+    record_failures,
+    scene_geometry,
+)
 
 __all__ = [
     "ENTITIES",
     "INSTALL_HINT",
     "TIMELINE",
+    "VIEWER_PORT",
     "EpisodeLog",
     "RecordEpisode",
     "RecordingPathError",
+    "RecordingWriteError",
     "RerunMissingError",
     "SceneGeometry",
+    "ViewerMissingError",
+    "check_record_dir",
     "check_recording_path",
+    "check_viewer",
+    "find_viewer",
+    "import_rerun",
+    "record_failures",
     "scene_geometry",
 ]
-
-
-def __getattr__(name: str) -> Any:
-    if name == "main":  # the command (``python -m ihrcf_env.record``), imported only when asked for
-        from ihrcf_env.cli.record import main
-
-        return main
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

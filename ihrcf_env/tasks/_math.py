@@ -67,10 +67,12 @@ def _fast_two_sum(a: Any, b: Any) -> tuple[Any, Any]:
 
 
 def hypot(xp: Any, x: Any, y: Any) -> Any:
-    """``sqrt(x**2 + y**2)`` elementwise, equal bit for bit to Python's ``math.hypot(x, y)`` (its
-    scaled, compensated algorithm with one differential correction; below ``2**-1024`` its plain
-    sum of squares over the larger value): inf if either is infinite, NaN if either is NaN (and
-    neither infinite), 0 if both are 0."""
+    """``sqrt(x**2 + y**2)`` elementwise, within one unit in the last place of the exact value, as
+    Python's ``math.hypot(x, y)`` is: CPython 3.11's algorithm (scaled, compensated, with one
+    differential correction; below ``2**-1024`` the plain sum of squares over the larger value),
+    equal to that version's bit for bit; later versions may differ from it in the last bit for
+    subnormal inputs. inf if either is infinite, NaN if either is NaN (and neither infinite), 0 if
+    both are 0."""
     if xp is _NUMPY and np.ndim(x) == 0 and np.ndim(y) == 0:  # one pair: the same figure, faster
         return np.float64(math.hypot(float(x), float(y)))
     ax, ay = xp.abs(x), xp.abs(y)

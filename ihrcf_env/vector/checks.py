@@ -19,6 +19,7 @@ from ihrcf_env.core.checks import check_int
 
 __all__ = [
     "MAX_ENVS",
+    "MAX_SEED",
     "UNSUPPORTED_OPTIONS",
     "check_actions",
     "check_autoreset_mode",
@@ -80,18 +81,26 @@ def check_env_mask(name: str, mask: Any, n: int) -> NDArray[np.bool_]:
     return mask.copy()
 
 
+#: The largest seed of an env of a vector env (every backend's episode keys are below 2**63).
+MAX_SEED = 2**63 - 1
+
+
 def env_seeds(seed: int | Sequence[int | None] | None, n: int) -> list[int | None]:
     """The seed of each of ``n`` envs from a vector env's ``reset(seed=...)``: an int ``s`` gives
-    ``s + i`` to env ``i``; a sequence gives one seed (or None) per env; None leaves all unseeded."""
+    ``s + i`` to env ``i``; a sequence gives one seed (or None) per env; None leaves all unseeded.
+    Every env's seed is in [0, :data:`MAX_SEED`], however it is given."""
     if seed is None:
         return [None] * n
     if isinstance(seed, int | np.integer) and not isinstance(seed, bool):
-        s = check_int("seed", seed, low=0, high=2**63 - n)
+        s = check_int("seed", seed, low=0, high=MAX_SEED + 1 - n)
         return [s + i for i in range(n)]
     if isinstance(seed, Sequence) and not isinstance(seed, str):
         if len(seed) != n:
             raise ValueError(f"seed: a sequence of {n} seeds (one per env), got {len(seed)}")
-        return [None if s is None else check_int(f"seed[{i}]", s, low=0) for i, s in enumerate(seed)]
+        return [
+            None if s is None else check_int(f"seed[{i}]", s, low=0, high=MAX_SEED)
+            for i, s in enumerate(seed)
+        ]
     raise TypeError(f"seed must be an int >= 0, a sequence of {n} of them or None, got {seed!r}")
 
 

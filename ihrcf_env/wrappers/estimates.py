@@ -149,6 +149,24 @@ def _get(tree: Mapping[str, Any], path: tuple[str, ...]) -> Any:
     return tree
 
 
+def spec_form(value: Any) -> Any:
+    """``value`` as a wrapper's spec records it: the form it takes back from JSON
+    (``EnvSpec.to_json`` / ``from_json``), so a made env's spec re-makes it: tuples as lists,
+    :class:`FusedParams` and other dataclasses as dicts of their fields, paths as str, numpy
+    scalars and arrays as numbers and lists. Other values pass as they are."""
+    if isinstance(value, tuple | list):
+        return [spec_form(v) for v in value]
+    if isinstance(value, Mapping):
+        return {str(k): spec_form(v) for k, v in value.items()}
+    if dataclasses.is_dataclass(value) and not isinstance(value, type | Calibration):
+        return {f.name: spec_form(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    if isinstance(value, np.ndarray | np.generic):
+        return spec_form(value.tolist())
+    return value
+
+
 def base_config(env: gym.Env) -> DeckLandingConfig:
     """The validated config of a deck env (possibly wrapped): its declared layout."""
     config = getattr(env.unwrapped, "config", None)
@@ -228,9 +246,8 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
                 deck_forecast=deck_forecast,
             )
         fc_opts = opts.deck_forecast
-        recorded: dict[str, Any] = {} if fc_opts is None else {"deck_forecast": dataclasses.asdict(fc_opts)}
-        gym.utils.RecordConstructorArgs.__init__(
-            self,
+        recorded: dict[str, Any] = {} if fc_opts is None else {"deck_forecast": fc_opts}
+        recorded = dict(
             calibration=calibration,
             keep_image=opts.keep_image,
             flatten=opts.flatten,
@@ -239,6 +256,7 @@ class DeckPoseObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
             fused_params=fused_params if observation is None else opts.fused_params,
             **recorded,
         )
+        gym.utils.RecordConstructorArgs.__init__(self, **spec_form(recorded))
         gym.ObservationWrapper.__init__(self, env)
         world = config.world
         #: the resolved observation config (:class:`~ihrcf_env.config.observation.ObservationConfig`)

@@ -54,7 +54,6 @@ must not), which appends ``ground_truth.position`` (3, 2 m), ``.normal`` (3), ``
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 from collections.abc import Iterable, Mapping
@@ -85,7 +84,7 @@ from ihrcf_env.core.landing_layout import (
 )
 from ihrcf_env.core.landing_layout import landing_blocks as core_landing_blocks
 from ihrcf_env.envs.vector_options import refuse_vector_options
-from ihrcf_env.wrappers.estimates import GROUND_TRUTH, base_config
+from ihrcf_env.wrappers.estimates import GROUND_TRUTH, base_config, spec_form
 from ihrcf_env.wrappers.estimator_stage import EstimatorStage
 from ihrcf_env.wrappers.forecast_feed import FORECAST, ForecastFeed, forecast_fields
 from ihrcf_env.wrappers.layout import Block, build_layout
@@ -181,9 +180,8 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
                 deck_forecast=deck_forecast,
             )
         fc_opts = opts.deck_forecast
-        recorded: dict[str, Any] = {} if fc_opts is None else {"deck_forecast": dataclasses.asdict(fc_opts)}
-        gym.utils.RecordConstructorArgs.__init__(
-            self,
+        recorded: dict[str, Any] = {} if fc_opts is None else {"deck_forecast": fc_opts}
+        recorded = dict(
             calibration=calibration,
             max_residual=opts.max_residual,
             estimators=opts.estimators,
@@ -192,6 +190,7 @@ class LandingObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             deck_motion=opts.deck_motion,
             **recorded,
         )
+        gym.utils.RecordConstructorArgs.__init__(self, **spec_form(recorded))
         gym.Wrapper.__init__(self, env)
         world = config.world
         #: the resolved observation config (:class:`~ihrcf_env.config.observation.ObservationConfig`)

@@ -1,5 +1,6 @@
-"""Every command line: a console script on ``ihrcf_env.cli.<name>:main``, a ``python -m`` shim, and
-a plain ``--help`` that names the program and states every default."""
+"""Every command line: a console script on ``ihrcf_env.cli.launch`` (which runs
+``ihrcf_env.cli.<name>.main``), a ``python -m`` launcher, and a plain ``--help`` that names the
+program and states every default."""
 
 from __future__ import annotations
 
@@ -23,12 +24,17 @@ def _parser(module: str) -> argparse.ArgumentParser:
 
 
 def test_every_command_is_a_console_script_on_cli() -> None:
+    from ihrcf_env.cli import launch
+
     scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
-    assert scripts == {f"ihrcf-{name}": f"ihrcf_env.cli.{module}:main" for name, module in COMMANDS.items()}
+    assert scripts == {f"ihrcf-{name}": f"ihrcf_env.cli.launch:{module}" for name, module in COMMANDS.items()}
     for module in COMMANDS.values():
         assert callable(importlib.import_module(f"ihrcf_env.cli.{module}").main)
-        shim = importlib.import_module(f"ihrcf_env.{module}")
-        assert shim.main is importlib.import_module(f"ihrcf_env.cli.{module}").main
+        assert callable(getattr(launch, module))
+        launcher = (
+            f"ihrcf_env.{module}.__main__" if module in ("record", "mavlink") else f"ihrcf_env.{module}"
+        )
+        assert importlib.import_module(launcher).launch is launch.launch
 
 
 @pytest.mark.parametrize(("name", "module"), sorted(COMMANDS.items()))

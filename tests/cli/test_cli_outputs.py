@@ -66,6 +66,24 @@ def test_an_unwritable_folder_is_refused(capsys: pytest.CaptureFixture[str], com
 
 
 @pytest.mark.usefixtures("no_run")
+@pytest.mark.parametrize("command", ["calibrate", "fit_detector"])
+def test_a_special_file_as_output_is_refused_and_left_alone(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str
+) -> None:
+    """A FIFO made here stands for any special file (a device node alike): refused before the run,
+    never replaced by the written file."""
+    main, option = (calibrate, "--output") if command == "calibrate" else (fit_detector, "--out")
+    fifo = tmp_path / "out.json"
+    os.mkfifo(fifo)
+    err = _refused(capsys, main, [option, str(fifo)])
+    assert option in err and "not a regular file" in err
+    assert fifo.is_fifo()
+    with pytest.raises(FileExistsError, match="not a regular file"):
+        write_whole(fifo, "{}\n")
+    assert fifo.is_fifo() and [p.name for p in tmp_path.iterdir()] == ["out.json"]
+
+
+@pytest.mark.usefixtures("no_run")
 def test_an_output_under_a_file_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "file").write_text("x")
     err = _refused(capsys, calibrate, ["--output", str(tmp_path / "file" / "cal.json")])

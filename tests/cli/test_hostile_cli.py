@@ -233,7 +233,6 @@ def test_ctrl_c_in_a_running_command(tmp_path: Path) -> None:
     import signal
     import subprocess
     import sys
-    import time
 
     proc = subprocess.Popen(
         [sys.executable, "-m", "ihrcf_env.calibrate", "--output", str(tmp_path / "cal.json")],
@@ -243,8 +242,11 @@ def test_ctrl_c_in_a_running_command(tmp_path: Path) -> None:
     )
     try:
         assert proc.stderr is not None
-        first = proc.stderr.read(1)  # the progress output: the run has started
-        time.sleep(0.5)
+        first = ""
+        while "chessboard:" not in first:  # the calibration's own progress: main is running
+            char = proc.stderr.read(1)
+            assert char, f"the calibration ended before its progress: {first!r}"
+            first += char
         proc.send_signal(signal.SIGINT)
         _, rest = proc.communicate(timeout=120)
     finally:
@@ -255,3 +257,84 @@ def test_ctrl_c_in_a_running_command(tmp_path: Path) -> None:
     assert proc.returncode == EXIT_INTERRUPTED, err[-2000:]
     assert "Traceback" not in err and err.rstrip().endswith("ihrcf-calibrate: interrupted")
     assert not (tmp_path / "cal.json").exists()
+
+
+#: A Ctrl-C that lands while the command module is being imported: an audit hook sends SIGINT to
+#: the process when Python opens the code of ``ihrcf_env/cli/<module>.py`` to import it (the
+#: KeyboardInterrupt is raised at the next instruction, inside that import).
+_STARTUP_CTRL_C = """
+import os, signal, sys
+target = os.path.join("ihrcf_env", "cli", sys.argv[1])
+def hook(event, args):
+    if event == "open" and isinstance(args[0], str) and target in args[0].replace("__pycache__" + os.sep, ""):
+        os.kill(os.getpid(), signal.SIGINT)
+sys.addaudithook(hook)
+sys.argv = ["ihrcf-" + sys.argv[2], "--help"]
+"""
+
+
+@pytest.mark.parametrize(("name", "module"), sorted(COMMANDS.items()))
+def test_ctrl_c_during_start_up_exits_130_without_a_traceback(name: str, module: str) -> None:
+    """The console script's entry point (as pip writes it: ``from X import f; sys.exit(f())``) and
+    the ``python -m`` launcher: a Ctrl-C while the command is still being imported ends it with the
+    one-line message and status 130."""
+    import subprocess
+    import sys
+    import tomllib
+
+    root = Path(__file__).resolve().parents[2]
+    target = tomllib.loads((root / "pyproject.toml").read_text())["project"]["scripts"][f"ihrcf-{name}"]
+    where, _, func = target.partition(":")
+    launcher = "ihrcf_env.record" if module == "record" else f"ihrcf_env.{module}"
+    for tail in (
+        f"from {where} import {func}\nsys.exit({func}())",
+        f"import runpy\nrunpy.run_module({launcher!r}, run_name='__main__', alter_sys=True)",
+    ):
+        run = subprocess.run(
+            [sys.executable, "-c", _STARTUP_CTRL_C + tail, module, name],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert run.returncode == EXIT_INTERRUPTED, (tail, run.stderr[-2000:])
+        assert "Traceback" not in run.stderr and run.stderr.rstrip().endswith(f"ihrcf-{name}: interrupted")
+        assert "usage:" not in run.stdout  # stopped before main parsed anything
+
+
+@pytest.mark.parametrize(
+    ("argv", "names"),
+    [
+        (
+            ["--option", "camera_model=rendered", "--camera-model", "projected"],
+            ("camera_model", "--camera-model"),
+        ),
+        (["--level", "calm", "--option", "level=rough"], ("level", "--level")),
+        (["--max-steps", "5", "--option", "max_episode_steps=9"], ("max_episode_steps", "--max-steps")),
+        (
+            ["--sensor-preset", "ideal", "--option", "sensor_preset=realistic"],
+            ("sensor_preset", "--sensor-preset"),
+        ),
+        (["--deck-motion", "--option", "deck_motion=false"], ("deck_motion", "--deck-motion")),
+    ],
+)
+@pytest.mark.usefixtures("no_env")
+def test_an_option_and_its_flag_with_two_values_are_a_usage_error(
+    capsys: pytest.CaptureFixture[str], argv: list[str], names: tuple[str, str]
+) -> None:
+    from ihrcf_env.cli.record import main as record
+
+    for main, extra in ((evaluate_cli.main, []), (record, ["--out", "never.rrd"])):
+        err = _usage_error(capsys, main, ["--policy", "blind:0.3", *argv, *extra])
+        assert all(n in err for n in names), err
+
+
+def test_an_option_and_its_flag_with_one_value_pass(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The same value given twice is no conflict."""
+    import argparse
+
+    ap = evaluate_cli.build_parser()
+    args = ap.parse_args(
+        ["--policy", "blind:0.3", "--camera-model", "projected", "--option", "camera_model=projected"]
+    )
+    evaluate_cli._check_args(ap, args)
+    assert args.options == {"camera_model": "projected"} and isinstance(args, argparse.Namespace)

@@ -450,7 +450,8 @@ BAD_OPTIONS = [
     ({"max_residual": 1e300}, ValueError, "max_residual"),
     ({"max_residual": 0.0}, ValueError, "max_residual"),
     ({"estimators": ("nope",)}, ValueError, "estimators"),
-    ({"fused_params": {}}, TypeError, "fused_params"),
+    ({"fused_params": {"nope": 1.0}}, ValueError, "fused_params"),
+    ({"fused_params": [1.0]}, TypeError, "fused_params"),
     ({"privileged": True}, ValueError, "privileged"),  # a landing-task option
     ({"deck_motion": 1}, TypeError, "deck_motion"),
     (

@@ -261,3 +261,18 @@ def test_the_in_process_env_is_refused_the_same_bad_rows(closing: Callable[[Any]
     a[[0, 2], 1] = -np.inf
     with pytest.raises(ValueError, match=r"rows \[0, 2\]"):
         v.step(a)
+
+
+@pytest.mark.parametrize("n", [1, 3])
+def test_a_seed_list_has_the_single_seeds_cap(n: int) -> None:
+    """Every env's seed is at most MAX_SEED, given as one int (``s + i``) or as a list."""
+    from ihrcf_env.vector.checks import MAX_SEED, env_seeds
+
+    assert env_seeds(MAX_SEED + 1 - n, n)[-1] == MAX_SEED
+    assert env_seeds([MAX_SEED] * n, n) == [MAX_SEED] * n
+    with pytest.raises(ValueError, match="seed"):
+        env_seeds(MAX_SEED + 2 - n, n)
+    with pytest.raises(ValueError, match=r"seed\[0\]"):
+        env_seeds([2**70] + [None] * (n - 1), n)
+    with pytest.raises(ValueError, match=rf"seed\[{n - 1}\]"):
+        env_seeds([0] * (n - 1) + [MAX_SEED + 1], n)

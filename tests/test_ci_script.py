@@ -1,0 +1,54 @@
+"""``.ci/run`` runs the default suite again on each newer Python the machine provides (pyenv's
+versions or ``pythonX.Y`` on PATH) and skips, with a printed line, a version that is absent."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+CI = Path(__file__).resolve().parents[1] / ".ci" / "run"
+
+pytestmark = pytest.mark.skipif(shutil.which("bash") is None, reason="needs bash")
+
+
+def _newer_python(version: str, pyenv_root: Path, path: str) -> str:
+    """What the script's ``newer_python`` function finds for ``version`` (``path``: the PATH)."""
+    text = CI.read_text()
+    function = re.search(r"^newer_python\(\) \{.*?^\}", text, re.S | re.M)
+    assert function is not None
+    script = f"set -euo pipefail\n{function.group(0)}\nnewer_python {version}\n"
+    env = {"PYENV_ROOT": str(pyenv_root), "PATH": path, "HOME": str(pyenv_root)}
+    bash = shutil.which("bash")
+    assert bash is not None
+    run = subprocess.run([bash, "-c", script], capture_output=True, text=True, env=env, check=True)
+    return run.stdout.strip()
+
+
+def test_the_newest_pyenv_interpreter_of_a_version_is_found(tmp_path: Path) -> None:
+    for v in ("3.12.1", "3.12.10", "3.13.0"):
+        exe = tmp_path / "versions" / v / "bin" / "python3"
+        exe.parent.mkdir(parents=True)
+        exe.write_text("")
+    empty = tmp_path / "bin"  # the tools the function uses, and no python3.X
+    empty.mkdir()
+    for tool in ("ls", "sort", "tail"):
+        found = shutil.which(tool)
+        assert found is not None
+        (empty / tool).symlink_to(found)
+    assert _newer_python("3.12", tmp_path, str(empty)) == str(tmp_path / "versions/3.12.10/bin/python3")
+    assert _newer_python("3.13", tmp_path, str(empty)) == str(tmp_path / "versions/3.13.0/bin/python3")
+    assert _newer_python("3.14", tmp_path, str(empty)) == ""  # absent: nothing, and no failure
+
+
+def test_every_newer_version_runs_the_suite_or_says_it_is_skipped() -> None:
+    text = CI.read_text()
+    loop = re.search(r"^for version in (.*); do$(.*?)^done$", text, re.S | re.M)
+    assert loop is not None
+    assert loop.group(1).split() == ["3.12", "3.13"]
+    body = loop.group(2)
+    assert "its suite is skipped" in body and "continue" in body
+    assert '.venv-py$version/bin/pytest"' in body
