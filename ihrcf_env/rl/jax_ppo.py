@@ -58,12 +58,12 @@ class PPOSettings:
     all JAX has, as many as split ``num_envs`` evenly)."""
 
     num_envs: int = 256
-    num_steps: int = 32
+    num_steps: int = 64
     num_epochs: int = 4
-    num_minibatches: int = 8
-    learning_rate: float = 1e-3
+    num_minibatches: int = 16
+    learning_rate: float = 3e-4
     max_grad_norm: float = 0.5
-    gamma: float = 0.99
+    gamma: float = 0.995
     gae_lambda: float = 0.95
     clip_eps: float = 0.2
     ent_coef: float = 0.0
@@ -72,6 +72,21 @@ class PPOSettings:
     activation: str = "swish"
     asymmetric: bool = True
     devices: int | None = None
+    curriculum_steps: int = 1_000_000
+    curriculum_share: float = 0.25
+
+
+def start_scales(settings: PPOSettings, steps: int, rng: np.random.Generator) -> np.ndarray:
+    """The start curriculum's scale of each env's next episode (1: the task's own start; below 1:
+    nearer the deck, :meth:`~ihrcf_env.vector.jax_landing.LandingFunctional.reset_stage`): a share
+    of the envs starts as the task does, from ``curriculum_share`` at the first step to all of them
+    after ``curriculum_steps`` env steps; the others start at a scale uniform in [0, 1]."""
+    n = settings.num_envs
+    if settings.curriculum_steps <= 0 or steps >= settings.curriculum_steps:
+        return np.ones(n, np.float32)
+    share = settings.curriculum_share + (1.0 - settings.curriculum_share) * steps / settings.curriculum_steps
+    full = rng.random(n) < share
+    return np.where(full, 1.0, rng.random(n)).astype(np.float32)
 
 
 class Run(NamedTuple):
@@ -120,103 +135,164 @@ class _Compiled(NamedTuple):
     update: Callable[..., Any]
     zero_counts: Callable[..., Any]
     start: Callable[..., Any]
+    tally: Callable[..., Any]
+    rows: Any
+    whole: Any
+    ids: Any
 
 
 def _compile(fenv: Any, learner: Any, settings: PPOSettings, max_steps: int) -> tuple[_Compiled, Any]:
-    """The run's compiled functions and its device mesh."""
+    """The run's compiled functions and its device mesh.
+
+    The transition is a ``shard_map`` over the mesh with no communication between devices: each
+    device steps its share of the envs with its own copy of the networks, and every env draws its
+    action noise and its step from its own key (``fold_in`` of the call's key and the env's index),
+    so its result does not depend on how the batch is split. What needs the whole batch (the
+    update, the observation statistics, the counters) runs on replicated arrays copied to every
+    device: no collective operation runs between the CPU devices."""
     import jax
     import jax.numpy as jnp
+    from jax.sharding import NamedSharding, PartitionSpec
 
     from ihrcf_env.rl.ppo_learner import Trajectory, normalise, update_stats
-    from ihrcf_env.vector.jax_devices import check_devices, env_mesh
+    from ihrcf_env.vector.jax_devices import ENV_AXIS, check_devices, env_mesh
     from ihrcf_env.vector.jax_rollout import batch_step, placeholder_state
 
     n = settings.num_envs
     devices = check_devices(settings.devices, n)
     mesh = env_mesh(devices)
     privileged = getattr(fenv, "privileged", None) if learner.inputs > learner.actor_inputs else None
-    step = batch_step(fenv, max_steps, mesh=mesh, privileged=privileged)
+    from ihrcf_env.vector.jax_rollout import has_stages
 
-    def transition(ts: Any, run: Run, force: Any, deterministic: Any) -> tuple[Any, Run, Any, Any]:
-        key, k_act, k_env = jax.random.split(ts.rng, 3)
-        action, taken, log_prob, value = learner.act(ts, run.obs, k_act, deterministic)
-        keys = jax.random.split(k_env, n)
-        obs, state, reward, done, success = step(keys, run.state, action, force)
-        stats = update_stats(ts.obs_rms_state, obs)
-        stats = jax.tree_util.tree_map(
-            lambda old, new: jnp.where(deterministic, old, new), ts.obs_rms_state, stats
-        )
-        counted = jnp.where(deterministic, 0, jnp.sum(~force)).astype(ts.global_step.dtype)
-        steps = ts.global_step + counted
-        ts = ts.replace(rng=key, obs_rms_state=stats, global_step=steps)
+    curriculum = has_stages(fenv)
+    step = batch_step(fenv, max_steps, privileged=privileged, curriculum=curriculum)
+
+    def local(params: Any, run: Run, key: Any, force: Any, deterministic: Any, ids: Any, scale: Any) -> Any:
+        """One step of this device's envs (every argument but ``params``, ``key`` and
+        ``deterministic`` holds this device's rows)."""
+        actor, critic, stats = params
+        keys = jax.vmap(lambda i: jax.random.split(jax.random.fold_in(key, i)))(ids)
+        x = normalise(stats, run.obs)
+        action, taken, log_prob, value = learner.act(actor, critic, x, keys[:, 0], deterministic)
+        if curriculum:
+            obs, state, reward, done, success = step(keys[:, 1], run.state, action, force, scale)
+        else:
+            obs, state, reward, done, success = step(keys[:, 1], run.state, action, force)
         live = ~force
         reward = jnp.where(live, reward, 0.0).astype(jnp.float32)
         done = done & live
         returns = run.returns + reward
         traj = Trajectory(run.obs, taken, log_prob, reward, value, done)
         new = Run(
-            state, normalise(stats, obs), done, jnp.where(done, 0.0, returns),
-            run.ended + jnp.sum(done), run.succeeded + jnp.sum(done & success),
-            run.return_sum + jnp.sum(jnp.where(done, returns, 0.0)),
+            state, obs.astype(jnp.float32), done, jnp.where(done, 0.0, returns),
+            run.ended + done.astype(jnp.int32), run.succeeded + (done & success).astype(jnp.int32),
+            run.return_sum + jnp.where(done, returns, 0.0),
         )  # fmt: skip
-        return ts, new, traj, done & success
+        return new, traj, done & success
 
-    def update(ts: Any, trajs: list[Any], run: Run) -> Any:
+    row, one = PartitionSpec(ENV_AXIS), PartitionSpec()
+    if devices > 1:
+        sharded = jax.shard_map(
+            local,
+            mesh=mesh,
+            in_specs=(one, row, one, row, one, row, row),
+            out_specs=(row, row, row),
+            check_vma=False,
+        )
+    else:
+        sharded = local
+
+    def transition(ts: Any, run: Run, key: Any, force: Any, deterministic: Any, ids: Any, scale: Any) -> Any:
+        params = (ts.actor_ts.params, ts.critic_ts.params, ts.obs_rms_state)
+        return sharded(params, run, key, force, deterministic, ids, scale)
+
+    def update(ts: Any, trajs: list[Any], last_obs: Any, last_done: Any) -> Any:
+        """PPO's update on the rollout (raw observations, normalised with the statistics the
+        actions were taken with), then the statistics updated with the rollout's observations."""
         traj = jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *trajs)
-        return learner.update(ts, traj, run.obs, run.done)
+        stats = ts.obs_rms_state
+        ts = learner.update(
+            ts, traj.replace(obs=normalise(stats, traj.obs)), normalise(stats, last_obs), last_done
+        )
+        stats = update_stats(stats, traj.obs.reshape((-1, traj.obs.shape[-1])))
+        return ts.replace(obs_rms_state=stats, global_step=ts.global_step + traj.done.size)
 
     def zero_counts(run: Run) -> Run:
-        z = jnp.zeros((), jnp.int32)
-        return run._replace(ended=z, succeeded=z, return_sum=jnp.zeros((), jnp.float32))
+        z = jnp.zeros(n, jnp.int32)
+        return run._replace(ended=z, succeeded=z, return_sum=jnp.zeros(n, jnp.float32))
 
-    def start(ts: Any) -> Run:
+    def start() -> Run:
         state = placeholder_state(fenv, n)
         obs = jnp.zeros((n, learner.inputs), jnp.float32)
-        z = jnp.zeros((), jnp.int32)
-        return Run(
-            state, obs, jnp.zeros(n, bool), jnp.zeros(n, jnp.float32), z, z, jnp.zeros((), jnp.float32)
+        z = jnp.zeros(n, jnp.int32)
+        return Run(state, obs, jnp.zeros(n, bool), jnp.zeros(n, jnp.float32), z, z, jnp.zeros(n, jnp.float32))
+
+    def tally(acc: Any, traj: Any, succeeded: Any) -> Any:
+        """An evaluation's per-env sums over the first episode: (ended, success, return, length)."""
+        first, success, ret, length = acc
+        live = ~first
+        return (
+            first | traj.done,
+            success | (live & succeeded),
+            ret + jnp.where(live, traj.reward, 0.0),
+            length + live,
         )
 
+    # every array keeps one placement across calls (the batch split over the mesh, the rest
+    # replicated), so nothing is compiled again for another placement
+    rows, whole = NamedSharding(mesh, row), NamedSharding(mesh, one)
+    run_shape = jax.eval_shape(start)
+    run_sh = Run(jax.tree_util.tree_map(lambda _: rows, run_shape.state), rows, rows, rows, rows, rows, rows)
+    traj_sh = Trajectory(rows, rows, rows, rows, rows, rows)
+    acc_sh = (rows, rows, rows, rows)
     compiled = _Compiled(
-        jax.jit(transition, donate_argnums=(1,)), jax.jit(update), jax.jit(zero_counts), jax.jit(start)
-    )
+        jax.jit(
+            transition, donate_argnums=(1,), in_shardings=(whole, run_sh, whole, rows, whole, rows, rows),
+            out_shardings=(run_sh, traj_sh, rows),
+        ),
+        jax.jit(update, in_shardings=(whole, whole, whole, whole), out_shardings=whole),
+        jax.jit(zero_counts, in_shardings=(run_sh,), out_shardings=run_sh),
+        jax.jit(start, out_shardings=run_sh),
+        jax.jit(tally, in_shardings=(acc_sh, traj_sh, rows), out_shardings=acc_sh),
+        rows,
+        whole,
+        jax.device_put(jnp.arange(n, dtype=jnp.uint32), rows),
+    )  # fmt: skip
     return compiled, mesh
 
 
-def _reset(c: _Compiled, ts: Any, n: int, deterministic: bool) -> tuple[Any, Run]:
-    """A fresh batch: every env reset (through :func:`transition`, so nothing compiles again)."""
+def _reset(c: _Compiled, ts: Any, n: int, key: Any, scale: Any) -> Run:
+    """A fresh batch: every env reset (through the transition, so nothing compiles again)."""
+    import jax
     import jax.numpy as jnp
 
-    run = c.start(ts)
-    ts, run, _, _ = c.transition(ts, run, jnp.ones(n, bool), jnp.asarray(deterministic))
-    return ts, c.zero_counts(run)
+    run = c.start()
+    force = jax.device_put(jnp.ones(n, bool), c.rows)
+    run, _, _ = c.transition(ts, run, key, force, jax.device_put(jnp.asarray(False), c.whole), c.ids, scale)
+    return c.zero_counts(run)
 
 
 def _evaluate(c: _Compiled, ts: Any, n: int, max_steps: int, key: Any) -> tuple[float, float, float]:
     """(success rate, mean return, mean length) of the first episode of each of ``n`` envs flown
-    with the actor's mean action; ``ts`` is left as it was."""
+    with the actor's mean action, from ``key``."""
+    import jax
     import jax.numpy as jnp
 
-    ts_e = ts.replace(rng=key)
-    ts_e, run = _reset(c, ts_e, n, True)
-    first = np.zeros(n, bool)
-    success = np.zeros(n, bool)
-    ret = np.zeros(n)
-    length = np.zeros(n)
-    force = jnp.zeros(n, bool)
-    det = jnp.asarray(True)
-    for _ in range(max_steps):
-        ts_e, run, traj, succeeded = c.transition(ts_e, run, force, det)
-        r, d, s = np.asarray(traj.reward), np.asarray(traj.done), np.asarray(succeeded)
-        live = ~first
-        ret[live] += r[live]
-        length[live] += 1
-        success |= live & s
-        first |= d
-        if first.all():
+    key, k0 = jax.random.split(key)
+    ones = jax.device_put(jnp.ones(n, jnp.float32), c.rows)
+    run = _reset(c, ts, n, jax.device_put(k0, c.whole), ones)
+    acc = jax.device_put((jnp.zeros(n, bool), jnp.zeros(n, bool), jnp.zeros(n), jnp.zeros(n)), c.rows)
+    force = jax.device_put(jnp.zeros(n, bool), c.rows)
+    det = jax.device_put(jnp.asarray(True), c.whole)
+    for step in range(max_steps):
+        run, traj, succeeded = c.transition(
+            ts, run, jax.device_put(jax.random.fold_in(key, step), c.whole), force, det, c.ids, ones
+        )
+        acc = c.tally(acc, traj, succeeded)
+        if step % 25 == 24 and np.asarray(acc[0]).all():  # read back now and then: the steps stay queued
             break
-    success_rate = float(success.mean())
-    return success_rate, float(ret.mean()), float(length.mean())
+    _, success, ret, length = (np.asarray(a) for a in acc)
+    return float(success.mean()), float(ret.mean()), float(length.mean())
 
 
 def train(
@@ -313,8 +389,18 @@ def _train(
     done_steps = int(curve[-1]["steps"]) if curve else 0
     wall0 = curve[-1]["wall_s"] if curve else 0.0
     t_call = time.monotonic()
-    ts, run = _reset(compiled, ts, n, False)
-    force, sample = jnp.zeros(n, bool), jnp.asarray(False)
+    key = jax.random.fold_in(jax.random.PRNGKey(seed), 1_000_003 + done_steps // per_iteration)
+    rng = np.random.default_rng([seed, done_steps])
+
+    def scales() -> Any:
+        return jax.device_put(jnp.asarray(start_scales(settings, done_steps, rng)), compiled.rows)
+
+    run = _reset(compiled, ts, n, jax.device_put(key, compiled.whole), scales())
+    jax.block_until_ready(run.obs)
+    log(f"the batched step compiled and the envs reset in {time.monotonic() - t_call:.0f} s")
+    force = jax.device_put(jnp.zeros(n, bool), compiled.rows)
+    sample = jax.device_put(jnp.asarray(False), compiled.whole)
+    iteration = done_steps // per_iteration
     eval_s = 0.0
     iteration_s = 0.0
     evaluated = True
@@ -334,10 +420,17 @@ def _train(
                     break
                 t0 = time.monotonic()
                 trajs = []
-                for _ in range(settings.num_steps):
-                    ts, run, traj, _ = compiled.transition(ts, run, force, sample)
+                scale = scales()
+                for t in range(settings.num_steps):
+                    k = jax.random.fold_in(key, iteration * settings.num_steps + t)
+                    run, traj, _ = compiled.transition(
+                        ts, run, jax.device_put(k, compiled.whole), force, sample, compiled.ids, scale
+                    )
                     trajs.append(traj)
-                ts = compiled.update(ts, trajs, run)
+                iteration += 1
+                # the rollout copied to every device (a transfer, no collective operation)
+                trajs, last_obs, last_done = jax.device_put((trajs, run.obs, run.done), compiled.whole)
+                ts = compiled.update(ts, trajs, last_obs, last_done)
                 jax.block_until_ready(ts.global_step)
                 iteration_s = time.monotonic() - t0
                 done_steps += per_iteration
@@ -348,8 +441,8 @@ def _train(
             ev = _evaluate(compiled, ts, n, max_steps, jax.random.PRNGKey(10_000 + len(curve)))
             eval_s = time.monotonic() - t0
             evaluated = True
-            ended = int(np.asarray(run.ended))
-            train_success = float(np.asarray(run.succeeded)) / ended if ended else 0.0
+            ended = int(np.asarray(run.ended).sum())
+            train_success = float(np.asarray(run.succeeded).sum()) / ended if ended else 0.0
             run = compiled.zero_counts(run)
             wall = wall0 + time.monotonic() - t_call
             row = {
@@ -541,6 +634,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--symmetric", action="store_true", help="the critic reads the observation only (no privileged truth)"
     )
     ap.add_argument(
+        "--curriculum-steps", type=float, default=d.curriculum_steps,
+        help="env steps of the start curriculum (episodes started nearer the deck; 0: none)",
+    )  # fmt: skip
+    ap.add_argument(
         "--export", choices=("last", "best"), default="best",
         help="write the last chunk's actor, or the one with the best evaluated success rate",
     )  # fmt: skip
@@ -563,7 +660,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     fenv = make_functional(args.env_id, "float32", max_steps=max_steps, level=args.level)
     settings = PPOSettings(
         num_envs=args.num_envs, num_steps=args.num_steps, learning_rate=args.learning_rate,
-        asymmetric=not args.symmetric, devices=args.devices,
+        asymmetric=not args.symmetric, devices=args.devices, curriculum_steps=int(args.curriculum_steps),
     )  # fmt: skip
     try:
         learner, ts, curve = train(

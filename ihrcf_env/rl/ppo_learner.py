@@ -13,6 +13,7 @@ and clipped to +-:data:`CLIP_OBS`, as :class:`~ihrcf_env.control.mlp_policy.MlpP
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import jax
@@ -135,12 +136,17 @@ class Learner:
     def critic(self) -> VNetwork:
         return VNetwork(self.hidden, getattr(nn, self.activation))
 
+    @cached_property
+    def tx(self) -> Any:
+        """The optimiser (one object per learner: the train state's static part)."""
+        return optax.chain(optax.clip_by_global_norm(self.max_grad_norm), optax.adam(self.learning_rate))
+
     def init(self, key: Any) -> TrainState:
         """A new train state: random networks, empty statistics."""
         k_actor, k_critic, key = jax.random.split(key, 3)
         actor_params = self.actor.init(k_actor, jnp.zeros((1, self.actor_inputs)), k_actor)
         critic_params = self.critic.init(k_critic, jnp.zeros((1, self.inputs)))
-        tx = optax.chain(optax.clip_by_global_norm(self.max_grad_norm), optax.adam(self.learning_rate))
+        tx = self.tx
         stats = RunningStats(jnp.zeros(self.inputs), jnp.ones(self.inputs), jnp.asarray(1e-4))
         return TrainState(
             NetState.create(apply_fn=(), params=actor_params, tx=tx),
@@ -150,15 +156,23 @@ class Learner:
             jnp.asarray(0, jnp.int32),
         )
 
-    def act(self, ts: TrainState, obs: Any, key: Any, deterministic: Any) -> tuple[Any, Any, Any, Any]:
-        """For normalised rows ``obs`` (N, inputs): (action clipped to the bounds, the sampled
-        action, its log-probability, the critic's value). ``deterministic`` (a traced bool) takes
-        the Gaussian's mean instead of a sample."""
+    def act(
+        self, actor: Any, critic: Any, obs: Any, keys: Any, deterministic: Any
+    ) -> tuple[Any, Any, Any, Any]:
+        """For normalised rows ``obs`` (N, inputs) and one key per row: (action clipped to the
+        bounds, the action taken, its log-probability, the critic's value). ``deterministic`` (a
+        traced bool) takes the Gaussian's mean instead of a sample. Row by row: a row's result
+        depends on its own inputs and key only."""
         x = obs[:, : self.actor_inputs]
-        sample, log_prob = self.actor.apply(ts.actor_ts.params, x, key, method="action_log_prob")
-        mean = self.mean_action(ts.actor_ts.params, x)
+
+        def one(xi: Any, k: Any) -> tuple[Any, Any]:
+            sample, log_prob = self.actor.apply(actor, xi[None], k, method="action_log_prob")
+            return sample[0], log_prob[0]
+
+        sample, log_prob = jax.vmap(one)(x, keys)
+        mean = self.mean_action(actor, x)
         taken = jnp.where(deterministic, mean, sample)
-        value = self.critic.apply(ts.critic_ts.params, obs)
+        value = self.critic.apply(critic, obs)
         return jnp.clip(taken, self.low, self.high), taken, log_prob, value
 
     def mean_action(self, actor_params: Any, x: Any) -> Any:

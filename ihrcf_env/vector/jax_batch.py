@@ -97,6 +97,7 @@ def autoreset_step(
     actions: Any,
     *,
     force_reset: Any = None,
+    reset_args: Any = None,
     finish: Callable[[Any, Any], tuple[Any, Any]] | None = None,
     chunk: int = CHUNK,
     block: int = RESET_BLOCK,
@@ -104,7 +105,8 @@ def autoreset_step(
     """One step of N envs with same-step autoreset, the batched form of gymnax's ``step``:
     ``step_one(key, state, action) -> (obs, state, reward, done, info)`` for every env (in chunks
     of ``chunk``), then the envs that are done, or where ``force_reset`` (a bool per env, optional)
-    is true, get ``reset_one(key) -> (obs, state)`` (their new first observation and state; reward,
+    is true, get ``reset_one(key) -> (obs, state)`` (``reset_one(key, arg)`` with ``reset_args``, a
+    pytree of one row per env: the env's row as ``arg``) (their new first observation and state; reward,
     done and info stay the step's). ``keys`` has one key per env; each env's reset draws from its own
     key, so the result of an env does not depend on the others (nor on how the batch is split).
 
@@ -116,7 +118,12 @@ def autoreset_step(
     split = jax.vmap(jax.random.split)(keys)
     obs, state, reward, done, info = map_envs(step_one, split[:, 0], state, actions, chunk=chunk)
     ended = done if force_reset is None else done | force_reset
-    obs, state = reset_ended(reset_one, split[:, 1], (obs, state), ended, block=block)
+    if reset_args is None:
+        obs, state = reset_ended(reset_one, split[:, 1], (obs, state), ended, block=block)
+    else:
+        obs, state = reset_ended(
+            lambda ka: reset_one(*ka), (split[:, 1], reset_args), (obs, state), ended, block=block
+        )
     if finish is not None:
         obs, state = map_envs(finish, obs, state, chunk=chunk)
     return obs, state, reward, done, info

@@ -18,6 +18,7 @@ from typing import Any
 
 __all__ = [
     "ENV_AXIS",
+    "check_device_count",
     "check_devices",
     "env_mesh",
     "host_cores",
@@ -37,6 +38,12 @@ def host_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def check_device_count(devices: Any) -> None:
+    """``devices`` is None or a positive int (ValueError naming it)."""
+    if devices is not None and (isinstance(devices, bool) or not isinstance(devices, int) or devices < 1):
+        raise ValueError(f"devices must be a positive int, got {devices!r}")
+
+
 def request_host_devices(count: int | None = None) -> int:
     """Ask JAX for ``count`` CPU devices (default: :func:`host_cores`) if its backend has not
     started yet (the request must precede any JAX computation); returns the devices JAX has now.
@@ -44,8 +51,9 @@ def request_host_devices(count: int | None = None) -> int:
     import jax
     from jax._src import xla_bridge
 
-    if count is not None and (isinstance(count, bool) or not isinstance(count, int) or count < 1):
-        raise ValueError(f"devices must be a positive int, got {count!r}")
+    check_device_count(count)
+    if count is not None and count > host_cores():
+        raise ValueError(f"devices={count}: this process may use {host_cores()} core(s)")
     want = host_cores() if count is None else count
     if not xla_bridge.backends_are_initialized() and jax.config.jax_num_cpu_devices < 0:
         jax.config.update("jax_num_cpu_devices", want)
@@ -65,8 +73,7 @@ def check_devices(devices: Any, num_envs: int) -> int:
         while num_envs % devices:
             devices -= 1
         return devices
-    if isinstance(devices, bool) or not isinstance(devices, int) or devices < 1:
-        raise ValueError(f"devices must be a positive int, got {devices!r}")
+    check_device_count(devices)
     if devices > have:
         raise ValueError(
             f"devices={devices}: JAX has {have} device(s) here ({jax.devices()[0].platform}); on a CPU, "

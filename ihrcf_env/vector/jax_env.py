@@ -116,10 +116,12 @@ class JaxVectorEnv(VectorEnv):
         max_episode_steps: int | None = None,
         seeding: str = "paired",
         dtype: str = "float64",
+        devices: int | None = None,
     ) -> None:
         import jax
 
         from ihrcf_env.fast.cache import enable_compilation_cache
+        from ihrcf_env.vector.jax_devices import check_devices, env_mesh, shard_envs
 
         enable_compilation_cache()
         n = check_int("num_envs", num_envs, low=1, high=MAX_JAX_ENVS)
@@ -151,7 +153,13 @@ class JaxVectorEnv(VectorEnv):
         params = fenv.params
         with jax.enable_x64(self._x64):
             self._params = jax.tree_util.tree_map(jax.numpy.asarray, params)
-        self._step_fn = jax.jit(self._batched_step)
+        #: the devices the envs are spread over (each steps its share of the batch)
+        self.devices = check_devices(devices, n)
+        mesh = env_mesh(self.devices)
+        step = shard_envs(lambda *batched: self._batched_step(*batched, self._params), mesh)
+        self._step_fn = jax.jit(
+            lambda state, keys, actions, stepping, params: step(state, keys, actions, stepping)
+        )
         self._reset_fn = jax.jit(self._reset_rows_fn)
         #: how often the reset was traced (each trace is a compilation)
         self.reset_traces = 0

@@ -42,7 +42,11 @@ from ihrcf_env.fast.step import INVALID_ACTION, check_tree, state_spec
 from ihrcf_env.tasks import CONTACT_NAMES, TaskState, TouchdownState, describe
 from ihrcf_env.tasks import SUCCESS as _SUCCESS
 
-__all__ = ["LM_ITERATIONS", "TRUTH_KEYS", "LandingFunctional"]
+__all__ = ["CURRICULUM_ALTITUDE", "LM_ITERATIONS", "TRUTH_KEYS", "LandingFunctional"]
+
+#: The lowest start of a start curriculum (m above the deck origin;
+#: :meth:`LandingFunctional.reset_stage`).
+CURRICULUM_ALTITUDE = 0.6
 
 #: The truth in the ``info`` of a reset and a step, as the PyBullet env gives it (world and body
 #: frames, m, rad, m/s; quaternions x, y, z, w).
@@ -169,11 +173,23 @@ class LandingFunctional:
         out = {"outcome": info.outcome, "is_success": info.outcome == jnp.asarray(_SUCCESS)}
         return reading, (env_state, obs_state), reward, done, out
 
-    def reset_stage(self, key: Any, params: Any) -> tuple[Any, Any]:
+    def reset_stage(self, key: Any, params: Any, start_scale: Any = None) -> tuple[Any, Any]:
         """:meth:`reset` without the estimator stage: ``(reading, state)``, the stage's state that
-        of an episode's start (:meth:`finish` makes the first observation)."""
+        of an episode's start (:meth:`finish` makes the first observation). ``start_scale`` in
+        [0, 1] (a trainer's start curriculum; None: the task's own start) brings the drawn start
+        towards the deck: the altitude above the deck origin to :data:`CURRICULUM_ALTITUDE` plus
+        the scale times the rest, the horizontal offset times the scale."""
         k1, k2 = jax.random.split(key)
-        reading, env_state = st.reset_from(self.draw(k1, params), k2, self.step_params)
+        episode = self.draw(k1, params)
+        if start_scale is not None:
+            f = jnp.clip(jnp.asarray(start_scale, episode.altitude.dtype), 0.0, 1.0)
+            low = jnp.minimum(episode.altitude, CURRICULUM_ALTITUDE)
+            full = f >= 1.0  # the task's own start, bit for bit
+            episode = episode._replace(
+                altitude=jnp.where(full, episode.altitude, low + f * (episode.altitude - low)),
+                offset=jnp.where(full, episode.offset, f * episode.offset),
+            )
+        reading, env_state = st.reset_from(episode, k2, self.step_params)
         return reading, (env_state, ob.observe_init(self.observe_params))
 
     def finish(self, reading: Any, state: Any) -> tuple[Any, Any]:

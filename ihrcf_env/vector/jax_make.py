@@ -89,19 +89,26 @@ def make_jax_vector_env(
     max_episode_steps: int | None = None,
     seeding: str = "paired",
     dtype: str = "float64",
+    devices: int | None = None,
     **options: Any,
 ) -> JaxVectorEnv:
     """The JAX vector env of ``num_envs`` episodes of ``env_id`` (module docstring). It carries the
-    functional env's ``config``, ``obs_slices`` and ``obs_scales``."""
+    functional env's ``config``, ``obs_slices`` and ``obs_scales``. ``devices``: the devices the
+    envs are spread over (None: as many as JAX has and split ``num_envs`` evenly; on a CPU, one
+    per core this process may use when JAX has not started yet)."""
+    from ihrcf_env.vector.jax_devices import check_device_count, request_host_devices
+
     check_options(options)
     n = check_int("num_envs", num_envs, low=1, high=MAX_JAX_ENVS)
+    check_device_count(devices)
+    request_host_devices(devices)
     if dtype not in ("float64", "float32"):
         raise ValueError(f"dtype must be 'float64' or 'float32', got {dtype!r}")
     limit = time_limit(env_id, max_episode_steps)
     if limit is not None:
         check_episode_steps(limit, n, dtype)
     fenv = make_functional(env_id, dtype, max_steps=limit or 600, **options)
-    env = JaxVectorEnv(env_id, fenv, num_envs, autoreset_mode, max_episode_steps, seeding, dtype)
+    env = JaxVectorEnv(env_id, fenv, num_envs, autoreset_mode, max_episode_steps, seeding, dtype, devices)
     env.config = fenv.config  # type: ignore[attr-defined]
     env.obs_slices = fenv.obs_slices  # type: ignore[attr-defined]
     env.obs_scales = fenv.obs_scales  # type: ignore[attr-defined]

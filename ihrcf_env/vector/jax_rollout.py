@@ -42,17 +42,23 @@ def batch_step(
     *,
     mesh: Any = None,
     privileged: Callable[[Any], Any] | None = None,
+    curriculum: bool = False,
     chunk: int = CHUNK,
     block: int = RESET_BLOCK,
 ) -> Callable[..., Any]:
     """The batched step of ``fenv`` (module docstring); its state is ``(env state, steps)``.
-    ``privileged(reading) -> (P,)`` needs the staged form."""
+    ``privileged(reading) -> (P,)`` needs the staged form. ``curriculum``: the step takes a fifth
+    argument, ``start_scale`` (N,), passed to the staged ``reset_stage`` of each env that starts an
+    episode (a start curriculum)."""
     if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
         raise ValueError(f"max_steps must be a positive int, got {max_steps!r}")
     params = fenv.params
     staged = has_stages(fenv)
-    if privileged is not None and not staged:
-        raise ValueError("privileged inputs need a functional env with the staged form (step_stage, ...)")
+    if (privileged is not None or curriculum) and not staged:
+        raise ValueError(
+            "privileged inputs and a start curriculum need a functional env with the staged form "
+            "(step_stage, reset_stage, finish)"
+        )
 
     if staged:
 
@@ -61,8 +67,11 @@ def batch_step(
             reading, inner, reward, done, info = fenv.step_stage(key, inner, action, params)
             return reading, (inner, t + 1), reward, done | (t + 1 >= max_steps), info["is_success"]
 
-        def reset_one(key: Any) -> Any:
-            reading, inner = fenv.reset_stage(key, params)
+        def reset_one(key: Any, start_scale: Any = None) -> Any:
+            if start_scale is None:
+                reading, inner = fenv.reset_stage(key, params)
+            else:
+                reading, inner = fenv.reset_stage(key, params, start_scale=start_scale)
             return reading, (inner, jnp.zeros((), jnp.int32))
 
         def finish(reading: Any, state: Any) -> Any:
@@ -87,10 +96,10 @@ def batch_step(
 
         finish = None  # type: ignore[assignment]
 
-    def local(keys: Any, state: Any, actions: Any, force_reset: Any) -> Any:
+    def local(keys: Any, state: Any, actions: Any, force_reset: Any, start_scale: Any = None) -> Any:
         obs, state, reward, done, success = autoreset_step(
-            step_one, reset_one, keys, state, actions, force_reset=force_reset, finish=finish,
-            chunk=chunk, block=block,
+            step_one, reset_one, keys, state, actions, force_reset=force_reset, reset_args=start_scale,
+            finish=finish, chunk=chunk, block=block,
         )  # fmt: skip
         return obs, state, reward, done, success
 

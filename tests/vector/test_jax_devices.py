@@ -75,6 +75,45 @@ def test_the_sharded_batch_steps_bit_identically_to_one_device() -> None:
     assert "identical" in out.stdout
 
 
+VECTOR_SCRIPT = textwrap.dedent(
+    """
+    import sys
+    sys.path.insert(0, {tests!r})
+    from ihrcf_env.vector.jax_devices import request_host_devices
+    assert request_host_devices(2) == 2
+    import numpy as np
+    from functional_toy import Drop
+    from ihrcf_env.vector.jax_env import JaxVectorEnv
+
+    runs = []
+    for devices in (1, 2):
+        env = JaxVectorEnv(
+            "ihrcf_env/DeckLanding-v2", Drop(), num_envs=6, devices=devices, max_episode_steps=25
+        )
+        assert env.devices == devices
+        obs, _ = env.reset(seed=3)
+        rng = np.random.default_rng(0)
+        trace = [obs]
+        for _ in range(30):
+            obs, reward, term, trunc, _ = env.step(rng.uniform(-1, 1, (6, 1)))
+            trace += [obs, reward, term, trunc]
+        runs.append(trace)
+        env.close()
+    for a, b in zip(*runs):
+        assert np.asarray(a).tobytes() == np.asarray(b).tobytes()
+    print("identical")
+    """
+)
+
+
+def test_the_vector_env_over_two_devices_steps_as_on_one() -> None:
+    env = {**os.environ, "JAX_PLATFORMS": "cpu"}
+    code = VECTOR_SCRIPT.format(tests=str(TESTS))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert "identical" in out.stdout
+
+
 def test_device_counts_are_checked_by_name() -> None:
     import jax
 
@@ -91,7 +130,62 @@ def test_device_counts_are_checked_by_name() -> None:
             check_devices(have, have * 3 + 1)
 
 
+def test_a_request_beyond_the_cores_is_refused() -> None:
+    from ihrcf_env.vector.jax_devices import request_host_devices
+
+    with pytest.raises(ValueError, match=f"devices={host_cores() + 1}"):
+        request_host_devices(host_cores() + 1)
+
+
 def test_host_cores_are_those_the_process_may_use() -> None:
     assert 1 <= host_cores() <= (os.cpu_count() or 1)
     if hasattr(os, "sched_getaffinity"):
         assert host_cores() == len(os.sched_getaffinity(0))
+
+
+TRAINER_SCRIPT = textwrap.dedent(
+    """
+    import sys
+    sys.path.insert(0, {tests!r})
+    from ihrcf_env.vector.jax_devices import request_host_devices
+    assert request_host_devices(2) == 2
+    import jax, jax.numpy as jnp, numpy as np
+    from functional_toy import Drop
+    from ihrcf_env.rl import jax_ppo as jp
+
+    outs = []
+    for devices in (1, 2):
+        s = jp.PPOSettings(num_envs=8, num_steps=4, num_minibatches=2, hidden=(16, 16), devices=devices)
+        fenv = Drop()
+        learner = jp.make_learner(fenv, s)
+        c, mesh = jp._compile(fenv, learner, s, 20)
+        ts = jax.device_put(learner.init(jax.random.PRNGKey(0)), c.whole)
+        ones = jax.device_put(jnp.ones(8, jnp.float32), c.rows)
+        run = jp._reset(c, ts, 8, jax.device_put(jax.random.PRNGKey(1), c.whole), ones)
+        force = jax.device_put(jnp.zeros(8, bool), c.rows)
+        det = jax.device_put(jnp.asarray(False), c.whole)
+        trace = []
+        for t in range(30):
+            k = jax.device_put(jax.random.PRNGKey(100 + t), c.whole)
+            run, traj, ok = c.transition(ts, run, k, force, det, c.ids, ones)
+            trace += [np.asarray(x) for x in jax.tree_util.tree_leaves((run, traj, ok))]
+        outs.append(trace)
+    for a, b in zip(*outs):
+        assert a.dtype == b.dtype and a.shape == b.shape
+        np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
+    print("close")
+    """
+)
+
+
+def test_the_trainer_steps_its_envs_over_two_devices_as_on_one() -> None:
+    """PPO's transition (the policy's actions, the envs' steps and resets) over two devices gives
+    the one-device result to float32 rounding: the env step is the same bit for bit (above), but
+    XLA's CPU matrix products (the networks) may round the last bit differently for another
+    number of rows per device."""
+    pytest.importorskip("rejax")
+    env = {**os.environ, "JAX_PLATFORMS": "cpu"}
+    code = TRAINER_SCRIPT.format(tests=str(TESTS))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert "close" in out.stdout
