@@ -7,7 +7,9 @@ position reseed at agreeing measurements, the numerical reset, the delay compens
 convergence latch. Every branch is a ``jnp.where`` selection.
 
 Configuration is host-side (:func:`fused_setup`); the filter's state is a :class:`FusedState`
-pytree (:func:`fused_init`, :func:`fused_reset`) and a step is :func:`fused_update`. The
+pytree (:func:`fused_init`, :func:`fused_reset`) and a step is :func:`fused_update`
+(:func:`fused_update_with_ihrcf`: with IHRCF's estimate of a second reading of the frame's
+corners, made in the same call as the filter's own IHRCF). The
 range-only update (``FusedParams.range_only_update``) is not ported: :func:`fused_setup` refuses
 it. Frames and units as :mod:`ihrcf_env.fast.fused_blocks`.
 """
@@ -17,9 +19,10 @@ from __future__ import annotations
 import math
 from typing import Any, NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
-from jax import Array
+from jax import Array, tree_util
 
 from ihrcf_env.core.calibration.tables import RangePixelTable
 from ihrcf_env.core.constants import GRAVITY
@@ -29,7 +32,7 @@ from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.fast import fused_blocks as fb
 from ihrcf_env.fast import imm
-from ihrcf_env.fast.ihrcf import IHRCFSetup, ihrcf_parts, ihrcf_setup
+from ihrcf_env.fast.ihrcf import IHRCFSetup, Pose, ihrcf_parts, ihrcf_setup
 from ihrcf_env.fast.linalg3 import euler_from_matrix, matrix_from_euler
 from ihrcf_env.fast.pnp import Candidates, pnp_candidates, pnp_choose
 from ihrcf_env.fast.table import touch_table
@@ -44,6 +47,7 @@ __all__ = [
     "fused_reset",
     "fused_setup",
     "fused_update",
+    "fused_update_with_ihrcf",
 ]
 
 
@@ -301,9 +305,12 @@ def _measure(
     t: Array,
     R_wb: Array,
     cands: Candidates | None,
-) -> tuple[FusedState, Array, Array, Array, Array]:
+    other: tuple[Array, Array, Array] | None = None,
+) -> tuple[FusedState, Array, Array, Array, Array, Pose | None]:
     """The frame's measurement step (``FusedEstimator._measure``): (state, inner, ihrcf code,
-    ihrcf RMS, ATDA code)."""
+    ihrcf RMS, ATDA code, IHRCF's pose of the ``other`` reading (ranges, their validity,
+    detected) of the frame's corners, computed in the same call as the filter's own; None without
+    it)."""
     c = setup.consts
     p = c.params
     pos, att = st.pos, st.att
@@ -319,7 +326,21 @@ def _measure(
     v_cam = jnp.asarray(R_BODY_CAM).T @ (R_wb.T @ v)
     ranges = jnp.where(sel, ranges + v_cam[2] * jnp.where(sel, shift, 0.0), ranges)
     # IHRCF
-    pose, corners_cam, used = ihrcf_parts(f.corners, ranges, f.ranges_valid, jnp.ones((), bool), setup.ihrcf)
+    other_pose = None
+    if other is None:
+        one = jnp.ones((), bool)
+        pose, corners_cam, used = ihrcf_parts(f.corners, ranges, f.ranges_valid, one, setup.ihrcf)
+    else:  # both readings in one call over a leading pair axis
+        o_ranges, o_valid, o_det = other
+        both = jax.vmap(ihrcf_parts, in_axes=(None, 0, 0, 0, None))(
+            f.corners,
+            jnp.stack([ranges, jnp.asarray(o_ranges, ranges.dtype)]),
+            jnp.stack([f.ranges_valid, o_valid]),
+            jnp.stack([jnp.ones((), bool), jnp.asarray(o_det, bool)]),
+            setup.ihrcf,
+        )
+        pose, corners_cam, used = tree_util.tree_map(lambda a: a[0], both)
+        other_pose = tree_util.tree_map(lambda a: a[1], both[0])
     ih_valid = det & pose.valid
     ihrcf_code = jnp.where(det, pose.code.astype(jnp.int32), 0)
     ihrcf_rms = jnp.where(det, pose.fit_rms, 0.0)
@@ -436,7 +457,7 @@ def _measure(
         pos=pos, att=att, converged=converged, atda_prior=atda_prior, has_prior=has_prior,
         log_var=log_var, var_weight=var_weight, bias=bias, bias_P=bias_P,
     )  # fmt: skip
-    return st, inner, ihrcf_code, ihrcf_rms, atda_code
+    return st, inner, ihrcf_code, ihrcf_rms, atda_code, other_pose
 
 
 def _output(
@@ -493,6 +514,35 @@ def fused_update(
     """The filter after fusing frame ``f`` when ``active`` (unchanged, its output held, otherwise);
     ``cands``: ATDA's candidates of the frame (default: :func:`~ihrcf_env.fast.pnp.pnp_candidates`).
     The output is ``state.out``."""
+    return _update(setup, st, f, active, cands, None)[0]
+
+
+def fused_update_with_ihrcf(
+    setup: FusedSetup,
+    st: FusedState,
+    f: FusedFrame,
+    active: Array,
+    cands: Candidates | None,
+    ranges: Array,
+    ranges_valid: Array,
+    detected: Array,
+) -> tuple[FusedState, Pose]:
+    """:func:`fused_update` and IHRCF's pose (:func:`~ihrcf_env.fast.ihrcf.ihrcf`) of the frame's
+    corners with ``ranges`` (4,) m, ``ranges_valid`` (4,) and ``detected``, computed in one call
+    with the filter's own IHRCF (on its delay-compensated ranges) over a leading pair axis."""
+    state, pose = _update(setup, st, f, active, cands, (ranges, ranges_valid, detected))
+    assert pose is not None
+    return state, pose
+
+
+def _update(
+    setup: FusedSetup,
+    st: FusedState,
+    f: FusedFrame,
+    active: Array,
+    cands: Candidates | None,
+    other: tuple[Array, Array, Array] | None,
+) -> tuple[FusedState, Pose | None]:
     p = setup.consts.params
     act = active
     has_ahead = jnp.where(act, False, st.has_ahead)
@@ -537,7 +587,9 @@ def fused_update(
         pos=pos, att=att, converged=converged, has_prior=has_prior, time=time, has_time=has_time,
         R_wb=R_wb, a_world=a_state, has_ahead=has_ahead,
     )  # fmt: skip
-    st, inner, ihrcf_code, ihrcf_rms, atda_code = _measure(setup, st, f, go, t, R_wb, cands)
+    st, inner, ihrcf_code, ihrcf_rms, atda_code, other_pose = _measure(
+        setup, st, f, go, t, R_wb, cands, other
+    )
     inner = jnp.where(lost != 0, lost, inner)
     inner_num = jnp.where(lost != 0, lost_t, 0.0)
     # numerical failure: both filters dropped
@@ -598,4 +650,4 @@ def fused_update(
         normal_rate=jnp.where(act, rate, o.normal_rate),
         motion_valid=jnp.where(act, okm, o.motion_valid),
     )
-    return st._replace(out=o)
+    return st._replace(out=o), other_pose

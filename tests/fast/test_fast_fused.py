@@ -1,7 +1,8 @@
 """The fused filter (ihrcf_env.fast.fused) against the single filter
 (ihrcf_env.core.estimators.fused.FusedEstimator), env by env, over the histories of
 tests/core/fused_history.py (held frames, resets, lost tags, outliers, bad IMU samples, late
-frames), float64: the same validity and reason text (the codes' text), the outputs within 1e-8."""
+frames), float64: the same validity and reason text (the codes' text), the outputs within 1e-8;
+IHRCF's estimate made in the filter's IHRCF call (``fused_update_with_ihrcf``) is IHRCF's own."""
 
 from __future__ import annotations
 
@@ -24,7 +25,14 @@ from ihrcf_env.core.estimators import FusedEstimator, FusedParams, SensorFrame  
 from ihrcf_env.core.estimators import fused_reasons as fr  # noqa: E402
 from ihrcf_env.core.estimators import reasons as rs  # noqa: E402
 from ihrcf_env.core.estimators.atda import Candidate, atda_candidates  # noqa: E402
-from ihrcf_env.fast.fused import FusedFrame, fused_init, fused_reset, fused_setup, fused_update  # noqa: E402
+from ihrcf_env.fast.fused import (  # noqa: E402
+    FusedFrame,
+    fused_init,
+    fused_reset,
+    fused_setup,
+    fused_update_with_ihrcf,
+)
+from ihrcf_env.fast.ihrcf import ihrcf  # noqa: E402
 from ihrcf_env.fast.pnp import Candidates  # noqa: E402
 
 MAX_RESIDUAL = 0.01  # fused_setup's and FusedEstimator's default
@@ -139,7 +147,10 @@ def test_fused_matches_the_single_filters(config: str) -> None:
     def one(st, f, active, reset, cands):
         traces.append(1)
         st = fused_reset(setup, st, reset)
-        return fused_update(setup, st, f, active, cands if Km is not None else None)
+        c = cands if Km is not None else None
+        # the frame's IHRCF estimate on the raw ranges, beside the filter's on its compensated ones
+        st, pose = fused_update_with_ihrcf(setup, st, f, active, c, f.ranges, f.ranges_valid, f.detected)
+        return st, pose, ihrcf(f.corners, f.ranges, f.ranges_valid, f.detected, setup.ihrcf)
 
     step = jax.jit(jax.vmap(one))
     st = jax.vmap(lambda _: fused_init(setup))(jnp.arange(n))
@@ -157,7 +168,9 @@ def test_fused_matches_the_single_filters(config: str) -> None:
             for f in row
         ]
         frame, corners_reason = stack(row)
-        st = step(st, frame, active, resets, candidates(cands))
+        st, pose, own = step(st, frame, active, resets, candidates(cands))
+        for got, want in zip(pose, own, strict=True):
+            np.testing.assert_allclose(np.asarray(got), np.asarray(want), rtol=0, atol=1e-12)
         o = jax.tree_util.tree_map(np.asarray, st.out)
         sigma = np.exp(0.5 * np.asarray(st.log_var))
         for e in np.flatnonzero(active):
