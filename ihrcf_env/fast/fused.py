@@ -297,6 +297,28 @@ def _predict(b: Bank, m: Array, dt: Array, cfg: imm.ImmConfig, u: Array | None, 
     return b._replace(imm=_sel(m, new, b.imm))
 
 
+def _predict_pair(
+    pos: Bank,
+    att: Bank,
+    m: tuple[Array, Array],
+    dt: tuple[Array, Array],
+    setup: FusedSetup,
+    u: Array,
+    q: Array,
+) -> tuple[Bank, Bank]:
+    """A position bank (input ``u``, value noise ``q``) and an attitude bank predicted where ``m``
+    over ``dt`` (s): one call over a bank axis when they have the same number of models."""
+    if setup.pos.drifts.shape != setup.att.drifts.shape:
+        return _predict(pos, m[0], dt[0], setup.pos, u, q), _predict(att, m[1], dt[1], setup.att, None, None)
+    both = tree_util.tree_map(lambda a, b: jnp.stack([a, b]), pos.imm, att.imm)
+    uu = jnp.stack([u, jnp.full_like(u, jnp.nan)])  # the attitude bank has no input
+    qq = jnp.stack([q, jnp.zeros_like(q)])
+    new = imm.predict_banks(both, jnp.stack(dt), (setup.pos, setup.att), uu, qq)
+    new_pos = tree_util.tree_map(lambda a: a[0], new)
+    new_att = tree_util.tree_map(lambda a: a[1], new)
+    return pos._replace(imm=_sel(m[0], new_pos, pos.imm)), att._replace(imm=_sel(m[1], new_att, att.imm))
+
+
 def _measure(
     setup: FusedSetup,
     st: FusedState,
@@ -581,8 +603,9 @@ def _update(
     a_state = jnp.where(go, a_world, st.a_world)
     walk2 = p.imu_attitude_walk**2
     q = fb.q_tilt(walk2, imm.x(pos.imm, setup.pos)[0:3])
-    pos = _predict(pos, go & pos.alive, jnp.where(go & pos.alive, dt, 1.0), setup.pos, -u, q)
-    att = _predict(att, go & att.alive, jnp.where(go & att.alive, dt, 1.0), setup.att, None, None)
+    mp, ma = go & pos.alive, go & att.alive
+    dts = (jnp.where(mp, dt, 1.0), jnp.where(ma, dt, 1.0))
+    pos, att = _predict_pair(pos, att, (mp, ma), dts, setup, -u, q)
     st = st._replace(
         pos=pos, att=att, converged=converged, has_prior=has_prior, time=time, has_time=has_time,
         R_wb=R_wb, a_world=a_state, has_ahead=has_ahead,
@@ -619,8 +642,7 @@ def _update(
     q = fb.q_tilt(walk2, imm.x(st.pos.imm, setup.pos)[0:3])
     pa = _sel(late, st.pos, st.pos_ahead)
     aa = _sel(late, st.att, st.att_ahead)
-    pa = _predict(pa, late & st.pos.alive, dt_a, setup.pos, -u, q)
-    aa = _predict(aa, late & st.att.alive, dt_a, setup.att, None, None)
+    pa, aa = _predict_pair(pa, aa, (late & st.pos.alive, late & st.att.alive), (dt_a, dt_a), setup, -u, q)
     st = st._replace(pos_ahead=pa, att_ahead=aa, has_ahead=st.has_ahead | late)
     R_out = jnp.where(late, R_now, R_wb)
     st, outer, outer_num = _output(setup, st, go & ~late, R_out, st.pos, st.att, outer, outer_num)

@@ -16,8 +16,9 @@ latency) or when ``camera_frame`` changed (a latency: the frame is stamped with 
 IMU sample of the step nearest the exposure and the ranges measured nearest it, and the fused
 filter predicts it to the arrival); the estimators run every step and their results are taken
 only for a new frame, else the last estimates are shown again. With the fused filter, IHRCF's
-estimate is made in the filter's own IHRCF call (one call over the pair of range readings). An estimate's block holds its last
-valid values (heading frame of the current step) while it is invalid and its age grows.
+estimate is made in the filter's own IHRCF call (one call over the pair of range readings). An
+estimate's block holds its last valid values (heading frame of the current step) while it is
+invalid and its age grows.
 
 ``deck_forecast`` appends the forecast block of :mod:`ihrcf_env.fast.forecast_feed` (the port of
 the wrapper's :class:`~ihrcf_env.wrappers.forecast_feed.ForecastFeed`), fed by the fused estimate
