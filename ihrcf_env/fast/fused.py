@@ -22,7 +22,7 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax import Array, tree_util
+from jax import Array, lax, tree_util
 
 from ihrcf_env.core.calibration.tables import RangePixelTable
 from ihrcf_env.core.constants import GRAVITY
@@ -292,6 +292,27 @@ def _apply(
     )
 
 
+def _apply_all(
+    a: _Apply,
+    items: list[tuple[Array, Array, Array]],
+    lo: int,
+    hi: int,
+    cfg: imm.ImmConfig,
+    gates: tuple[float, ...],
+) -> _Apply:
+    """:func:`_apply` of the measurements ``items`` ((mask, z, R) of the same values ``lo:hi``) in
+    order: one update under ``lax.scan`` for more than one."""
+    if len(items) == 1:
+        m, z, R = items[0]
+        return _apply(a, m, z, R, lo, hi, cfg, gates)
+    xs = tuple(jnp.stack([jnp.asarray(it[k]) for it in items]) for k in range(3))
+
+    def one(carry: _Apply, x: tuple[Array, Array, Array]) -> tuple[_Apply, None]:
+        return _apply(carry, x[0], x[1], x[2], lo, hi, cfg, gates), None
+
+    return lax.scan(one, a, xs)[0]
+
+
 def _predict(b: Bank, m: Array, dt: Array, cfg: imm.ImmConfig, u: Array | None, q: Array | None) -> Bank:
     new = imm.predict(b.imm, dt, cfg, u, q)
     return b._replace(imm=_sel(m, new, b.imm))
@@ -412,13 +433,17 @@ def _measure(
     gates = c.gate
     # 1. attitude
     z, R = fb.ihrcf_attitude(c, ih_R, ih_p, used, R_wb, sigma_r, True)
-    A = _apply(A, new_att & ih_valid, z, R, 0, 3, setup.att, gates)
+    first_att = [(new_att & ih_valid, z, R)]
     if use_at_att:
         z, R = fb.atda_attitude(c, at_R, at_p, R_wb)
-        A = _apply(A, cont & at_valid, z, R, 0, 3, setup.att, gates)
+        first_att.append((cont & at_valid, z, R))
     yaw = not p.refit
     z, R = fb.ihrcf_attitude(c, ih_R, ih_p, used, R_wb, sigma_r, yaw)
-    A = _apply(A, cont & ~new_att & ih_valid, z, R, 0, 3 if yaw else 2, setup.att, gates)
+    if yaw:  # the same values: one more of the same update
+        A = _apply_all(A, [*first_att, (cont & ~new_att & ih_valid, z, R)], 0, 3, setup.att, gates)
+    else:
+        A = _apply_all(A, first_att, 0, 3, setup.att, gates)
+        A = _apply(A, cont & ~new_att & ih_valid, z, R, 0, 2, setup.att, gates)
     # 2. refit on the updated normal, its yaw, then the positions
     hv = cont & ih_valid
     ref_ok = jnp.zeros((), bool)
@@ -436,11 +461,10 @@ def _measure(
     bias, bias_P = st.bias, st.bias_P
     if offset_state:
         bias, bias_P = fb.range_offset(c, hv & at_valid, src_p, used, at_p, sigma_r, bias, bias_P)
-    P = _apply(P, hv, z1, R1, 0, 3, setup.pos, gates)
     if use_at_pos:
         m = cont & at_valid
         z2, R2 = fb.atda_position(c, at_p, R_wb)
-        P = _apply(P, m, z2, R2, 0, 3, setup.pos, gates)
+        P = _apply_all(P, [(hv, z1, R1), (m, z2, R2)], 0, 3, setup.pos, gates)
         if p.reseed_agreeing:  # both positions rejected: FusedEstimator._reseed
             k = m & hv & P.bank.alive & (P.ok == 0) & (P.bank.rejected_run > 0)
             d = z1 - z2
@@ -455,6 +479,8 @@ def _measure(
             P = P._replace(
                 bank=P.bank._replace(imm=_sel(do, new, P.bank.imm)), ok=P.ok + do.astype(jnp.int32)
             )
+    else:
+        P = _apply(P, hv, z1, R1, 0, 3, setup.pos, gates)
     # counters
     banks = []
     for ap in (A, P):
