@@ -114,7 +114,7 @@ def imm_model(dt: Array, cfg: ImmConfig) -> tuple[Array, Array, Array]:
         [[dt**5 / 20, dt**4 / 8, dt**3 / 6], [dt**4 / 8, dt**3 / 3, dt**2 / 2], [dt**3 / 6, dt**2 / 2, dt]]
     )
     Ft = _per_axis(F1, jnp.ones(3)).T
-    Q = _per_axis(Qw, cfg.q_white**2)[None] + jnp.stack([_per_axis(Qd, cfg.drifts[k] ** 2) for k in range(m)])
+    Q = _per_axis(Qw, cfg.q_white**2)[None] + jax.vmap(lambda d: _per_axis(Qd, d**2))(cfg.drifts)
     Q = Q.at[:, 0:3, 0:3].add(cfg.q_value * dt)
     return T, Ft, Q
 
