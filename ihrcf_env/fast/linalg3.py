@@ -22,8 +22,8 @@ __all__ = [
 
 
 def dot(a: Array, b: Array) -> Array:
-    """Dot product over the last axis (3), summed in index order."""
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+    """Dot product over the last axis (3) (one product and one reduction)."""
+    return jnp.sum(a * b, axis=-1)
 
 
 def cross(a: Array, b: Array) -> Array:
@@ -40,17 +40,17 @@ def cross(a: Array, b: Array) -> Array:
 
 def matvec(R: Array, v: Array) -> Array:
     """``R v`` for a 3x3 ``R`` and vectors ``v`` (..., 3)."""
-    return jnp.stack([dot(v, R[i]) for i in range(3)], axis=-1)
+    return jnp.sum(v[..., None, :] * R, axis=-1)
 
 
 def tmatvec(R: Array, v: Array) -> Array:
     """``R^T v`` for a 3x3 ``R`` and vectors ``v`` (..., 3)."""
-    return jnp.stack([dot(v, R[:, j]) for j in range(3)], axis=-1)
+    return jnp.sum(v[..., :, None] * R, axis=-2)
 
 
 def matmul(A: Array, B: Array) -> Array:
-    """``A B`` of two 3x3 matrices, each entry summed in index order."""
-    return A[:, 0, None] * B[None, 0, :] + A[:, 1, None] * B[None, 1, :] + A[:, 2, None] * B[None, 2, :]
+    """``A B`` of two 3x3 matrices (one broadcast product and one reduction)."""
+    return jnp.sum(A[:, :, None] * B[None, :, :], axis=1)
 
 
 def det3(m: Array) -> Array:
