@@ -508,15 +508,66 @@ def _measure(
     return st, inner, ihrcf_code, ihrcf_rms, atda_code, other_pose
 
 
+class _View(NamedTuple):
+    """What the output reads of a pair of banks (position, attitude): the largest 1-sigmas, the
+    pose in the body frame of ``R_wb``, the residual and the motion (velocity, normal rate)."""
+
+    pos_sigma: Array
+    ang_sigma: Array
+    R_bd: Array
+    euler: Array
+    position: Array
+    residual: Array
+    velocity: Array
+    normal_rate: Array
+
+
+def _view(setup: FusedSetup, pos: imm.ImmState, att: imm.ImmState, R_wb: Array, horizon: float) -> _View:
+    xp, xa = imm.x(pos, setup.pos), imm.x(att, setup.att)
+    C = imm.value_cov(pos, setup.pos)
+    pos_sigma = jnp.sqrt(jnp.maximum(imm.largest_eigenvalue(C), 0.0))
+    ang_sigma = imm.value_sigma(att, setup.att)
+    # the filtered attitude and the two ends of the normal's central difference, in one call
+    a, w = xa[0:3], horizon * xa[3:6]
+    Rs = jax.vmap(matrix_from_euler)(jnp.stack([a, a + w, a - w]))
+    R_bd = R_wb.T @ Rs[0]
+    return _View(
+        pos_sigma,
+        ang_sigma,
+        R_bd,
+        euler_from_matrix(R_bd),
+        R_wb.T @ xp[0:3],
+        jnp.sqrt(jnp.trace(C)),
+        xp[3:6],
+        (Rs[1][:, 2] - Rs[2][:, 2]) / (2.0 * horizon),
+    )
+
+
+def _views(setup: FusedSetup, st: FusedState, R_wb: Array, horizon: float = 0.01) -> _View:
+    """The :class:`_View` of the banks (index 0) and of their arrival-time copies (index 1), in
+    one call over a leading pair axis."""
+    pos = tree_util.tree_map(lambda a, b: jnp.stack([a, b]), st.pos.imm, st.pos_ahead.imm)
+    att = tree_util.tree_map(lambda a, b: jnp.stack([a, b]), st.att.imm, st.att_ahead.imm)
+    return jax.vmap(lambda p, a: _view(setup, p, a, R_wb, horizon))(pos, att)
+
+
 def _output(
-    setup: FusedSetup, st: FusedState, m: Array, R_wb: Array, pos: Bank, att: Bank, outer: Array, num: Array
+    setup: FusedSetup,
+    st: FusedState,
+    m: Array,
+    view: _View,
+    pos: Bank,
+    att: Bank,
+    outer: Array,
+    num: Array,
 ) -> tuple[FusedState, Array, Array]:
-    """The filters' pose in the body frame of ``R_wb`` where ``m``, or why not (in ``outer``)."""
+    """The filters' pose (``view``, of the banks ``pos`` and ``att``) where ``m``, or why not (in
+    ``outer``)."""
     p = setup.consts.params
     outer = jnp.where(m & ~att.alive, fr.NOT_INITIALISED, outer)
     outer = jnp.where(m & att.alive & ~pos.alive, fr.POSITION_NOT_INITIALISED, outer)
     m = m & att.alive & pos.alive
-    pos_sigma, ang_sigma = imm.value_sigma(pos.imm, setup.pos), imm.value_sigma(att.imm, setup.att)
+    pos_sigma, ang_sigma = view.pos_sigma, view.ang_sigma
     frames = jnp.minimum(pos.frames, att.frames)
     new = ~st.converged
     c1 = new & (frames < p.min_updates)
@@ -531,27 +582,23 @@ def _output(
         m & c3, jnp.stack([jnp.degrees(ang_sigma), jnp.asarray(math.degrees(p.valid_angle_sigma))]), num
     )
     ok = m & ~(c1 | c2 | c3)
-    R_bd = R_wb.T @ matrix_from_euler(imm.x(att.imm, setup.att)[0:3])
     o = st.out
     o = o._replace(
-        rotation=jnp.where(ok, R_bd, o.rotation),
-        euler=jnp.where(ok, euler_from_matrix(R_bd), o.euler),
-        position=jnp.where(ok, R_wb.T @ imm.x(pos.imm, setup.pos)[0:3], o.position),
-        residual=jnp.where(ok, jnp.sqrt(jnp.trace(imm.value_cov(pos.imm, setup.pos))), o.residual),
+        rotation=jnp.where(ok, view.R_bd, o.rotation),
+        euler=jnp.where(ok, view.euler, o.euler),
+        position=jnp.where(ok, view.position, o.position),
+        residual=jnp.where(ok, view.residual, o.residual),
     )
     return st._replace(converged=st.converged | ok, out=o), outer, num
 
 
-def _motion(setup: FusedSetup, st: FusedState, horizon: float = 0.01) -> tuple[Array, Array, Array]:
+def _motion(st: FusedState, views: _View) -> tuple[Array, Array, Array]:
     vel, rate, okk = jnp.zeros(3), jnp.zeros(3), jnp.zeros((), bool)
-    for ahead in (False, True):
+    for i, ahead in enumerate((False, True)):
         pos, att = (st.pos_ahead, st.att_ahead) if ahead else (st.pos, st.att)
         sel = (st.has_ahead == ahead) & st.converged & pos.alive & att.alive
-        xa = imm.x(att.imm, setup.att)
-        up = matrix_from_euler(xa[0:3] + horizon * xa[3:6])[:, 2]
-        down = matrix_from_euler(xa[0:3] - horizon * xa[3:6])[:, 2]
-        vel = jnp.where(sel, imm.x(pos.imm, setup.pos)[3:6], vel)
-        rate = jnp.where(sel, (up - down) / (2.0 * horizon), rate)
+        vel = jnp.where(sel, views.velocity[i], vel)
+        rate = jnp.where(sel, views.normal_rate[i], rate)
         okk = okk | sel
     return vel, rate, okk
 
@@ -671,8 +718,10 @@ def _update(
     pa, aa = _predict_pair(pa, aa, (late & st.pos.alive, late & st.att.alive), (dt_a, dt_a), setup, -u, q)
     st = st._replace(pos_ahead=pa, att_ahead=aa, has_ahead=st.has_ahead | late)
     R_out = jnp.where(late, R_now, R_wb)
-    st, outer, outer_num = _output(setup, st, go & ~late, R_out, st.pos, st.att, outer, outer_num)
-    st, outer, outer_num = _output(setup, st, late, R_out, st.pos_ahead, st.att_ahead, outer, outer_num)
+    views = _views(setup, st, R_out)
+    now_view, late_view = (tree_util.tree_map(lambda a, i=i: a[i], views) for i in (0, 1))
+    st, outer, outer_num = _output(setup, st, go & ~late, now_view, st.pos, st.att, outer, outer_num)
+    st, outer, outer_num = _output(setup, st, late, late_view, st.pos_ahead, st.att_ahead, outer, outer_num)
     # the held outputs of an active frame
     o = st.out
     valid = act & (outer == fr.OK)
@@ -692,7 +741,7 @@ def _update(
         atda_code=jnp.where(act, atda_code, o.atda_code),
         frame_time=jnp.where(act, f.time, o.frame_time),
     )
-    vel, rate, okm = _motion(setup, st)
+    vel, rate, okm = _motion(st, views)
     o = o._replace(
         velocity=jnp.where(act, vel, o.velocity),
         normal_rate=jnp.where(act, rate, o.normal_rate),
