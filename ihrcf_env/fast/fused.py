@@ -646,7 +646,13 @@ def _update(
     outer = jnp.where(back, fr.TIME_BACKWARDS, 0)
     outer_num = jnp.where(back, jnp.stack([t, st.time]), jnp.zeros(2))
     go = act & ~back
-    R_imu, a_imu, code = fb.imu_sample(f.quaternion, f.specific_force, f.angular_velocity)
+    # the frame's IMU sample and the arrival's, in one call over a pair axis
+    imu = jax.vmap(fb.imu_sample)(
+        jnp.stack([f.quaternion, f.arrival_quaternion]),
+        jnp.stack([f.specific_force, f.arrival_specific_force]),
+        jnp.stack([f.angular_velocity, f.arrival_angular_velocity]),
+    )
+    R_imu, a_imu, code = (x[0] for x in imu)
     imu_p = f.imu_present
     bad = go & imu_p & (code != 0)
     outer = jnp.where(bad, code, outer)
@@ -698,9 +704,7 @@ def _update(
     go &= ~broken
     # a late frame: copies of the filters predicted to its arrival
     late = go & jnp.isfinite(f.arrival_time) & (f.arrival_time > t)
-    R_arr, a_arr, code = fb.imu_sample(
-        f.arrival_quaternion, f.arrival_specific_force, f.arrival_angular_velocity
-    )
+    R_arr, a_arr, code = (x[1] for x in imu)
     arr_p = f.arrival_present
     bad = late & arr_p & (code != 0)
     outer = jnp.where(bad, jnp.where(code == fr.IMU_ZERO, fr.ARRIVAL_ZERO, fr.ARRIVAL_NONFINITE), outer)
