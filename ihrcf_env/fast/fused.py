@@ -307,7 +307,7 @@ def _apply_all(
         return _apply(a, m, z, R, lo, hi, cfg, gates)
     xs = tuple(jnp.stack([jnp.asarray(it[k]) for it in items]) for k in range(3))
 
-    def one(carry: _Apply, x: tuple[Array, Array, Array]) -> tuple[_Apply, None]:
+    def one(carry: _Apply, x: tuple[Array, ...]) -> tuple[_Apply, None]:
         return _apply(carry, x[0], x[1], x[2], lo, hi, cfg, gates), None
 
     return lax.scan(one, a, xs)[0]

@@ -194,7 +194,7 @@ def predict_banks(st: ImmState, dt: Array, cfgs: tuple[ImmConfig, ...], u: Array
     angles = jnp.asarray([c.angles for c in cfgs])
 
     def one(s: ImmState, d: Array, f: list[Array], a: Array, uu: Array, qq: Array) -> ImmState:
-        return _predict(s, d, ImmConfig(*f, angles=False), a, uu, qq)
+        return _predict(s, d, ImmConfig(f[0], f[1], f[2], f[3], f[4], False), a, uu, qq)
 
     return jax.vmap(one)(st, dt, fields, angles, u, q_value)
 
