@@ -35,6 +35,7 @@ import dataclasses
 import math
 from typing import Any, NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array, tree_util
@@ -540,19 +541,18 @@ def observe(
     out = put(out, "imu.linear_acceleration", sf / GRAVITY)
     out = put(out, "nav_velocity", R_lw @ jnp.asarray(raw.nav_velocity, f))
     ages = now - frame_time
-    held_block, held_time, has_held = st.held_block, st.held_time, st.has_held
+    # the estimates' blocks in one call over the estimators
+    valid = jnp.stack([est.valid for est in shown])
+    blocks = jax.vmap(lambda x, e: _pose_block(R_lb, x, matrix_from_euler(e)))(
+        jnp.stack([est.position for est in shown]), jnp.stack([est.euler for est in shown])
+    )
+    held_block = jnp.where(valid[:, None], blocks, st.held_block)
+    held_time = jnp.where(valid, now - ages, st.held_time)
+    has_held = st.has_held | valid
     infos: dict[str, EstimateInfo] = {}
     for i, name in enumerate(p.names):
         est = shown[i]
-        block = _pose_block(R_lb, est.position, matrix_from_euler(est.euler))
-        hb = jnp.where(est.valid, block, held_block[i])
-        ht = jnp.where(est.valid, now - ages, held_time[i])
-        hh = has_held[i] | est.valid
-        held_block, held_time, has_held = (
-            held_block.at[i].set(hb),
-            held_time.at[i].set(ht),
-            has_held.at[i].set(hh),
-        )
+        hb, ht, hh = held_block[i], held_time[i], has_held[i]
         s0, s1 = sl[f"{name}.position"].start, sl[f"{name}.valid"].start
         out = out.at[s0:s1].set(jnp.where(hh, hb, 0.0))
         out = put(out, f"{name}.age", jnp.where(hh, (now - ht) / sc[f"{name}.age"], MAX_AGE)[None])
