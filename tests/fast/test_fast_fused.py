@@ -30,6 +30,7 @@ from ihrcf_env.fast.fused import (  # noqa: E402
     fused_init,
     fused_reset,
     fused_setup,
+    fused_update,
     fused_update_with_ihrcf,
 )
 from ihrcf_env.fast.ihrcf import ihrcf  # noqa: E402
@@ -214,3 +215,13 @@ def test_range_only_update_is_refused() -> None:
 def test_oscillator_deck_model_is_refused() -> None:
     with pytest.raises(ValueError, match="deck_model"):
         fused_setup(TABLE, RIG, TAG, K, params=FusedParams(deck_model="oscillator"))
+
+
+def test_banks_of_different_model_counts_are_predicted_one_by_one() -> None:
+    """Position and attitude banks of different model counts (no shared bank axis) still step."""
+    setup = fused_setup(TABLE, RIG, TAG, K, params=FusedParams(accel_drift=(0.001, 0.1)))
+    assert setup.pos.drifts.shape[0] == 2 and setup.att.drifts.shape[0] == 3
+    frame, _ = stack([history(0)[0][k] for k in range(1)])
+    one = jax.tree_util.tree_map(lambda a: a[0], frame)
+    out = jax.eval_shape(lambda st: fused_update(setup, st, one, jnp.ones((), bool)), fused_init(setup))
+    assert out.pos.imm.X.shape == (2, 9) and out.att.imm.X.shape == (3, 9)
