@@ -128,7 +128,8 @@ def _wrap_if(a: Array, angles: bool | Array) -> Array:
 
 def _deviations(st: ImmState, lo: int, hi: int, angles: bool | Array) -> tuple[Array, Array]:
     Xs = st.X[:, lo:hi]
-    ref = Xs[jnp.argmax(st.mu)]
+    first = jnp.arange(Xs.shape[0]) == jnp.argmax(st.mu)  # the most probable model (one-hot)
+    ref = jnp.sum(jnp.where(first[:, None], Xs, 0.0), axis=0)
     D = Xs - ref
     if angles is not False and lo < 3:
         D = D.at[:, : 3 - lo].set(_wrap_if(D[:, : 3 - lo], angles))

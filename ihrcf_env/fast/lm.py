@@ -69,7 +69,7 @@ def rodrigues(r: Array) -> tuple[Array, Array]:
     u = r * it
     ux, uy, uz = u[0], u[1], u[2]
     zero = jnp.zeros_like(ux)
-    rrt = jnp.stack([ux * ux, ux * uy, ux * uz, uy * ux, uy * uy, uy * uz, uz * ux, uz * uy, uz * uz])
+    rrt = (u[:, None] * u[None, :]).reshape(9)  # u u^T row-major
     rx = jnp.stack([zero, -uz, uy, uz, zero, -ux, -uy, ux, zero])
     R = c * _EYE9 + c1 * rrt + s * rx
     R = jnp.where(tiny, _EYE9, R)
