@@ -7,7 +7,9 @@ position reseed at agreeing measurements, the numerical reset, the delay compens
 convergence latch. Every branch is a ``jnp.where`` selection.
 
 Configuration is host-side (:func:`fused_setup`); the filter's state is a :class:`FusedState`
-pytree (:func:`fused_init`, :func:`fused_reset`) and a step is :func:`fused_update`. The
+pytree (:func:`fused_init`, :func:`fused_reset`) and a step is :func:`fused_update`
+(:func:`fused_update_with_ihrcf`: with IHRCF's estimate of a second reading of the frame's
+corners, made in the same call as the filter's own IHRCF). The
 range-only update (``FusedParams.range_only_update``) is not ported: :func:`fused_setup` refuses
 it. Frames and units as :mod:`ihrcf_env.fast.fused_blocks`.
 """
@@ -17,9 +19,10 @@ from __future__ import annotations
 import math
 from typing import Any, NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
-from jax import Array
+from jax import Array, lax, tree_util
 
 from ihrcf_env.core.calibration.tables import RangePixelTable
 from ihrcf_env.core.constants import GRAVITY
@@ -29,7 +32,7 @@ from ihrcf_env.core.frames import R_BODY_CAM
 from ihrcf_env.core.rig import SensorRig
 from ihrcf_env.fast import fused_blocks as fb
 from ihrcf_env.fast import imm
-from ihrcf_env.fast.ihrcf import IHRCFSetup, ihrcf_parts, ihrcf_setup
+from ihrcf_env.fast.ihrcf import IHRCFSetup, Pose, ihrcf_parts, ihrcf_setup
 from ihrcf_env.fast.linalg3 import euler_from_matrix, matrix_from_euler
 from ihrcf_env.fast.pnp import Candidates, pnp_candidates, pnp_choose
 from ihrcf_env.fast.table import touch_table
@@ -44,6 +47,7 @@ __all__ = [
     "fused_reset",
     "fused_setup",
     "fused_update",
+    "fused_update_with_ihrcf",
 ]
 
 
@@ -288,9 +292,52 @@ def _apply(
     )
 
 
+def _apply_all(
+    a: _Apply,
+    items: list[tuple[Array, Array, Array]],
+    lo: int,
+    hi: int,
+    cfg: imm.ImmConfig,
+    gates: tuple[float, ...],
+) -> _Apply:
+    """:func:`_apply` of the measurements ``items`` ((mask, z, R) of the same values ``lo:hi``) in
+    order: one update under ``lax.scan`` for more than one."""
+    if len(items) == 1:
+        m, z, R = items[0]
+        return _apply(a, m, z, R, lo, hi, cfg, gates)
+    xs = tuple(jnp.stack([jnp.asarray(it[k]) for it in items]) for k in range(3))
+
+    def one(carry: _Apply, x: tuple[Array, ...]) -> tuple[_Apply, None]:
+        return _apply(carry, x[0], x[1], x[2], lo, hi, cfg, gates), None
+
+    return lax.scan(one, a, xs)[0]
+
+
 def _predict(b: Bank, m: Array, dt: Array, cfg: imm.ImmConfig, u: Array | None, q: Array | None) -> Bank:
     new = imm.predict(b.imm, dt, cfg, u, q)
     return b._replace(imm=_sel(m, new, b.imm))
+
+
+def _predict_pair(
+    pos: Bank,
+    att: Bank,
+    m: tuple[Array, Array],
+    dt: tuple[Array, Array],
+    setup: FusedSetup,
+    u: Array,
+    q: Array,
+) -> tuple[Bank, Bank]:
+    """A position bank (input ``u``, value noise ``q``) and an attitude bank predicted where ``m``
+    over ``dt`` (s): one call over a bank axis when they have the same number of models."""
+    if setup.pos.drifts.shape != setup.att.drifts.shape:
+        return _predict(pos, m[0], dt[0], setup.pos, u, q), _predict(att, m[1], dt[1], setup.att, None, None)
+    both = tree_util.tree_map(lambda a, b: jnp.stack([a, b]), pos.imm, att.imm)
+    uu = jnp.stack([u, jnp.full_like(u, jnp.nan)])  # the attitude bank has no input
+    qq = jnp.stack([q, jnp.zeros_like(q)])
+    new = imm.predict_banks(both, jnp.stack(dt), (setup.pos, setup.att), uu, qq)
+    new_pos = tree_util.tree_map(lambda a: a[0], new)
+    new_att = tree_util.tree_map(lambda a: a[1], new)
+    return pos._replace(imm=_sel(m[0], new_pos, pos.imm)), att._replace(imm=_sel(m[1], new_att, att.imm))
 
 
 def _measure(
@@ -301,9 +348,12 @@ def _measure(
     t: Array,
     R_wb: Array,
     cands: Candidates | None,
-) -> tuple[FusedState, Array, Array, Array, Array]:
+    other: tuple[Array, Array, Array] | None = None,
+) -> tuple[FusedState, Array, Array, Array, Array, Pose | None]:
     """The frame's measurement step (``FusedEstimator._measure``): (state, inner, ihrcf code,
-    ihrcf RMS, ATDA code)."""
+    ihrcf RMS, ATDA code, IHRCF's pose of the ``other`` reading (ranges, their validity,
+    detected) of the frame's corners, computed in the same call as the filter's own; None without
+    it)."""
     c = setup.consts
     p = c.params
     pos, att = st.pos, st.att
@@ -319,7 +369,21 @@ def _measure(
     v_cam = jnp.asarray(R_BODY_CAM).T @ (R_wb.T @ v)
     ranges = jnp.where(sel, ranges + v_cam[2] * jnp.where(sel, shift, 0.0), ranges)
     # IHRCF
-    pose, corners_cam, used = ihrcf_parts(f.corners, ranges, f.ranges_valid, jnp.ones((), bool), setup.ihrcf)
+    other_pose = None
+    if other is None:
+        one = jnp.ones((), bool)
+        pose, corners_cam, used = ihrcf_parts(f.corners, ranges, f.ranges_valid, one, setup.ihrcf)
+    else:  # both readings in one call over a leading pair axis
+        o_ranges, o_valid, o_det = other
+        both = jax.vmap(ihrcf_parts, in_axes=(None, 0, 0, 0, None))(
+            f.corners,
+            jnp.stack([ranges, jnp.asarray(o_ranges, ranges.dtype)]),
+            jnp.stack([f.ranges_valid, o_valid]),
+            jnp.stack([jnp.ones((), bool), jnp.asarray(o_det, bool)]),
+            setup.ihrcf,
+        )
+        pose, corners_cam, used = tree_util.tree_map(lambda a: a[0], both)
+        other_pose = tree_util.tree_map(lambda a: a[1], both[0])
     ih_valid = det & pose.valid
     ihrcf_code = jnp.where(det, pose.code.astype(jnp.int32), 0)
     ihrcf_rms = jnp.where(det, pose.fit_rms, 0.0)
@@ -369,13 +433,17 @@ def _measure(
     gates = c.gate
     # 1. attitude
     z, R = fb.ihrcf_attitude(c, ih_R, ih_p, used, R_wb, sigma_r, True)
-    A = _apply(A, new_att & ih_valid, z, R, 0, 3, setup.att, gates)
+    first_att = [(new_att & ih_valid, z, R)]
     if use_at_att:
         z, R = fb.atda_attitude(c, at_R, at_p, R_wb)
-        A = _apply(A, cont & at_valid, z, R, 0, 3, setup.att, gates)
+        first_att.append((cont & at_valid, z, R))
     yaw = not p.refit
     z, R = fb.ihrcf_attitude(c, ih_R, ih_p, used, R_wb, sigma_r, yaw)
-    A = _apply(A, cont & ~new_att & ih_valid, z, R, 0, 3 if yaw else 2, setup.att, gates)
+    if yaw:  # the same values: one more of the same update
+        A = _apply_all(A, [*first_att, (cont & ~new_att & ih_valid, z, R)], 0, 3, setup.att, gates)
+    else:
+        A = _apply_all(A, first_att, 0, 3, setup.att, gates)
+        A = _apply(A, cont & ~new_att & ih_valid, z, R, 0, 2, setup.att, gates)
     # 2. refit on the updated normal, its yaw, then the positions
     hv = cont & ih_valid
     ref_ok = jnp.zeros((), bool)
@@ -393,11 +461,10 @@ def _measure(
     bias, bias_P = st.bias, st.bias_P
     if offset_state:
         bias, bias_P = fb.range_offset(c, hv & at_valid, src_p, used, at_p, sigma_r, bias, bias_P)
-    P = _apply(P, hv, z1, R1, 0, 3, setup.pos, gates)
     if use_at_pos:
         m = cont & at_valid
         z2, R2 = fb.atda_position(c, at_p, R_wb)
-        P = _apply(P, m, z2, R2, 0, 3, setup.pos, gates)
+        P = _apply_all(P, [(hv, z1, R1), (m, z2, R2)], 0, 3, setup.pos, gates)
         if p.reseed_agreeing:  # both positions rejected: FusedEstimator._reseed
             k = m & hv & P.bank.alive & (P.ok == 0) & (P.bank.rejected_run > 0)
             d = z1 - z2
@@ -412,6 +479,8 @@ def _measure(
             P = P._replace(
                 bank=P.bank._replace(imm=_sel(do, new, P.bank.imm)), ok=P.ok + do.astype(jnp.int32)
             )
+    else:
+        P = _apply(P, hv, z1, R1, 0, 3, setup.pos, gates)
     # counters
     banks = []
     for ap in (A, P):
@@ -436,18 +505,69 @@ def _measure(
         pos=pos, att=att, converged=converged, atda_prior=atda_prior, has_prior=has_prior,
         log_var=log_var, var_weight=var_weight, bias=bias, bias_P=bias_P,
     )  # fmt: skip
-    return st, inner, ihrcf_code, ihrcf_rms, atda_code
+    return st, inner, ihrcf_code, ihrcf_rms, atda_code, other_pose
+
+
+class _View(NamedTuple):
+    """What the output reads of a pair of banks (position, attitude): the largest 1-sigmas, the
+    pose in the body frame of ``R_wb``, the residual and the motion (velocity, normal rate)."""
+
+    pos_sigma: Array
+    ang_sigma: Array
+    R_bd: Array
+    euler: Array
+    position: Array
+    residual: Array
+    velocity: Array
+    normal_rate: Array
+
+
+def _view(setup: FusedSetup, pos: imm.ImmState, att: imm.ImmState, R_wb: Array, horizon: float) -> _View:
+    xp, xa = imm.x(pos, setup.pos), imm.x(att, setup.att)
+    C = imm.value_cov(pos, setup.pos)
+    pos_sigma = jnp.sqrt(jnp.maximum(imm.largest_eigenvalue(C), 0.0))
+    ang_sigma = imm.value_sigma(att, setup.att)
+    # the filtered attitude and the two ends of the normal's central difference, in one call
+    a, w = xa[0:3], horizon * xa[3:6]
+    Rs = jax.vmap(matrix_from_euler)(jnp.stack([a, a + w, a - w]))
+    R_bd = R_wb.T @ Rs[0]
+    return _View(
+        pos_sigma,
+        ang_sigma,
+        R_bd,
+        euler_from_matrix(R_bd),
+        R_wb.T @ xp[0:3],
+        jnp.sqrt(jnp.trace(C)),
+        xp[3:6],
+        (Rs[1][:, 2] - Rs[2][:, 2]) / (2.0 * horizon),
+    )
+
+
+def _views(setup: FusedSetup, st: FusedState, R_wb: Array, horizon: float = 0.01) -> _View:
+    """The :class:`_View` of the banks (index 0) and of their arrival-time copies (index 1), in
+    one call over a leading pair axis."""
+    pos = tree_util.tree_map(lambda a, b: jnp.stack([a, b]), st.pos.imm, st.pos_ahead.imm)
+    att = tree_util.tree_map(lambda a, b: jnp.stack([a, b]), st.att.imm, st.att_ahead.imm)
+    return jax.vmap(lambda p, a: _view(setup, p, a, R_wb, horizon))(pos, att)
 
 
 def _output(
-    setup: FusedSetup, st: FusedState, m: Array, R_wb: Array, pos: Bank, att: Bank, outer: Array, num: Array
+    setup: FusedSetup,
+    st: FusedState,
+    m: Array,
+    view: _View,
+    pos: Bank,
+    att: Bank,
+    outer: Array,
+    num: Array,
 ) -> tuple[FusedState, Array, Array]:
-    """The filters' pose in the body frame of ``R_wb`` where ``m``, or why not (in ``outer``)."""
+    """The filters' pose (``view``, of the banks ``pos`` and ``att``) where ``m``, or why not (in
+    ``outer``)."""
     p = setup.consts.params
     outer = jnp.where(m & ~att.alive, fr.NOT_INITIALISED, outer)
     outer = jnp.where(m & att.alive & ~pos.alive, fr.POSITION_NOT_INITIALISED, outer)
     m = m & att.alive & pos.alive
-    pos_sigma, ang_sigma = imm.value_sigma(pos.imm, setup.pos), imm.value_sigma(att.imm, setup.att)
+    pos_sigma, ang_sigma = view.pos_sigma, view.ang_sigma
     frames = jnp.minimum(pos.frames, att.frames)
     new = ~st.converged
     c1 = new & (frames < p.min_updates)
@@ -462,27 +582,23 @@ def _output(
         m & c3, jnp.stack([jnp.degrees(ang_sigma), jnp.asarray(math.degrees(p.valid_angle_sigma))]), num
     )
     ok = m & ~(c1 | c2 | c3)
-    R_bd = R_wb.T @ matrix_from_euler(imm.x(att.imm, setup.att)[0:3])
     o = st.out
     o = o._replace(
-        rotation=jnp.where(ok, R_bd, o.rotation),
-        euler=jnp.where(ok, euler_from_matrix(R_bd), o.euler),
-        position=jnp.where(ok, R_wb.T @ imm.x(pos.imm, setup.pos)[0:3], o.position),
-        residual=jnp.where(ok, jnp.sqrt(jnp.trace(imm.value_cov(pos.imm, setup.pos))), o.residual),
+        rotation=jnp.where(ok, view.R_bd, o.rotation),
+        euler=jnp.where(ok, view.euler, o.euler),
+        position=jnp.where(ok, view.position, o.position),
+        residual=jnp.where(ok, view.residual, o.residual),
     )
     return st._replace(converged=st.converged | ok, out=o), outer, num
 
 
-def _motion(setup: FusedSetup, st: FusedState, horizon: float = 0.01) -> tuple[Array, Array, Array]:
+def _motion(st: FusedState, views: _View) -> tuple[Array, Array, Array]:
     vel, rate, okk = jnp.zeros(3), jnp.zeros(3), jnp.zeros((), bool)
-    for ahead in (False, True):
+    for i, ahead in enumerate((False, True)):
         pos, att = (st.pos_ahead, st.att_ahead) if ahead else (st.pos, st.att)
         sel = (st.has_ahead == ahead) & st.converged & pos.alive & att.alive
-        xa = imm.x(att.imm, setup.att)
-        up = matrix_from_euler(xa[0:3] + horizon * xa[3:6])[:, 2]
-        down = matrix_from_euler(xa[0:3] - horizon * xa[3:6])[:, 2]
-        vel = jnp.where(sel, imm.x(pos.imm, setup.pos)[3:6], vel)
-        rate = jnp.where(sel, (up - down) / (2.0 * horizon), rate)
+        vel = jnp.where(sel, views.velocity[i], vel)
+        rate = jnp.where(sel, views.normal_rate[i], rate)
         okk = okk | sel
     return vel, rate, okk
 
@@ -493,6 +609,35 @@ def fused_update(
     """The filter after fusing frame ``f`` when ``active`` (unchanged, its output held, otherwise);
     ``cands``: ATDA's candidates of the frame (default: :func:`~ihrcf_env.fast.pnp.pnp_candidates`).
     The output is ``state.out``."""
+    return _update(setup, st, f, active, cands, None)[0]
+
+
+def fused_update_with_ihrcf(
+    setup: FusedSetup,
+    st: FusedState,
+    f: FusedFrame,
+    active: Array,
+    cands: Candidates | None,
+    ranges: Array,
+    ranges_valid: Array,
+    detected: Array,
+) -> tuple[FusedState, Pose]:
+    """:func:`fused_update` and IHRCF's pose (:func:`~ihrcf_env.fast.ihrcf.ihrcf`) of the frame's
+    corners with ``ranges`` (4,) m, ``ranges_valid`` (4,) and ``detected``, computed in one call
+    with the filter's own IHRCF (on its delay-compensated ranges) over a leading pair axis."""
+    state, pose = _update(setup, st, f, active, cands, (ranges, ranges_valid, detected))
+    assert pose is not None
+    return state, pose
+
+
+def _update(
+    setup: FusedSetup,
+    st: FusedState,
+    f: FusedFrame,
+    active: Array,
+    cands: Candidates | None,
+    other: tuple[Array, Array, Array] | None,
+) -> tuple[FusedState, Pose | None]:
     p = setup.consts.params
     act = active
     has_ahead = jnp.where(act, False, st.has_ahead)
@@ -501,7 +646,13 @@ def fused_update(
     outer = jnp.where(back, fr.TIME_BACKWARDS, 0)
     outer_num = jnp.where(back, jnp.stack([t, st.time]), jnp.zeros(2))
     go = act & ~back
-    R_imu, a_imu, code = fb.imu_sample(f.quaternion, f.specific_force, f.angular_velocity)
+    # the frame's IMU sample and the arrival's, in one call over a pair axis
+    imu = jax.vmap(fb.imu_sample)(
+        jnp.stack([f.quaternion, f.arrival_quaternion]),
+        jnp.stack([f.specific_force, f.arrival_specific_force]),
+        jnp.stack([f.angular_velocity, f.arrival_angular_velocity]),
+    )
+    R_imu, a_imu, code = (x[0] for x in imu)
     imu_p = f.imu_present
     bad = go & imu_p & (code != 0)
     outer = jnp.where(bad, code, outer)
@@ -531,13 +682,16 @@ def fused_update(
     a_state = jnp.where(go, a_world, st.a_world)
     walk2 = p.imu_attitude_walk**2
     q = fb.q_tilt(walk2, imm.x(pos.imm, setup.pos)[0:3])
-    pos = _predict(pos, go & pos.alive, jnp.where(go & pos.alive, dt, 1.0), setup.pos, -u, q)
-    att = _predict(att, go & att.alive, jnp.where(go & att.alive, dt, 1.0), setup.att, None, None)
+    mp, ma = go & pos.alive, go & att.alive
+    dts = (jnp.where(mp, dt, 1.0), jnp.where(ma, dt, 1.0))
+    pos, att = _predict_pair(pos, att, (mp, ma), dts, setup, -u, q)
     st = st._replace(
         pos=pos, att=att, converged=converged, has_prior=has_prior, time=time, has_time=has_time,
         R_wb=R_wb, a_world=a_state, has_ahead=has_ahead,
     )  # fmt: skip
-    st, inner, ihrcf_code, ihrcf_rms, atda_code = _measure(setup, st, f, go, t, R_wb, cands)
+    st, inner, ihrcf_code, ihrcf_rms, atda_code, other_pose = _measure(
+        setup, st, f, go, t, R_wb, cands, other
+    )
     inner = jnp.where(lost != 0, lost, inner)
     inner_num = jnp.where(lost != 0, lost_t, 0.0)
     # numerical failure: both filters dropped
@@ -550,9 +704,7 @@ def fused_update(
     go &= ~broken
     # a late frame: copies of the filters predicted to its arrival
     late = go & jnp.isfinite(f.arrival_time) & (f.arrival_time > t)
-    R_arr, a_arr, code = fb.imu_sample(
-        f.arrival_quaternion, f.arrival_specific_force, f.arrival_angular_velocity
-    )
+    R_arr, a_arr, code = (x[1] for x in imu)
     arr_p = f.arrival_present
     bad = late & arr_p & (code != 0)
     outer = jnp.where(bad, jnp.where(code == fr.IMU_ZERO, fr.ARRIVAL_ZERO, fr.ARRIVAL_NONFINITE), outer)
@@ -567,12 +719,13 @@ def fused_update(
     q = fb.q_tilt(walk2, imm.x(st.pos.imm, setup.pos)[0:3])
     pa = _sel(late, st.pos, st.pos_ahead)
     aa = _sel(late, st.att, st.att_ahead)
-    pa = _predict(pa, late & st.pos.alive, dt_a, setup.pos, -u, q)
-    aa = _predict(aa, late & st.att.alive, dt_a, setup.att, None, None)
+    pa, aa = _predict_pair(pa, aa, (late & st.pos.alive, late & st.att.alive), (dt_a, dt_a), setup, -u, q)
     st = st._replace(pos_ahead=pa, att_ahead=aa, has_ahead=st.has_ahead | late)
     R_out = jnp.where(late, R_now, R_wb)
-    st, outer, outer_num = _output(setup, st, go & ~late, R_out, st.pos, st.att, outer, outer_num)
-    st, outer, outer_num = _output(setup, st, late, R_out, st.pos_ahead, st.att_ahead, outer, outer_num)
+    views = _views(setup, st, R_out)
+    now_view, late_view = (tree_util.tree_map(lambda a, i=i: a[i], views) for i in (0, 1))
+    st, outer, outer_num = _output(setup, st, go & ~late, now_view, st.pos, st.att, outer, outer_num)
+    st, outer, outer_num = _output(setup, st, late, late_view, st.pos_ahead, st.att_ahead, outer, outer_num)
     # the held outputs of an active frame
     o = st.out
     valid = act & (outer == fr.OK)
@@ -592,10 +745,10 @@ def fused_update(
         atda_code=jnp.where(act, atda_code, o.atda_code),
         frame_time=jnp.where(act, f.time, o.frame_time),
     )
-    vel, rate, okm = _motion(setup, st)
+    vel, rate, okm = _motion(st, views)
     o = o._replace(
         velocity=jnp.where(act, vel, o.velocity),
         normal_rate=jnp.where(act, rate, o.normal_rate),
         motion_valid=jnp.where(act, okm, o.motion_valid),
     )
-    return st._replace(out=o)
+    return st._replace(out=o), other_pose

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import itertools
 
+import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import Array
 
 from ihrcf_env.core.geometry import _RANK_TOL
@@ -71,8 +73,8 @@ def homography4(src: Array, dst: Array) -> tuple[Array, Array]:
     normalised to ``H[2, 2] = 1`` (identity where it fails), and an error code: 0 success, 1 the
     homography is not unique (three points collinear), 2 ``H[2, 2] = 0``."""
     cs, cd = _sum4(src) / 4.0, _sum4(dst) / 4.0
-    qd, ok_d = _square_to_quad(dst - cd)
-    qs, ok_s = _square_to_quad(src - cs)
+    q, ok_q = jax.vmap(_square_to_quad)(jnp.stack([dst - cd, src - cs]))  # both quads in one call
+    qd, qs, ok_d, ok_s = q[0], q[1], ok_q[0], ok_q[1]
     H = matmul(matmul(_shift(cd, 1.0), matmul(qd, _adjugate(qs))), _shift(cs, -1.0))
     ok = ok_d & ok_s & jnp.all(jnp.isfinite(H))
     h22 = H[2, 2]
@@ -92,14 +94,12 @@ def apply_homography(H: Array, pts: Array) -> Array:
 
 def collinear(pts: Array, tol: float) -> Array:
     """True where any three of ``pts`` (M, 2) are collinear within ``tol``: ``2 area <= tol *
-    longest_side^2`` (coincident points count)."""
-    out = jnp.zeros((), dtype=bool)
-    for i, j, k in itertools.combinations(range(pts.shape[0]), 3):
-        ax, ay = pts[i, 0], pts[i, 1]
-        ux, uy = pts[j, 0] - ax, pts[j, 1] - ay
-        vx, vy = pts[k, 0] - ax, pts[k, 1] - ay
-        wx, wy = pts[k, 0] - pts[j, 0], pts[k, 1] - pts[j, 1]
-        area2 = jnp.abs(ux * vy - uy * vx)
-        longest2 = jnp.maximum(jnp.maximum(ux * ux + uy * uy, vx * vx + vy * vy), wx * wx + wy * wy)
-        out = out | (longest2 == 0.0) | (area2 <= tol * longest2)
-    return out
+    longest_side^2`` (coincident points count); the triples in one broadcast expression."""
+    i, j, k = (np.asarray(t) for t in zip(*itertools.combinations(range(pts.shape[0]), 3), strict=True))
+    a, pj, pk = pts[i], pts[j], pts[k]  # (T, 2) each
+    ux, uy = pj[:, 0] - a[:, 0], pj[:, 1] - a[:, 1]
+    vx, vy = pk[:, 0] - a[:, 0], pk[:, 1] - a[:, 1]
+    wx, wy = pk[:, 0] - pj[:, 0], pk[:, 1] - pj[:, 1]
+    area2 = jnp.abs(ux * vy - uy * vx)
+    longest2 = jnp.maximum(jnp.maximum(ux * ux + uy * uy, vx * vx + vy * vy), wx * wx + wy * wy)
+    return jnp.any((longest2 == 0.0) | (area2 <= tol * longest2))

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
@@ -26,6 +27,7 @@ __all__ = [
     "largest_eigenvalue",
     "mahalanobis2",
     "predict",
+    "predict_banks",
     "reseed",
     "update",
     "update_along",
@@ -112,17 +114,25 @@ def imm_model(dt: Array, cfg: ImmConfig) -> tuple[Array, Array, Array]:
         [[dt**5 / 20, dt**4 / 8, dt**3 / 6], [dt**4 / 8, dt**3 / 3, dt**2 / 2], [dt**3 / 6, dt**2 / 2, dt]]
     )
     Ft = _per_axis(F1, jnp.ones(3)).T
-    Q = _per_axis(Qw, cfg.q_white**2)[None] + jnp.stack([_per_axis(Qd, cfg.drifts[k] ** 2) for k in range(m)])
+    Q = _per_axis(Qw, cfg.q_white**2)[None] + jax.vmap(lambda d: _per_axis(Qd, d**2))(cfg.drifts)
     Q = Q.at[:, 0:3, 0:3].add(cfg.q_value * dt)
     return T, Ft, Q
 
 
-def _deviations(st: ImmState, lo: int, hi: int, angles: bool) -> tuple[Array, Array]:
+def _wrap_if(a: Array, angles: bool | Array) -> Array:
+    """``a`` wrapped where ``angles`` (static, or an array flag: a selection)."""
+    if isinstance(angles, bool):
+        return wrap_angles(a) if angles else a
+    return jnp.where(angles, wrap_angles(a), a)
+
+
+def _deviations(st: ImmState, lo: int, hi: int, angles: bool | Array) -> tuple[Array, Array]:
     Xs = st.X[:, lo:hi]
-    ref = Xs[jnp.argmax(st.mu)]
+    first = jnp.arange(Xs.shape[0]) == jnp.argmax(st.mu)  # the most probable model (one-hot)
+    ref = jnp.sum(jnp.where(first[:, None], Xs, 0.0), axis=0)
     D = Xs - ref
-    if angles and lo < 3:
-        D = D.at[:, : 3 - lo].set(wrap_angles(D[:, : 3 - lo]))
+    if angles is not False and lo < 3:
+        D = D.at[:, : 3 - lo].set(_wrap_if(D[:, : 3 - lo], angles))
     return ref, D
 
 
@@ -172,6 +182,27 @@ def predict(
 ) -> ImmState:
     """The bank predicted over ``dt`` s (unchanged when ``dt <= 0``), with an optional input
     acceleration ``u`` (3,) (NaN: none) and an optional value noise density ``q_value`` (3, 3)."""
+    return _predict(st, dt, cfg, cfg.angles, u, q_value)
+
+
+def predict_banks(st: ImmState, dt: Array, cfgs: tuple[ImmConfig, ...], u: Array, q_value: Array) -> ImmState:
+    """Banks stacked on a leading axis, one per config of ``cfgs`` (the same number of models),
+    each predicted as :func:`predict` over its ``dt`` (B,) s with its input ``u`` (B, 3) (NaN:
+    none) and value noise density ``q_value`` (B, 3, 3): one call over the bank axis."""
+    if len({c.drifts.shape for c in cfgs}) != 1:
+        raise ValueError("predict_banks: the banks must have the same number of models")
+    fields = [jnp.stack([jnp.asarray(getattr(c, k)) for c in cfgs]) for k in ImmConfig._fields[:5]]
+    angles = jnp.asarray([c.angles for c in cfgs])
+
+    def one(s: ImmState, d: Array, f: list[Array], a: Array, uu: Array, qq: Array) -> ImmState:
+        return _predict(s, d, ImmConfig(f[0], f[1], f[2], f[3], f[4], False), a, uu, qq)
+
+    return jax.vmap(one)(st, dt, fields, angles, u, q_value)
+
+
+def _predict(
+    st: ImmState, dt: Array, cfg: ImmConfig, angles: bool | Array, u: Array | None, q_value: Array | None
+) -> ImmState:
     go = dt > 0
     dts = jnp.where(go, dt, 1.0)
     T, Ft, Q0 = imm_model(dts, cfg)
@@ -180,7 +211,7 @@ def predict(
     if m > 1:
         c = mu @ T
         W = T.T * mu[None, :] / c[:, None]
-        ref, D = _deviations(st, 0, 9, cfg.angles)
+        ref, D = _deviations(st, 0, 9, angles)
         mean = W @ D
         X = ref[None, :] + mean
         G = Ps + D[:, :, None] * D[:, None, :]
@@ -192,8 +223,8 @@ def predict(
         uu = jnp.where(has, u, 0.0)
         X = X.at[:, 0:3].add(jnp.where(has, 0.5 * dts * dts * uu, 0.0))
         X = X.at[:, 3:6].add(jnp.where(has, dts * uu, 0.0))
-    if cfg.angles:
-        X = X.at[:, 0:3].set(wrap_angles(X[:, 0:3]))
+    if angles is not False:
+        X = X.at[:, 0:3].set(_wrap_if(X[:, 0:3], angles))
     Ps = Ft.T[None] @ Ps @ Ft[None] + Q0
     if q_value is not None:
         Ps = Ps.at[:, 0:3, 0:3].add(q_value * dts)
@@ -277,13 +308,7 @@ def update(
     nu = mu @ NU
     S = _mixture_cov(mu, Ss, NU - nu[None, :])
     d2 = mahalanobis2(S, nu)
-    Sinv, logdet, pd = [], [], []
-    for j in range(m):
-        a, b, c = _spd_inverse(Ss[j])
-        Sinv.append(a)
-        logdet.append(b)
-        pd.append(c)
-    Sinv_a, logdet_a, pd_a = jnp.stack(Sinv), jnp.stack(logdet), jnp.stack(pd)
+    Sinv_a, logdet_a, pd_a = jax.vmap(_spd_inverse)(Ss)  # the models in one call
     ok = jnp.isfinite(d2) & ~(d2 > gate)
     ok_inv = jnp.all(pd_a)
     d2 = jnp.where(ok & ~ok_inv, jnp.inf, d2)

@@ -5,6 +5,7 @@ camera with the (k1, k2, p1, p2, k3) model, the fixed-point undistortion, both I
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 from jax import Array, lax
 
@@ -105,16 +106,17 @@ def ippe_square(xn: Array, tag_size: float) -> tuple[Array, Array, Array]:
     b0 = jnp.sqrt(jnp.maximum(1.0 - r00 * r00 - r10 * r10, 0.0))
     b1 = jnp.sqrt(jnp.maximum(1.0 - r01 * r01 - r11 * r11, 0.0))
     b1 = jnp.where(-r00 * r01 - r10 * r11 < 0, -b1, b1)
-    Rs = []
-    for sgn in (1.0, -1.0):
+
+    def pose(sgn: Array) -> Array:
         c0 = jnp.stack([r00, r10, sgn * b0])
         c1 = jnp.stack([r01, r11, sgn * b1])
         M = jnp.stack([c0, c1, cross(c0, c1)], -1)
-        Rs.append(matmul(Rv, M))
-    R = jnp.stack(Rs)
+        return matmul(Rv, M)
+
+    R = jax.vmap(pose)(jnp.asarray([1.0, -1.0], dtype=b0.dtype))  # both poses in one call
     ok &= jnp.all(jnp.isfinite(R))
     R = jnp.where(ok, R, jnp.eye(3, dtype=R.dtype))
     xs = jnp.where(ok, xn, obj[:, :2])
-    t = jnp.stack([_translation(R[i], obj, xs) for i in (0, 1)])
+    t = jax.vmap(lambda Ri: _translation(Ri, obj, xs))(R)
     ok &= jnp.all(jnp.isfinite(t))
     return R, t, ok

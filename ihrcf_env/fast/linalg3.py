@@ -1,6 +1,7 @@
 """Small fixed-size linear algebra written out for JAX: 3-vectors, 3x3 matrices, the intrinsic
 Z-Y-X Euler angles of :mod:`ihrcf_env.core.frames`, and the SVD of small matrices by a fixed number of
-one-sided Jacobi sweeps (no data-dependent loop, no ``jnp.linalg``)."""
+one-sided Jacobi sweeps (one rotation per step of a ``lax.scan``; no data-dependent loop, no
+``jnp.linalg``)."""
 
 from __future__ import annotations
 
@@ -21,8 +22,8 @@ __all__ = [
 
 
 def dot(a: Array, b: Array) -> Array:
-    """Dot product over the last axis (3), summed in index order."""
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+    """Dot product over the last axis (3) (one product and one reduction)."""
+    return jnp.sum(a * b, axis=-1)
 
 
 def cross(a: Array, b: Array) -> Array:
@@ -39,17 +40,17 @@ def cross(a: Array, b: Array) -> Array:
 
 def matvec(R: Array, v: Array) -> Array:
     """``R v`` for a 3x3 ``R`` and vectors ``v`` (..., 3)."""
-    return jnp.stack([dot(v, R[i]) for i in range(3)], axis=-1)
+    return jnp.sum(v[..., None, :] * R, axis=-1)
 
 
 def tmatvec(R: Array, v: Array) -> Array:
     """``R^T v`` for a 3x3 ``R`` and vectors ``v`` (..., 3)."""
-    return jnp.stack([dot(v, R[:, j]) for j in range(3)], axis=-1)
+    return jnp.sum(v[..., :, None] * R, axis=-2)
 
 
 def matmul(A: Array, B: Array) -> Array:
-    """``A B`` of two 3x3 matrices, each entry summed in index order."""
-    return A[:, 0, None] * B[None, 0, :] + A[:, 1, None] * B[None, 1, :] + A[:, 2, None] * B[None, 2, :]
+    """``A B`` of two 3x3 matrices (one broadcast product and one reduction)."""
+    return jnp.sum(A[:, :, None] * B[None, :, :], axis=1)
 
 
 def det3(m: Array) -> Array:
@@ -92,24 +93,33 @@ def jacobi_svd(A: Array, sweeps: int = 8) -> tuple[Array, Array, Array]:
     accuracy, as LAPACK's."""
     n = A.shape[1]
     pairs = [(p, q) for p in range(n) for q in range(p + 1, n)]
+    ps = jnp.asarray([p for p, _ in pairs] * sweeps, dtype=jnp.int32)
+    qs = jnp.asarray([q for _, q in pairs] * sweeps, dtype=jnp.int32)
 
-    def sweep(carry: tuple[Array, Array], _: None) -> tuple[tuple[Array, Array], None]:
+    def col(M: Array, j: Array) -> Array:
+        return lax.dynamic_index_in_dim(M, j, axis=1, keepdims=False)
+
+    def put(M: Array, v: Array, j: Array) -> Array:
+        return lax.dynamic_update_index_in_dim(M, v, j, axis=1)
+
+    def rotate(carry: tuple[Array, Array], pq: tuple[Array, Array]) -> tuple[tuple[Array, Array], None]:
         B, V = carry
-        for p, q in pairs:
-            bp, bq = B[:, p], B[:, q]
-            alpha = jnp.sum(bp * bp)
-            beta = jnp.sum(bq * bq)
-            gamma = jnp.sum(bp * bq)
-            skip = gamma == 0.0
-            zeta = (beta - alpha) / jnp.where(skip, 1.0, 2.0 * gamma)
-            t = jnp.where(zeta >= 0.0, 1.0, -1.0) / (jnp.abs(zeta) + jnp.sqrt(1.0 + zeta * zeta))
-            t = jnp.where(skip, 0.0, t)
-            c = 1.0 / jnp.sqrt(1.0 + t * t)
-            s = c * t
-            B = B.at[:, p].set(c * bp - s * bq).at[:, q].set(s * bp + c * bq)
-            vp, vq = V[:, p], V[:, q]
-            V = V.at[:, p].set(c * vp - s * vq).at[:, q].set(s * vp + c * vq)
+        p, q = pq
+        bp, bq = col(B, p), col(B, q)
+        alpha = jnp.sum(bp * bp)
+        beta = jnp.sum(bq * bq)
+        gamma = jnp.sum(bp * bq)
+        skip = gamma == 0.0
+        zeta = (beta - alpha) / jnp.where(skip, 1.0, 2.0 * gamma)
+        t = jnp.where(zeta >= 0.0, 1.0, -1.0) / (jnp.abs(zeta) + jnp.sqrt(1.0 + zeta * zeta))
+        t = jnp.where(skip, 0.0, t)
+        c = 1.0 / jnp.sqrt(1.0 + t * t)
+        s = c * t
+        B = put(put(B, c * bp - s * bq, p), s * bp + c * bq, q)
+        vp, vq = col(V, p), col(V, q)
+        V = put(put(V, c * vp - s * vq, p), s * vp + c * vq, q)
         return (B, V), None
 
-    (B, V), _ = lax.scan(sweep, (A, jnp.eye(n, dtype=A.dtype)), None, length=sweeps)
+    # the sweeps' pairs in cyclic order, one rotation per step
+    (B, V), _ = lax.scan(rotate, (A, jnp.eye(n, dtype=A.dtype)), (ps, qs))
     return jnp.sqrt(jnp.sum(B * B, axis=0)), B, V

@@ -69,7 +69,7 @@ def rodrigues(r: Array) -> tuple[Array, Array]:
     u = r * it
     ux, uy, uz = u[0], u[1], u[2]
     zero = jnp.zeros_like(ux)
-    rrt = jnp.stack([ux * ux, ux * uy, ux * uz, uy * ux, uy * uy, uy * uz, uz * ux, uz * uy, uz * uz])
+    rrt = (u[:, None] * u[None, :]).reshape(9)  # u u^T row-major
     rx = jnp.stack([zero, -uz, uy, uz, zero, -ux, -uy, ux, zero])
     R = c * _EYE9 + c1 * rrt + s * rx
     R = jnp.where(tiny, _EYE9, R)
@@ -189,14 +189,9 @@ def cholesky_solve6(A: Array, b: Array) -> Array:
 
 
 def _normal(J: Array, r: Array) -> tuple[Array, Array]:
-    """``J^T J`` (6, 6) and ``J^T r`` (6,) summed over the residuals in order (element-wise: cheaper
+    """``J^T J`` (6, 6) and ``J^T r`` (6,) as products summed over the residuals (element-wise: cheaper
     than a batched matrix product at this size)."""
-    jtj = J[0, :, None] * J[0, None, :]
-    jtr = J[0] * r[0]
-    for k in range(1, J.shape[0]):
-        jtj = jtj + J[k, :, None] * J[k, None, :]
-        jtr = jtr + J[k] * r[k]
-    return jtj, jtr
+    return jnp.sum(J[:, :, None] * J[:, None, :], axis=0), jnp.sum(J * r[:, None], axis=0)
 
 
 class LMResult(NamedTuple):

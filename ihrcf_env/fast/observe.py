@@ -15,8 +15,10 @@ The stage's branches are masks: a camera frame is *new* when its ``camera_age`` 
 latency) or when ``camera_frame`` changed (a latency: the frame is stamped with its exposure, the
 IMU sample of the step nearest the exposure and the ranges measured nearest it, and the fused
 filter predicts it to the arrival); the estimators run every step and their results are taken
-only for a new frame, else the last estimates are shown again. An estimate's block holds its last
-valid values (heading frame of the current step) while it is invalid and its age grows.
+only for a new frame, else the last estimates are shown again. With the fused filter, IHRCF's
+estimate is made in the filter's own IHRCF call (one call over the pair of range readings). An
+estimate's block holds its last valid values (heading frame of the current step) while it is
+invalid and its age grows.
 
 ``deck_forecast`` appends the forecast block of :mod:`ihrcf_env.fast.forecast_feed` (the port of
 the wrapper's :class:`~ihrcf_env.wrappers.forecast_feed.ForecastFeed`), fed by the fused estimate
@@ -33,6 +35,7 @@ import dataclasses
 import math
 from typing import Any, NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array, tree_util
@@ -492,9 +495,25 @@ def observe(
         )
     prior, has_prior = st.prior, st.has_prior
     fused_state = st.fused
+    if "fused" in p.names:
+        assert p.fused is not None and st.fused is not None
+        frame = fu.FusedFrame(
+            t_frame, detected, corners, r_f, v_f, rt_f, jnp.ones((), bool), q_f, w_f, f_f,
+            jnp.where(late, now, nan), late, q, w, sf,
+        )  # fmt: skip
+        f_cands = cands if p.fused.K is not None else None
+        if "ihrcf" in p.names:  # IHRCF's estimate in the filter's IHRCF call
+            fused_state, ih_pose = fu.fused_update_with_ihrcf(
+                p.fused, st.fused, frame, fresh, f_cands, r_f, v_f, detected
+            )
+            new["ihrcf"] = _pose_info(ih_pose, status)
+        else:
+            fused_state = fu.fused_update(p.fused, st.fused, frame, fresh, f_cands)
+        new["fused"] = _fused_info(fused_state.out, status)
     for name in p.names:
         if name == "ihrcf":
-            new[name] = _pose_info(ihrcf(corners, r_f, v_f, detected, p.ihrcf), status)
+            if name not in new:
+                new[name] = _pose_info(ihrcf(corners, r_f, v_f, detected, p.ihrcf), status)
         elif name == "atda":
             assert cands is not None
             pose = pnp_choose(cands, st.prior, st.has_prior)
@@ -502,16 +521,6 @@ def observe(
             prior = jnp.where(took, pose.rotation, st.prior)
             has_prior = st.has_prior | took
             new[name] = _pose_info(pose, status)
-        else:
-            assert p.fused is not None and st.fused is not None
-            frame = fu.FusedFrame(
-                t_frame, detected, corners, r_f, v_f, rt_f, jnp.ones((), bool), q_f, w_f, f_f,
-                jnp.where(late, now, nan), late, q, w, sf,
-            )  # fmt: skip
-            fused_state = fu.fused_update(
-                p.fused, st.fused, frame, fresh, cands if p.fused.K is not None else None
-            )
-            new[name] = _fused_info(fused_state.out, status)
     shown = tuple(_select(fresh, new[name], st.last[i]) for i, name in enumerate(p.names))
 
     # the observation
@@ -532,19 +541,18 @@ def observe(
     out = put(out, "imu.linear_acceleration", sf / GRAVITY)
     out = put(out, "nav_velocity", R_lw @ jnp.asarray(raw.nav_velocity, f))
     ages = now - frame_time
-    held_block, held_time, has_held = st.held_block, st.held_time, st.has_held
+    # the estimates' blocks in one call over the estimators
+    valid = jnp.stack([est.valid for est in shown])
+    blocks = jax.vmap(lambda x, e: _pose_block(R_lb, x, matrix_from_euler(e)))(
+        jnp.stack([est.position for est in shown]), jnp.stack([est.euler for est in shown])
+    )
+    held_block = jnp.where(valid[:, None], blocks, st.held_block)
+    held_time = jnp.where(valid, now - ages, st.held_time)
+    has_held = st.has_held | valid
     infos: dict[str, EstimateInfo] = {}
     for i, name in enumerate(p.names):
         est = shown[i]
-        block = _pose_block(R_lb, est.position, matrix_from_euler(est.euler))
-        hb = jnp.where(est.valid, block, held_block[i])
-        ht = jnp.where(est.valid, now - ages, held_time[i])
-        hh = has_held[i] | est.valid
-        held_block, held_time, has_held = (
-            held_block.at[i].set(hb),
-            held_time.at[i].set(ht),
-            has_held.at[i].set(hh),
-        )
+        hb, ht, hh = held_block[i], held_time[i], has_held[i]
         s0, s1 = sl[f"{name}.position"].start, sl[f"{name}.valid"].start
         out = out.at[s0:s1].set(jnp.where(hh, hb, 0.0))
         out = put(out, f"{name}.age", jnp.where(hh, (now - ht) / sc[f"{name}.age"], MAX_AGE)[None])

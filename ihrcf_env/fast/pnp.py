@@ -69,8 +69,8 @@ def pnp_candidates(
     code = jnp.where((code == rs.OK) & ~jnp.any(usable), rs.TAG_BEHIND, code)
     R_bc = jnp.asarray(R_BODY_CAM, dtype=K.dtype)
     R_md = jnp.asarray(R_MARKER_DECK, dtype=K.dtype)
-    R_bd = jnp.stack([matmul(matmul(R_bc, R2[i]), R_md) for i in (0, 1)])
-    p_bd = jnp.stack([matvec(R_bc, t2[i]) for i in (0, 1)]) + camera_position
+    R_bd = jax.vmap(lambda R: matmul(matmul(R_bc, R), R_md))(R2)  # both solutions in one call
+    p_bd = matvec(R_bc, t2) + camera_position
     key = jnp.where(usable, err2, jnp.inf)
     swap = key[1] < key[0]
     order = jnp.where(swap, jnp.array([1, 0]), jnp.array([0, 1]))

@@ -1,7 +1,8 @@
 """The fused filter (ihrcf_env.fast.fused) against the single filter
 (ihrcf_env.core.estimators.fused.FusedEstimator), env by env, over the histories of
 tests/core/fused_history.py (held frames, resets, lost tags, outliers, bad IMU samples, late
-frames), float64: the same validity and reason text (the codes' text), the outputs within 1e-8."""
+frames), float64: the same validity and reason text (the codes' text), the outputs within 1e-8;
+IHRCF's estimate made in the filter's IHRCF call (``fused_update_with_ihrcf``) is IHRCF's own."""
 
 from __future__ import annotations
 
@@ -24,7 +25,15 @@ from ihrcf_env.core.estimators import FusedEstimator, FusedParams, SensorFrame  
 from ihrcf_env.core.estimators import fused_reasons as fr  # noqa: E402
 from ihrcf_env.core.estimators import reasons as rs  # noqa: E402
 from ihrcf_env.core.estimators.atda import Candidate, atda_candidates  # noqa: E402
-from ihrcf_env.fast.fused import FusedFrame, fused_init, fused_reset, fused_setup, fused_update  # noqa: E402
+from ihrcf_env.fast.fused import (  # noqa: E402
+    FusedFrame,
+    fused_init,
+    fused_reset,
+    fused_setup,
+    fused_update,
+    fused_update_with_ihrcf,
+)
+from ihrcf_env.fast.ihrcf import ihrcf  # noqa: E402
 from ihrcf_env.fast.pnp import Candidates  # noqa: E402
 
 MAX_RESIDUAL = 0.01  # fused_setup's and FusedEstimator's default
@@ -139,7 +148,10 @@ def test_fused_matches_the_single_filters(config: str) -> None:
     def one(st, f, active, reset, cands):
         traces.append(1)
         st = fused_reset(setup, st, reset)
-        return fused_update(setup, st, f, active, cands if Km is not None else None)
+        c = cands if Km is not None else None
+        # the frame's IHRCF estimate on the raw ranges, beside the filter's on its compensated ones
+        st, pose = fused_update_with_ihrcf(setup, st, f, active, c, f.ranges, f.ranges_valid, f.detected)
+        return st, pose, ihrcf(f.corners, f.ranges, f.ranges_valid, f.detected, setup.ihrcf)
 
     step = jax.jit(jax.vmap(one))
     st = jax.vmap(lambda _: fused_init(setup))(jnp.arange(n))
@@ -157,7 +169,9 @@ def test_fused_matches_the_single_filters(config: str) -> None:
             for f in row
         ]
         frame, corners_reason = stack(row)
-        st = step(st, frame, active, resets, candidates(cands))
+        st, pose, own = step(st, frame, active, resets, candidates(cands))
+        for got, want in zip(pose, own, strict=True):
+            np.testing.assert_allclose(np.asarray(got), np.asarray(want), rtol=0, atol=1e-12)
         o = jax.tree_util.tree_map(np.asarray, st.out)
         sigma = np.exp(0.5 * np.asarray(st.log_var))
         for e in np.flatnonzero(active):
@@ -201,3 +215,13 @@ def test_range_only_update_is_refused() -> None:
 def test_oscillator_deck_model_is_refused() -> None:
     with pytest.raises(ValueError, match="deck_model"):
         fused_setup(TABLE, RIG, TAG, K, params=FusedParams(deck_model="oscillator"))
+
+
+def test_banks_of_different_model_counts_are_predicted_one_by_one() -> None:
+    """Position and attitude banks of different model counts (no shared bank axis) still step."""
+    setup = fused_setup(TABLE, RIG, TAG, K, params=FusedParams(accel_drift=(0.001, 0.1)))
+    assert setup.pos.drifts.shape[0] == 2 and setup.att.drifts.shape[0] == 3
+    frame, _ = stack([history(0)[0][k] for k in range(1)])
+    one = jax.tree_util.tree_map(lambda a: a[0], frame)
+    out = jax.eval_shape(lambda st: fused_update(setup, st, one, jnp.ones((), bool)), fused_init(setup))
+    assert out.pos.imm.X.shape == (2, 9) and out.att.imm.X.shape == (3, 9)

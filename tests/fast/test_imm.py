@@ -95,3 +95,36 @@ def test_sequence_matches_the_single_imm(angles: bool) -> None:
     assert rel_err(st.mu, np.stack([r.mu for r in refs])) < 1e-9
     assert rel_err(xc, np.stack([r.x for r in refs])) < 1e-9
     assert rel_err(sig, np.array([r.value_sigma() for r in refs])) < 1e-9
+
+
+def test_stacked_banks_predict_as_each_bank() -> None:
+    """``predict_banks`` over a position bank (with an input and value noise) and an angle bank
+    (no input) is ``predict`` of each."""
+    rng = np.random.default_rng(7)
+    cfgs = (imm.imm_config(**ARGS), imm.imm_config(angles=True, q_value=np.diag([0.01, 0.01, 0.0]), **ARGS))
+    n = 16
+
+    def banks(z: np.ndarray, R: np.ndarray) -> imm.ImmState:
+        return imm.reseed(imm.imm_start(cfgs[0]), z, R, 0.3)
+
+    A = rng.normal(0, 0.2, (n, 2, 3, 3))
+    R = A @ A.transpose(0, 1, 3, 2) + 0.01 * np.eye(3)
+    z = rng.uniform(-3.1, 3.1, (n, 2, 3))
+    dt = rng.uniform(0.02, 0.1, (n, 2))
+    dt[:3, 1] = 0.0
+    u = rng.normal(0, 1, (n, 3))
+    q = rng.normal(0, 0.1, (n, 3, 3))
+    q = q @ q.transpose(0, 2, 1)
+
+    def run(z, R, dt, u, q):
+        st = jax.vmap(banks)(z, R)
+        nan = jnp.full(3, jnp.nan)
+        both = imm.predict_banks(st, dt, cfgs, jnp.stack([u, nan]), jnp.stack([q, jnp.zeros((3, 3))]))
+        pos = imm.predict(jax.tree_util.tree_map(lambda a: a[0], st), dt[0], cfgs[0], u, q)
+        att = imm.predict(jax.tree_util.tree_map(lambda a: a[1], st), dt[1], cfgs[1])
+        return both, pos, att
+
+    both, pos, att = jax.jit(jax.vmap(run))(z, R, dt, u, q)
+    for k, one in enumerate((pos, att)):
+        for got, want in zip(both, one, strict=True):
+            assert rel_err(np.asarray(got)[:, k], want) < 1e-12
