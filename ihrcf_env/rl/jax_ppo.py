@@ -55,7 +55,9 @@ class PPOSettings:
 
     ``asymmetric``: the critic reads the env's privileged ground truth beside the observation
     (where the functional env provides it); ``devices``: devices the batch is spread over (None:
-    all JAX has, as many as split ``num_envs`` evenly)."""
+    all JAX has, as many as split ``num_envs`` evenly); ``curriculum_steps``, ``curriculum_share``:
+    the start curriculum (:func:`start_scales`); ``init_log_std``: the Gaussian's log standard
+    deviation (in action units) a new run starts from."""
 
     num_envs: int = 256
     num_steps: int = 64
@@ -74,6 +76,7 @@ class PPOSettings:
     devices: int | None = None
     curriculum_steps: int = 1_000_000
     curriculum_share: float = 0.25
+    init_log_std: float = -1.0
 
 
 def start_scales(settings: PPOSettings, steps: int, rng: np.random.Generator) -> np.ndarray:
@@ -342,6 +345,13 @@ def _check_train_args(
         value = getattr(settings, name)
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise ValueError(f"{name} must be a positive int, got {value!r}")
+    if not (isinstance(settings.init_log_std, int | float) and -5.0 <= settings.init_log_std <= 1.0):
+        raise ValueError(f"init_log_std must be a number in [-5, 1], got {settings.init_log_std!r}")
+    if not (0.0 <= settings.curriculum_share <= 1.0) or settings.curriculum_steps < 0:
+        raise ValueError(
+            "curriculum_share must be in [0, 1] and curriculum_steps >= 0, got "
+            f"{settings.curriculum_share!r}, {settings.curriculum_steps!r}"
+        )
     if (settings.num_envs * settings.num_steps) % settings.num_minibatches:
         raise ValueError(
             f"num_minibatches={settings.num_minibatches} must divide num_envs x num_steps "
@@ -382,6 +392,8 @@ def _train(
     elif init_policy is not None:
         ts = load_policy(ts, MlpPolicy.load(init_policy), init_log_std)
         log(f"actor initialised from {init_policy}")
+    else:
+        ts = _with_log_std(ts, settings.init_log_std)
     log(
         f"{mesh.devices.size} device(s), {n} envs, "
         f"{learner.inputs - learner.actor_inputs} privileged critic inputs"
@@ -489,6 +501,15 @@ def _save(ts: Any, curve: list[dict[str, float]], folder: Path, best: Path | Non
         tmp = path.with_name(path.name + ".tmp")
         tmp.write_bytes(payload)
         os.replace(tmp, path)
+
+
+def _with_log_std(ts: Any, log_std: float) -> Any:
+    """``ts`` with the actor's Gaussian log standard deviation set to ``log_std`` for every action."""
+    import jax.numpy as jnp
+
+    p = dict(ts.actor_ts.params["params"])
+    p["action_log_std"] = jnp.full_like(p["action_log_std"], log_std)
+    return ts.replace(actor_ts=ts.actor_ts.replace(params={**ts.actor_ts.params, "params": p}))
 
 
 def load_checkpoint(ts: Any, path: str | Path) -> Any:

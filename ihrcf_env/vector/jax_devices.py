@@ -55,7 +55,7 @@ def request_host_devices(count: int | None = None) -> int:
     if count is not None and count > host_cores():
         raise ValueError(f"devices={count}: this process may use {host_cores()} core(s)")
     want = host_cores() if count is None else count
-    if not xla_bridge.backends_are_initialized() and jax.config.jax_num_cpu_devices < 0:
+    if not xla_bridge.backends_are_initialized() and getattr(jax.config, "jax_num_cpu_devices", -1) < 0:
         jax.config.update("jax_num_cpu_devices", want)
     return len(jax.devices())
 

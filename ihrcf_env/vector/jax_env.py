@@ -156,7 +156,11 @@ class JaxVectorEnv(VectorEnv):
         #: the devices the envs are spread over (each steps its share of the batch)
         self.devices = check_devices(devices, n)
         mesh = env_mesh(self.devices)
-        step = shard_envs(lambda *batched: self._batched_step(*batched, self._params), mesh)
+
+        def batched(state: Any, keys: Any, actions: Any, stepping: Any) -> Any:
+            return self._batched_step(state, keys, actions, stepping, self._params)
+
+        step = shard_envs(batched, mesh)
         self._step_fn = jax.jit(
             lambda state, keys, actions, stepping, params: step(state, keys, actions, stepping)
         )

@@ -89,7 +89,7 @@ def batch_step(
             success = info.get("is_success", jnp.zeros((), bool))
             return obs, (inner, t + 1), reward, done | (t + 1 >= max_steps), success
 
-        def reset_one(key: Any) -> Any:
+        def reset_one(key: Any, start_scale: Any = None) -> Any:
             k1, k2 = jax.random.split(key)
             obs, inner = fenv.reset_from(fenv.draw(k1, params), k2, params)
             return obs, (inner, jnp.zeros((), jnp.int32))
