@@ -178,6 +178,7 @@ TRAINER_SCRIPT = textwrap.dedent(
 )
 
 
+@pytest.mark.rl
 def test_the_trainer_steps_its_envs_over_two_devices_as_on_one() -> None:
     """PPO's transition (the policy's actions, the envs' steps and resets) over two devices gives
     the one-device result to float32 rounding: the env step is the same bit for bit (above), but
