@@ -61,7 +61,15 @@ def test_train_runs_resumes_and_exports(tmp_path: Path) -> None:
 def test_the_toy_is_learned() -> None:
     """PPO learns to slow the falling body: a random policy's return is about -0.4 (it never lands
     slowly); the trained mean action lands at least a third of the bodies slower than 1 m/s."""
-    settings = PPOSettings(num_envs=32, num_steps=16, num_minibatches=4, hidden=(32, 32), learning_rate=3e-3)
+    settings = PPOSettings(
+        num_envs=32,
+        num_steps=16,
+        num_minibatches=4,
+        hidden=(32, 32),
+        learning_rate=3e-3,
+        gamma=0.99,
+        init_log_std=0.0,
+    )
     _, _, curve = train(Drop(), _tmp(), 60_000, 40, settings, chunk_timesteps=20_000, log=lambda _: None)
     assert curve[-1]["success"] >= 0.33 and curve[-1]["return"] > 2.0, curve
 
