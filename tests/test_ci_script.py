@@ -46,9 +46,13 @@ def test_the_newest_pyenv_interpreter_of_a_version_is_found(tmp_path: Path) -> N
 
 def test_every_newer_version_runs_the_suite_or_says_it_is_skipped() -> None:
     text = CI.read_text()
-    loop = re.search(r"^for version in (.*); do$(.*?)^done$", text, re.S | re.M)
+    loop = re.search(r"^for version in ([^\n]*); do$(.*?)^done$", text, re.S | re.M)
     assert loop is not None
     assert loop.group(1).split() == ["3.12", "3.13"]
     body = loop.group(2)
     assert "its suite is skipped" in body and "continue" in body
-    assert '.venv-py$version/bin/pytest"' in body
+    assert "installs[$version]=$!" in body  # each version found is installed (in the background)
+    run = re.search(r'^for version in "\$\{!installs\[@\]\}"; do$(.*?)^done$', text, re.S | re.M)
+    assert run is not None  # then every installed version runs the default suite
+    assert 'wait "${installs[$version]}"' in run.group(1)
+    assert '.venv-py$version/bin/pytest"' in run.group(1)

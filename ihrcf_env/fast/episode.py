@@ -41,6 +41,7 @@ __all__ = [
     "host_episode",
     "host_streams",
     "imaging_draw",
+    "start_towards_deck",
 ]
 
 #: The projected tag camera's stream (``"sensor.<name>"`` of the simulator's camera sensor).
@@ -297,6 +298,20 @@ def draw_episode(key: Array, params: StepParams) -> Episode:
         imaging,
         omega,
         phase,
+    )
+
+
+def start_towards_deck(episode: Episode, scale: Any, lowest: float) -> Episode:
+    """``episode`` with its start brought towards the deck by ``scale`` in [0, 1] (a trainer's start
+    curriculum): the altitude above the deck origin from ``lowest`` (m; or the drawn altitude if
+    lower) at 0 to the drawn one at 1, the horizontal offset times ``scale``. At ``scale`` 1 (or
+    above) the episode's own start, bit for bit."""
+    f = jnp.clip(jnp.asarray(scale, episode.altitude.dtype), 0.0, 1.0)
+    low = jnp.minimum(episode.altitude, lowest)
+    full = f >= 1.0
+    return episode._replace(
+        altitude=jnp.where(full, episode.altitude, low + f * (episode.altitude - low)),
+        offset=jnp.where(full, episode.offset, f * episode.offset),
     )
 
 

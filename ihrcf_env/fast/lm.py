@@ -71,8 +71,9 @@ def rodrigues(r: Array) -> tuple[Array, Array]:
     zero = jnp.zeros_like(ux)
     rrt = (u[:, None] * u[None, :]).reshape(9)  # u u^T row-major
     rx = jnp.stack([zero, -uz, uy, uz, zero, -ux, -uy, ux, zero])
-    R = c * _EYE9 + c1 * rrt + s * rx
-    R = jnp.where(tiny, _EYE9, R)
+    eye = jnp.asarray(_EYE9, r.dtype)  # the constants in the rotation vector's dtype
+    R = c * eye + c1 * rrt + s * rx
+    R = jnp.where(tiny, eye, R)
     drrt = jnp.stack(
         [
             jnp.stack([ux + ux, uy, uz, uy, zero, zero, uz, zero, zero]),
@@ -83,14 +84,15 @@ def rodrigues(r: Array) -> tuple[Array, Array]:
     a0 = -s * u
     a1 = (s - 2.0 * c1 * it) * u
     a3 = (c - s * it) * u
+    hat = jnp.asarray(_HAT, r.dtype)
     dR = (
-        a0[:, None] * _EYE9
+        a0[:, None] * eye
         + a1[:, None] * rrt[None, :]
         + (c1 * it) * drrt
         + a3[:, None] * rx[None, :]
-        + (s * it) * _HAT
+        + (s * it) * hat
     )
-    dR = jnp.where(tiny, _HAT, dR)
+    dR = jnp.where(tiny, hat, dR)
     return R, dR
 
 

@@ -35,7 +35,7 @@ from ihrcf_env.fast import step as st
 from ihrcf_env.fast.contact import BASE, DECK, GROUND
 from ihrcf_env.fast.deck_motion import leg_lengths
 from ihrcf_env.fast.detector import STATUS_NAMES
-from ihrcf_env.fast.episode import draw_episode, host_episode
+from ihrcf_env.fast.episode import draw_episode, host_episode, start_towards_deck
 from ihrcf_env.fast.linalg3 import euler_from_matrix
 from ihrcf_env.fast.params import make_params
 from ihrcf_env.fast.step import INVALID_ACTION, check_tree, state_spec
@@ -182,13 +182,7 @@ class LandingFunctional:
         k1, k2 = jax.random.split(key)
         episode = self.draw(k1, params)
         if start_scale is not None:
-            f = jnp.clip(jnp.asarray(start_scale, episode.altitude.dtype), 0.0, 1.0)
-            low = jnp.minimum(episode.altitude, CURRICULUM_ALTITUDE)
-            full = f >= 1.0  # the task's own start, bit for bit
-            episode = episode._replace(
-                altitude=jnp.where(full, episode.altitude, low + f * (episode.altitude - low)),
-                offset=jnp.where(full, episode.offset, f * episode.offset),
-            )
+            episode = start_towards_deck(episode, start_scale, CURRICULUM_ALTITUDE)
         reading, env_state = st.reset_from(episode, k2, self.step_params)
         return reading, (env_state, ob.observe_init(self.observe_params))
 
