@@ -93,9 +93,9 @@ def start_scales(settings: PPOSettings, steps: int, rng: np.random.Generator) ->
 
 
 class Run(NamedTuple):
-    """The batch between steps: the env state, the normalised observation rows, the envs whose
-    last step ended an episode, and counters since the last :func:`_zero_counts`: episodes ended,
-    successful, and the sum of their returns; ``returns`` the running return of each env."""
+    """The batch between steps (a row per env): the env state, the raw observation rows, whether the
+    last step ended an episode, the running return, and the episodes ended and successful since
+    the counters were last zeroed."""
 
     state: Any
     obs: Any
@@ -103,7 +103,6 @@ class Run(NamedTuple):
     returns: Any
     ended: Any
     succeeded: Any
-    return_sum: Any
 
 
 def make_learner(fenv: Any, settings: PPOSettings) -> Any:
@@ -159,14 +158,12 @@ def _compile(fenv: Any, learner: Any, settings: PPOSettings, max_steps: int) -> 
 
     from ihrcf_env.rl.ppo_learner import Trajectory, normalise, update_stats
     from ihrcf_env.vector.jax_devices import ENV_AXIS, check_devices, env_mesh
-    from ihrcf_env.vector.jax_rollout import batch_step, placeholder_state
+    from ihrcf_env.vector.jax_rollout import batch_step, has_stages, placeholder_state
 
     n = settings.num_envs
     devices = check_devices(settings.devices, n)
     mesh = env_mesh(devices)
     privileged = getattr(fenv, "privileged", None) if learner.inputs > learner.actor_inputs else None
-    from ihrcf_env.vector.jax_rollout import has_stages
-
     curriculum = has_stages(fenv)
     step = batch_step(fenv, max_steps, privileged=privileged, curriculum=curriculum)
 
@@ -189,7 +186,6 @@ def _compile(fenv: Any, learner: Any, settings: PPOSettings, max_steps: int) -> 
         new = Run(
             state, obs.astype(jnp.float32), done, jnp.where(done, 0.0, returns),
             run.ended + done.astype(jnp.int32), run.succeeded + (done & success).astype(jnp.int32),
-            run.return_sum + jnp.where(done, returns, 0.0),
         )  # fmt: skip
         return new, traj, done & success
 
@@ -222,13 +218,13 @@ def _compile(fenv: Any, learner: Any, settings: PPOSettings, max_steps: int) -> 
 
     def zero_counts(run: Run) -> Run:
         z = jnp.zeros(n, jnp.int32)
-        return run._replace(ended=z, succeeded=z, return_sum=jnp.zeros(n, jnp.float32))
+        return run._replace(ended=z, succeeded=z)
 
     def start() -> Run:
         state = placeholder_state(fenv, n)
         obs = jnp.zeros((n, learner.inputs), jnp.float32)
         z = jnp.zeros(n, jnp.int32)
-        return Run(state, obs, jnp.zeros(n, bool), jnp.zeros(n, jnp.float32), z, z, jnp.zeros(n, jnp.float32))
+        return Run(state, obs, jnp.zeros(n, bool), jnp.zeros(n, jnp.float32), z, z)
 
     def tally(acc: Any, traj: Any, succeeded: Any) -> Any:
         """An evaluation's per-env sums over the first episode: (ended, success, return, length)."""
@@ -245,7 +241,7 @@ def _compile(fenv: Any, learner: Any, settings: PPOSettings, max_steps: int) -> 
     # replicated), so nothing is compiled again for another placement
     rows, whole = NamedSharding(mesh, row), NamedSharding(mesh, one)
     run_shape = jax.eval_shape(start)
-    run_sh = Run(jax.tree_util.tree_map(lambda _: rows, run_shape.state), rows, rows, rows, rows, rows, rows)
+    run_sh = Run(jax.tree_util.tree_map(lambda _: rows, run_shape.state), rows, rows, rows, rows, rows)
     traj_sh = Trajectory(rows, rows, rows, rows, rows, rows)
     acc_sh = (rows, rows, rows, rows)
     compiled = _Compiled(
@@ -586,8 +582,8 @@ def load_policy(ts: Any, policy: MlpPolicy, log_std: float) -> Any:
         "kernel": jnp.asarray(policy.weights[-1].T, head["kernel"].dtype),
         "bias": jnp.asarray(policy.biases[-1], head["bias"].dtype),
     }
-    new_p["action_log_std"] = jnp.full_like(p["action_log_std"], log_std)
     actor_ts = ts.actor_ts.replace(params={**ts.actor_ts.params, "params": new_p})
+    ts = _with_log_std(ts.replace(actor_ts=actor_ts), log_std)
     rms = ts.obs_rms_state
     k = policy.mean.shape[0]
     if k > rms.mean.shape[0] or kernel_inputs(ts) != k:
@@ -598,7 +594,7 @@ def load_policy(ts: Any, policy: MlpPolicy, log_std: float) -> Any:
         var=rms.var.at[:k].set(jnp.asarray(policy.var, rms.var.dtype)),
         count=jnp.asarray(1e6, jnp.asarray(rms.count).dtype),
     )
-    return ts.replace(actor_ts=actor_ts, obs_rms_state=rms)
+    return ts.replace(obs_rms_state=rms)
 
 
 def kernel_inputs(ts: Any) -> int:
