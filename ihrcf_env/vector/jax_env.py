@@ -22,8 +22,8 @@ episode key: deterministic for a seed, independent of ``num_envs``).
 info, and its ``host_info`` turns the compiled arrays into the PyBullet env's columns (strings,
 float64); an env reset by a step (next-step autoreset) shows its reset's info in that step, as the
 PyBullet vector env does. Every reset (the first, a full one, a masked one, an autoreset) runs one
-compiled function: on a block of :data:`RESET_ROWS` rows when that many or fewer are reset, on all
-``num_envs`` rows otherwise (one compilation when ``num_envs <= RESET_ROWS``).
+compiled function on blocks of :data:`RESET_ROWS` rows (as many blocks as it takes): one
+compilation of the reset whatever ``num_envs`` is.
 """
 
 from __future__ import annotations
@@ -91,11 +91,10 @@ class FunctionalEnv(Protocol):
 
 
 def reset_size(rows: int, num_envs: int) -> int:
-    """The padded row count of a reset of ``rows`` envs of ``num_envs``: a block of
-    :data:`RESET_ROWS` (at most ``num_envs``) or all rows, so that one or two compiled shapes serve
+    """The padded row count of one call of the compiled reset: a block of :data:`RESET_ROWS` rows
+    (at most ``num_envs``); a reset of more rows takes several blocks, so one compiled shape serves
     every reset."""
-    block = min(RESET_ROWS, num_envs)
-    return block if rows <= block else num_envs
+    return min(RESET_ROWS, num_envs)
 
 
 class JaxVectorEnv(VectorEnv):
@@ -156,6 +155,12 @@ class JaxVectorEnv(VectorEnv):
         #: the devices the envs are spread over (each steps its share of the batch)
         self.devices = check_devices(devices, n)
         mesh = env_mesh(self.devices)
+        from jax.sharding import NamedSharding, PartitionSpec
+
+        from ihrcf_env.vector.jax_devices import ENV_AXIS
+
+        #: where the batch's rows live (split over the devices), so that every call sees one placement
+        self._rows = NamedSharding(mesh, PartitionSpec(ENV_AXIS))
 
         def batched(state: Any, keys: Any, actions: Any, stepping: Any) -> Any:
             return self._batched_step(state, keys, actions, stepping, self._params)
@@ -246,7 +251,8 @@ class JaxVectorEnv(VectorEnv):
             return jnp.zeros((n, *s.shape), s.dtype)
 
         obs, state = jax.tree_util.tree_map(zeros, shapes)
-        return state, jnp.zeros((n, *row_keys.shape[1:]), row_keys.dtype), obs
+        keys = jnp.zeros((n, *row_keys.shape[1:]), row_keys.dtype)
+        return jax.device_put((state, keys, obs), self._rows)
 
     # -- reset -------------------------------------------------------------------------------
     def reset(
@@ -270,13 +276,19 @@ class JaxVectorEnv(VectorEnv):
         return self._obs.copy(), _scatter_info(self.num_envs, (rows, info))
 
     def _reset_rows(self, rows: NDArray[np.intp]) -> dict[str, Any]:
-        """New episodes for ``rows`` (their step counters and pending autoresets cleared); the
-        reset rows' info columns (one row per entry of ``rows``)."""
+        """New episodes for ``rows`` (their step counters and pending autoresets cleared), a block
+        of :func:`reset_size` rows per call of the compiled reset; the reset rows' info columns
+        (one row per entry of ``rows``)."""
+        size = reset_size(rows.size, self.num_envs)
+        parts = [self._reset_block(rows[i : i + size], size) for i in range(0, rows.size, size)]
+        return {key: _join([p[key] for p in parts]) for key in parts[0]} if len(parts) > 1 else parts[0]
+
+    def _reset_block(self, rows: NDArray[np.intp], size: int) -> dict[str, Any]:
+        """:meth:`_reset_rows` of at most ``size`` rows, padded to ``size``."""
         import jax
         import jax.numpy as jnp
 
         n = self.num_envs
-        size = reset_size(rows.size, n)
         padded = np.full(size, n, dtype=np.int32)
         padded[: rows.size] = rows
         episode_keys = np.zeros(size, dtype=np.uint64)
@@ -297,7 +309,7 @@ class JaxVectorEnv(VectorEnv):
             if self._state is None:
                 self._state, self._keys, obs = self._empty_batch(episodes, row_keys)
             else:
-                obs = jnp.asarray(self._obs)
+                obs = jax.device_put(jnp.asarray(self._obs), self._rows)
             self._state, self._keys, obs, info = self._reset_fn(
                 self._state, self._keys, obs, jnp.asarray(padded), episodes, row_keys, self._params
             )
@@ -375,6 +387,13 @@ class JaxVectorEnv(VectorEnv):
     def _check_open(self) -> None:
         if self._closed:
             raise RuntimeError("vector env is closed (close() was called): make a new one with gym.make_vec")
+
+
+def _join(parts: list[Any]) -> Any:
+    """Info columns of consecutive row blocks joined (nested dicts key by key)."""
+    if isinstance(parts[0], dict):
+        return {key: _join([p[key] for p in parts]) for key in parts[0]}
+    return np.concatenate([np.asarray(p) for p in parts])
 
 
 def _to_numpy(info: Any) -> Any:

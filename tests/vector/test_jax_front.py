@@ -124,7 +124,7 @@ def test_every_reset_shares_one_compiled_function() -> None:
     """The first reset, a masked reset, a later full reset and the autoresets: one trace (one
     compilation) of the reset when num_envs <= RESET_ROWS; the step traces once."""
     assert [reset_size(k, 4) for k in (1, 3, 4)] == [4, 4, 4]
-    assert [reset_size(k, 64) for k in (1, RESET_ROWS, RESET_ROWS + 1, 64)] == [16, 16, 64, 64]
+    assert [reset_size(k, 64) for k in (1, RESET_ROWS, RESET_ROWS + 1, 64)] == [16, 16, 16, 16]
     env = make(4, max_episode_steps=2)
     env.reset(seed=0)
     env.step(np.zeros((4, 1)))
@@ -137,10 +137,20 @@ def test_every_reset_shares_one_compiled_function() -> None:
     assert env._step_fn._cache_size() == 1  # type: ignore[attr-defined]
 
 
-def test_many_envs_reset_in_two_shapes_at_most() -> None:
-    env = make(RESET_ROWS + 4, max_episode_steps=1)
-    env.reset(seed=0)
-    env.reset(options={"reset_mask": np.arange(RESET_ROWS + 4) < 3})
+def test_many_envs_reset_in_one_shape() -> None:
+    """More envs than a block: every reset (the first, a masked one, the autoresets of all) runs
+    the block of RESET_ROWS rows as often as it takes, and the rows get the episodes of their seeds."""
+    n = 2 * RESET_ROWS + 4
+    env = make(n, max_episode_steps=1)
+    obs, info = env.reset(seed=0)
+    env.reset(options={"reset_mask": np.arange(n) < 3})
     for _ in range(3):
-        env.step(np.zeros((RESET_ROWS + 4, 1)))
-    assert env.reset_traces == 2  # a block of RESET_ROWS rows and all rows
+        env.step(np.zeros((n, 1)))
+    assert env.reset_traces == 1
+    assert env._reset_fn._cache_size() == 1  # type: ignore[attr-defined]
+    # the rows of the last block get their own seeds' episodes, as with one env each
+    for i in (0, RESET_ROWS, n - 1):
+        one = make(1, max_episode_steps=1)
+        first, _ = one.reset(seed=i)
+        np.testing.assert_array_equal(first[0], obs[i])
+        one.close()
