@@ -310,6 +310,8 @@ class JaxVectorEnv(VectorEnv):
                 self._state, self._keys, obs = self._empty_batch(episodes, row_keys)
             else:
                 obs = jax.device_put(jnp.asarray(self._obs), self._rows)
+                # one placement for every call (a 1-device mesh may label outputs replicated)
+                self._state, self._keys = jax.device_put((self._state, self._keys), self._rows)
             self._state, self._keys, obs, info = self._reset_fn(
                 self._state, self._keys, obs, jnp.asarray(padded), episodes, row_keys, self._params
             )
