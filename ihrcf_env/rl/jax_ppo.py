@@ -57,7 +57,11 @@ class PPOSettings:
     (where the functional env provides it); ``devices``: devices the batch is spread over (None:
     all JAX has, as many as split ``num_envs`` evenly); ``curriculum_steps``, ``curriculum_share``:
     the start curriculum (:func:`start_scales`); ``init_log_std``: the Gaussian's log standard
-    deviation (in action units) a new run starts from."""
+    deviation (in action units) a new run starts from; ``reward_scale``, ``clip_value``: the
+    critic's target scale and loss (:class:`~ihrcf_env.rl.ppo_learner.Learner`);
+    ``init_output_scale``, ``init_action_mean``: a new actor's output layer is scaled by the first
+    and its bias set to the second (None: zero), so that its first actions are near that mean for
+    every observation."""
 
     num_envs: int = 256
     num_steps: int = 64
@@ -77,6 +81,10 @@ class PPOSettings:
     curriculum_steps: int = 1_000_000
     curriculum_share: float = 0.25
     init_log_std: float = -1.0
+    reward_scale: float = 0.05
+    clip_value: bool = False
+    init_output_scale: float = 0.01
+    init_action_mean: tuple[float, ...] | None = None
 
 
 def start_scales(settings: PPOSettings, steps: int, rng: np.random.Generator) -> np.ndarray:
@@ -118,6 +126,7 @@ def make_learner(fenv: Any, settings: PPOSettings) -> Any:
         clip_eps=settings.clip_eps, ent_coef=settings.ent_coef, vf_coef=settings.vf_coef,
         num_epochs=settings.num_epochs, num_minibatches=settings.num_minibatches,
         low=float(np.min(fenv.action_space.low)), high=float(np.max(fenv.action_space.high)),
+        reward_scale=settings.reward_scale, clip_value=settings.clip_value,
     )  # fmt: skip
 
 
@@ -343,6 +352,13 @@ def _check_train_args(
             raise ValueError(f"{name} must be a positive int, got {value!r}")
     if not (isinstance(settings.init_log_std, int | float) and -5.0 <= settings.init_log_std <= 1.0):
         raise ValueError(f"init_log_std must be a number in [-5, 1], got {settings.init_log_std!r}")
+    if not (isinstance(settings.init_output_scale, int | float) and 0 < settings.init_output_scale <= 1):
+        raise ValueError(f"init_output_scale must be in (0, 1], got {settings.init_output_scale!r}")
+    mean = settings.init_action_mean
+    if mean is not None and not (len(mean) > 0 and all(abs(float(m)) <= 1 for m in mean)):
+        raise ValueError(f"init_action_mean must hold numbers in [-1, 1], got {mean!r}")
+    if not (isinstance(settings.reward_scale, int | float) and 0 < settings.reward_scale < 1e6):
+        raise ValueError(f"reward_scale must be a positive number, got {settings.reward_scale!r}")
     if not (0.0 <= settings.curriculum_share <= 1.0) or settings.curriculum_steps < 0:
         raise ValueError(
             "curriculum_share must be in [0, 1] and curriculum_steps >= 0, got "
@@ -368,6 +384,11 @@ def _train(
     if not (isinstance(init_log_std, int | float) and -5.0 <= init_log_std <= 1.0):
         raise ValueError(f"init_log_std must be a number in [-5, 1], got {init_log_std!r}")
     learner = make_learner(fenv, settings)
+    mean = settings.init_action_mean
+    if mean is not None and len(mean) != learner.action_dim:
+        raise ValueError(
+            f"init_action_mean needs {learner.action_dim} numbers (one per action), got {mean!r}"
+        )
     compiled, mesh = _compile(fenv, learner, settings, max_steps)
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
@@ -390,11 +411,13 @@ def _train(
         log(f"actor initialised from {init_policy}")
     else:
         ts = _with_log_std(ts, settings.init_log_std)
+        ts = _with_output_layer(ts, settings.init_output_scale, settings.init_action_mean)
     log(
         f"{mesh.devices.size} device(s), {n} envs, "
         f"{learner.inputs - learner.actor_inputs} privileged critic inputs"
     )
-    done_steps = int(curve[-1]["steps"]) if curve else 0
+    # the checkpoint's own count: a run stopped mid-chunk saved steps the curve has no row for
+    done_steps = int(ts.global_step)
     wall0 = curve[-1]["wall_s"] if curve else 0.0
     t_call = time.monotonic()
     key = jax.random.fold_in(jax.random.PRNGKey(seed), 1_000_003 + done_steps // per_iteration)
@@ -475,7 +498,7 @@ def _train(
     except KeyboardInterrupt:
         if not evaluated:
             # a valid last checkpoint: the last complete iteration's state, not evaluated
-            ckpt.write_bytes(serialization.to_bytes(ts))
+            _write_whole(ckpt, serialization.to_bytes(ts))
         log(f"stopped at {done_steps} steps; the run resumes from {folder}")
         raise
     if stop:
@@ -494,9 +517,14 @@ def _save(ts: Any, curve: list[dict[str, float]], folder: Path, best: Path | Non
         (folder / "curve.json", json.dumps(curve, indent=1).encode()),
         *(((best, data),) if best is not None else ()),
     ):
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_bytes(payload)
-        os.replace(tmp, path)
+        _write_whole(path, payload)
+
+
+def _write_whole(path: Path, payload: bytes) -> None:
+    """``payload`` written to ``path`` through a temporary file renamed over it."""
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_bytes(payload)
+    os.replace(tmp, path)
 
 
 def _with_log_std(ts: Any, log_std: float) -> Any:
@@ -505,6 +533,21 @@ def _with_log_std(ts: Any, log_std: float) -> Any:
 
     p = dict(ts.actor_ts.params["params"])
     p["action_log_std"] = jnp.full_like(p["action_log_std"], log_std)
+    return ts.replace(actor_ts=ts.actor_ts.replace(params={**ts.actor_ts.params, "params": p}))
+
+
+def _with_output_layer(ts: Any, scale: float, mean: tuple[float, ...] | None) -> Any:
+    """``ts`` with the actor's output layer (the Gaussian's mean) scaled by ``scale`` and its bias
+    set to ``mean`` (action units; unchanged when None): a new policy's actions start near ``mean``
+    for every observation."""
+    import jax.numpy as jnp
+
+    p = dict(ts.actor_ts.params["params"])
+    layer = dict(p["action_mean"])
+    layer["kernel"] = layer["kernel"] * scale
+    if mean is not None:
+        layer["bias"] = jnp.asarray(mean, layer["bias"].dtype).reshape(layer["bias"].shape)
+    p["action_mean"] = layer
     return ts.replace(actor_ts=ts.actor_ts.replace(params={**ts.actor_ts.params, "params": p}))
 
 
@@ -658,7 +701,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--export", choices=("last", "best"), default="best",
         help="write the last chunk's actor, or the one with the best evaluated success rate",
     )  # fmt: skip
+    ap.add_argument(
+        "--reward-scale", type=_positive_number("--reward-scale", float), default=d.reward_scale,
+        help="the critic's targets are the returns of the reward times this",
+    )  # fmt: skip
+    ap.add_argument(
+        "--clip-value", action=argparse.BooleanOptionalAction, default=d.clip_value,
+        help="clip the value loss around the rollout's values (PPO's original critic loss)",
+    )  # fmt: skip
+    ap.add_argument("--gamma", type=float, default=d.gamma, help="the discount (0, 1)")
+    ap.add_argument("--num-epochs", type=_positive_number("--num-epochs", int), default=d.num_epochs)
+    ap.add_argument(
+        "--init-output-scale", type=float, default=d.init_output_scale,
+        help="a new actor's output layer scaled by this (small: the first actions near --init-action-mean)",
+    )  # fmt: skip
+    ap.add_argument(
+        "--init-action-mean", type=float, nargs="+", default=d.init_action_mean,
+        help="a new actor's output bias (action units, one per action), e.g. 0 0 -0.3 0",
+    )  # fmt: skip
+    ap.add_argument("--ent-coef", type=float, default=d.ent_coef, help="the entropy bonus (>= 0)")
     args = ap.parse_args(argv)
+    if not (0 < args.gamma < 1):
+        ap.error(f"--gamma must be in (0, 1), got {args.gamma}")
+    if not (0 <= args.ent_coef < 1):
+        ap.error(f"--ent-coef must be in [0, 1), got {args.ent_coef}")
     if not (0 < args.learning_rate < 1):
         ap.error(f"--learning-rate must be in (0, 1), got {args.learning_rate}")
     from ihrcf_env.vector.jax_devices import host_cores, request_host_devices
@@ -678,6 +744,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     settings = PPOSettings(
         num_envs=args.num_envs, num_steps=args.num_steps, learning_rate=args.learning_rate,
         asymmetric=not args.symmetric, devices=args.devices, curriculum_steps=int(args.curriculum_steps),
+        reward_scale=args.reward_scale, clip_value=args.clip_value, gamma=args.gamma, ent_coef=args.ent_coef,
+        num_epochs=args.num_epochs, init_output_scale=args.init_output_scale,
+        init_action_mean=None if args.init_action_mean is None else tuple(args.init_action_mean),
     )  # fmt: skip
     try:
         learner, ts, curve = train(

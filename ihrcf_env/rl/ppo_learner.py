@@ -107,7 +107,10 @@ class Learner:
     """PPO's networks and hyperparameters (static: closed over by the compiled functions).
 
     ``actor_inputs``: the actor's share of an observation row; ``inputs``: the row's length
-    (more with privileged critic inputs); ``action_dim``, ``low`` / ``high`` the action bounds."""
+    (more with privileged critic inputs); ``action_dim``, ``low`` / ``high`` the action bounds;
+    ``reward_scale``: the critic learns the returns of the rewards times this (the advantages are
+    normalised per minibatch, so it sets the critic's target scale only); ``clip_value``: the value
+    loss is clipped to ``clip_eps`` around the rollout's values, as the original PPO does."""
 
     actor_inputs: int
     inputs: int
@@ -125,6 +128,8 @@ class Learner:
     num_minibatches: int
     low: float = -1.0
     high: float = 1.0
+    reward_scale: float = 1.0
+    clip_value: bool = True
 
     @property
     def actor(self) -> GaussianPolicy:
@@ -185,6 +190,7 @@ class Learner:
         minibatches of the clipped surrogate (actor) and the clipped value loss (critic)."""
         last_value = self.critic.apply(ts.critic_ts.params, last_obs)
         last_value = jnp.where(last_done, 0.0, last_value)
+        traj = traj.replace(reward=traj.reward * self.reward_scale)
         adv, targets = gae(traj, last_value, self.gamma, self.gae_lambda)
         size = adv.shape[0] * adv.shape[1]
         flat = jax.tree_util.tree_map(lambda a: a.reshape((size,) + a.shape[2:]), (traj, adv, targets))
@@ -213,8 +219,10 @@ class Learner:
 
         def critic_loss(params: Any) -> Any:
             value = self.critic.apply(params, t.obs)
-            clipped = t.value + jnp.clip(value - t.value, -self.clip_eps, self.clip_eps)
-            loss = jnp.maximum(jnp.square(value - targets), jnp.square(clipped - targets))
+            loss = jnp.square(value - targets)
+            if self.clip_value:
+                clipped = t.value + jnp.clip(value - t.value, -self.clip_eps, self.clip_eps)
+                loss = jnp.maximum(loss, jnp.square(clipped - targets))
             return self.vf_coef * 0.5 * loss.mean()
 
         actor_ts = ts.actor_ts.apply_gradients(grads=jax.grad(actor_loss)(ts.actor_ts.params))

@@ -69,6 +69,10 @@ def test_the_toy_is_learned() -> None:
         learning_rate=3e-3,
         gamma=0.99,
         init_log_std=0.0,
+        # the toy's own settings (its rewards are of order 1; the recipe's are the landing task's)
+        reward_scale=1.0,
+        clip_value=True,
+        init_output_scale=1.0,
     )
     _, _, curve = train(Drop(), _tmp(), 60_000, 40, settings, chunk_timesteps=20_000, log=lambda _: None)
     assert curve[-1]["success"] >= 0.33 and curve[-1]["return"] > 2.0, curve
@@ -127,6 +131,10 @@ def test_a_new_run_starts_from_an_exported_policy(tmp_path: Path) -> None:
         ({"settings": PPOSettings(num_envs=0)}, "num_envs"),
         ({"settings": PPOSettings(num_envs=16, num_steps=3, num_minibatches=5)}, "num_minibatches"),
         ({"settings": PPOSettings(num_envs=16, devices=64)}, "devices"),
+        ({"settings": PPOSettings(num_envs=16, reward_scale=0.0)}, "reward_scale"),
+        ({"settings": PPOSettings(num_envs=16, init_output_scale=2.0)}, "init_output_scale"),
+        ({"settings": PPOSettings(num_envs=16, init_action_mean=(3.0,))}, "init_action_mean"),
+        ({"settings": PPOSettings(num_envs=16, init_action_mean=(0.1, 0.2))}, "init_action_mean"),
     ],
 )
 def test_bad_arguments_are_named_before_anything_compiles(tmp_path: Path, kwargs: dict, name: str) -> None:
@@ -145,6 +153,10 @@ def test_bad_arguments_are_named_before_anything_compiles(tmp_path: Path, kwargs
         (["--num-envs", "abc"], "--num-envs"),
         (["--devices", "4096"], "--devices"),
         (["--learning-rate", "2"], "--learning-rate"),
+        (["--reward-scale", "0"], "--reward-scale"),
+        (["--gamma", "1.5"], "--gamma"),
+        (["--ent-coef", "-1"], "--ent-coef"),
+        (["--num-epochs", "0"], "--num-epochs"),
     ],
 )
 def test_the_command_names_a_bad_option(
@@ -184,3 +196,106 @@ def test_running_statistics_are_those_of_all_rows() -> None:
         stats = update_stats(stats, jax.numpy.asarray(part))
     np.testing.assert_allclose(np.asarray(stats.mean), rows.mean(0), rtol=1e-3)
     np.testing.assert_allclose(np.asarray(stats.var), rows.var(0), rtol=1e-3)
+
+
+_INTERRUPTED_RUN = """
+import sys
+sys.path.insert(0, {tests!r})
+from functional_toy import Drop
+from ihrcf_env.rl.jax_ppo import PPOSettings, train
+settings = PPOSettings(num_envs=16, num_steps=16, num_minibatches=4, hidden=(16, 16))
+try:
+    train(Drop(), {out!r}, 10**9, 40, settings, chunk_timesteps=2048,
+          log=lambda line: print(line, flush=True))
+except KeyboardInterrupt:
+    sys.exit(130)
+"""
+
+
+def test_ctrl_c_leaves_a_resumable_folder(tmp_path: Path) -> None:
+    """SIGINT during training: exit 130, a checkpoint that loads, and a new call resumes from its
+    step count (the iterations after the last curve row included)."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "run"
+    code = _INTERRUPTED_RUN.format(tests=str(Path(__file__).parents[1]), out=str(out))
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 240
+        rows = 0
+        assert proc.stdout is not None
+        for line in proc.stdout:  # wait for two evaluated chunks, then interrupt mid-chunk
+            rows += " steps " in line
+            if rows >= 2 or time.monotonic() > deadline:
+                break
+        assert rows >= 2
+        time.sleep(0.3)
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=60) == 130
+    finally:
+        proc.kill()
+    assert not list(out.glob("*.tmp"))
+    learner = make_learner(Drop(), SETTINGS)
+    with jax.enable_x64(False):
+        saved = load_checkpoint(learner.init(jax.random.PRNGKey(0)), out / "checkpoint.msgpack")
+    steps = int(saved.global_step)
+    assert steps >= 4096 and steps % 256 == 0
+    lines: list[str] = []
+    _, ts, curve = train(Drop(), out, steps + 512, 40, SETTINGS, chunk_timesteps=2048, log=lines.append)
+    assert any("resumed" in line for line in lines)
+    assert int(ts.global_step) == steps + 512 and curve[-1]["steps"] == steps + 512
+
+
+def test_a_new_actor_starts_near_its_initial_action_mean(tmp_path: Path) -> None:
+    """``init_output_scale`` shrinks the output layer and ``init_action_mean`` sets its bias: the
+    first policy's mean action is about that mean for any observation."""
+    settings = PPOSettings(num_envs=16, num_steps=16, num_minibatches=4, hidden=(16, 16),
+                           init_output_scale=0.01, init_action_mean=(-0.3,))  # fmt: skip
+    learner, ts, _ = train(Drop(), tmp_path, 256, 40, settings, chunk_timesteps=256, log=lambda _: None)
+    fresh = make_learner(Drop(), settings)
+    from ihrcf_env.rl.jax_ppo import _with_output_layer
+
+    with jax.enable_x64(False):
+        ts0 = _with_output_layer(fresh.init(jax.random.PRNGKey(3)), 0.01, (-0.3,))
+        act = mean_action_fn(fresh, ts0)
+        for obs in np.random.default_rng(2).normal(size=(5, 2)).astype(np.float32):
+            assert abs(float(np.asarray(act(obs))[0]) + 0.3) < 0.05
+    assert int(ts.global_step) == 256
+
+
+def test_the_reward_scale_scales_the_critic_targets_only() -> None:
+    """An update on rewards ``r`` with ``reward_scale`` k equals one on ``k r`` with scale 1 (the
+    critic learns the scaled returns; the actor's advantages are normalised)."""
+    import dataclasses
+
+    with jax.enable_x64(False):
+        base = make_learner(Drop(), SETTINGS)
+        ts = base.init(jax.random.PRNGKey(0))
+        rng = np.random.default_rng(0)
+        t, n = 8, 16
+        traj = Trajectory(
+            obs=jax.numpy.asarray(rng.normal(size=(t, n, base.inputs)), jax.numpy.float32),
+            action=jax.numpy.asarray(rng.normal(size=(t, n, base.action_dim)), jax.numpy.float32),
+            log_prob=jax.numpy.asarray(rng.normal(size=(t, n)), jax.numpy.float32),
+            reward=jax.numpy.asarray(rng.normal(size=(t, n)) * 50, jax.numpy.float32),
+            value=jax.numpy.zeros((t, n), jax.numpy.float32),
+            done=jax.numpy.asarray(rng.random((t, n)) < 0.1),
+        )
+        last = jax.numpy.asarray(rng.normal(size=(n, base.inputs)), jax.numpy.float32)
+        none = jax.numpy.zeros(n, bool)
+        scaled = dataclasses.replace(base, reward_scale=0.05, num_minibatches=4)
+        plain = dataclasses.replace(base, reward_scale=1.0, num_minibatches=4)
+        a = scaled.update(ts, traj, last, none)
+        b = plain.update(ts, traj.replace(reward=traj.reward * 0.05), last, none)
+        c = plain.update(ts, traj, last, none)
+        leaves = [jax.tree_util.tree_leaves(u.critic_ts.params) for u in (a, b, c)]
+        for x, y in zip(leaves[0], leaves[1], strict=True):
+            np.testing.assert_allclose(np.asarray(x), np.asarray(y), rtol=1e-5, atol=1e-6)
+        moved = [
+            float(np.max(np.abs(np.asarray(x) - np.asarray(y))))
+            for x, y in zip(leaves[0], leaves[2], strict=True)
+        ]
+        assert max(moved) > 1e-4  # the scale changes what the critic learns
