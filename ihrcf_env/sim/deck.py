@@ -120,10 +120,9 @@ class DeckTrajectory:
         self._times = np.zeros(0)
         self._position = np.zeros((0, 3))
         self._quaternion = np.zeros((0, 4))
-        # plain-Python copies of the rows kept for the per-physics-step driver (row i = tick
-        # first_tick + i; plate centre = deck origin - half thickness * z)
-        self.quaternion_list: list[list[float]] = []
-        self.body_position_list: list[list[float]] = []
+        #: plate body centre (deck origin - half thickness * deck z) per tick kept (row i = tick
+        #: first_tick + i), for the per-physics-step driver
+        self._body_position = np.zeros((0, 3))
         self.ensure(0)
 
     @property
@@ -144,7 +143,7 @@ class DeckTrajectory:
     @property
     def stored_ticks(self) -> int:
         """Number of ticks held in memory (at most :attr:`window`)."""
-        return len(self.quaternion_list)
+        return len(self._times)
 
     def ensure(self, tick: int) -> None:
         """Make sure poses up to physics tick ``tick`` exist (extends by whole chunks, then drops the
@@ -173,10 +172,8 @@ class DeckTrajectory:
             self._times = np.concatenate([self._times[drop:], t[:n]])
             self._position = np.concatenate([self._position[drop:], position[:n]])
             self._quaternion = np.concatenate([self._quaternion[drop:], quat])
-            self.quaternion_list = self.quaternion_list[drop:] + quat.tolist()
-            self.body_position_list = (
-                self.body_position_list[drop:] + (position[:n] - matrices[:n, :, 2] * self._half).tolist()
-            )
+            body = position[:n] - matrices[:n, :, 2] * self._half
+            self._body_position = np.concatenate([self._body_position[drop:], body])
             self.first_tick += drop
             self._end += n
 
@@ -189,7 +186,8 @@ class DeckTrajectory:
         i = tick - self.first_tick
         if i < 0:
             raise IndexError(f"deck trajectory tick {tick} is no longer kept (first kept: {self.first_tick})")
-        return self.quaternion_list[i], self.body_position_list[i]
+        # one row at a time (a chunk's rows as Python lists at once is thousands of allocations)
+        return self._quaternion[i].tolist(), self._body_position[i].tolist()
 
     def __len__(self) -> int:
         """Number of ticks made so far (kept or not)."""

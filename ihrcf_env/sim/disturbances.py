@@ -41,6 +41,10 @@ def disturbance_force(
     numbers) or ValueError (non-finite, too large) naming the disturbance's type and repr; an
     exception raised by the disturbance itself propagates unchanged."""
     f = d(t, position, velocity)
+    if type(f) is tuple and len(f) == 3:  # the common case (the wind's force): three floats
+        x, y, z = f
+        if type(x) is float and type(y) is float and type(z) is float:
+            return _checked_values(d, t, x, y, z, f)
     if isinstance(f, np.ndarray):
         items: list[object] | None = f.tolist() if f.ndim == 1 else None
     elif isinstance(f, Sequence) and not isinstance(f, str | bytes):
@@ -56,10 +60,17 @@ def disturbance_force(
         x, y, z = (float(v) for v in items)  # type: ignore[arg-type]
     except OverflowError:  # an int too large for a float
         x = y = z = math.inf
+    return _checked_values(d, t, x, y, z, tuple(items))
+
+
+def _checked_values(
+    d: Disturbance, t: float, x: float, y: float, z: float, shown: tuple[object, ...]
+) -> tuple[float, float, float]:
+    """``(x, y, z)`` if finite and at most :data:`MAX_DISTURBANCE_FORCE` in magnitude, else
+    ValueError (``shown``: the force as the disturbance returned it)."""
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
         raise ValueError(
-            f"{_describe_disturbance(d)} returned a non-finite force {repr(tuple(items))[:80]} (N) at "
-            f"t = {t:.4f} s"
+            f"{_describe_disturbance(d)} returned a non-finite force {repr(shown)[:80]} (N) at t = {t:.4f} s"
         )
     if x * x + y * y + z * z > MAX_DISTURBANCE_FORCE**2:
         raise ValueError(

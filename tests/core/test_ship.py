@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 
 import numpy as np
 import pytest
@@ -157,6 +158,30 @@ def test_phasor_recurrence_matches_direct_evaluation_and_motion_is_smooth():
     off, _ = p.sample(t)
     jerk = np.diff(off[:, 2], 3) * 240.0**3  # m/s^3, model scale: no jumps
     assert np.abs(jerk).max() < 50.0
+
+
+def test_short_and_irregular_grids_match_direct_evaluation():
+    p = _ship(5)
+    rng = np.random.default_rng(0)
+    for t in (np.arange(100) * 0.3, np.sort(rng.uniform(0.0, 900.0, 1000))):
+        direct = (np.exp(1j * np.outer(t, p.omega_e)) @ p.amplitudes.T).real
+        np.testing.assert_allclose(p.ship_motion(t), direct, atol=1e-12)
+
+
+def test_a_chunk_of_physics_rate_motion_costs_little_cpu_with_a_blas_thread_pool():
+    """The sums are not handed to a BLAS thread pool, whose threads spin (CPU time) far longer
+    than the sums take: a 30 s chunk at 240 Hz costs milliseconds of the calling thread's CPU
+    time (the calling thread waits on the pool's threads by spinning too)."""
+    from threadpoolctl import threadpool_limits
+
+    p = _ship(1)
+    t = 300.0 + np.arange(7200) / 240.0 * p.time_scale
+    with threadpool_limits(limits=2):
+        p.ship_motion(t[:300])  # warm up
+        c0 = time.thread_time()
+        p.ship_motion(t)
+        cpu = time.thread_time() - c0
+    assert cpu < 0.1, f"{cpu:.3f} s of CPU for one chunk"
 
 
 def test_froude_scaling_lengths_over_lambda_angles_kept_times_over_sqrt_lambda():

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import tracemalloc
 
 import numpy as np
@@ -59,6 +60,20 @@ def test_stored_trajectory_does_not_grow_with_the_number_of_steps() -> None:
     assert len(traj) >= 60_000
     # five times more steps, the same memory (the unbounded trajectory grew by ~5 KB per tick)
     assert sizes[59_999] - sizes[12_000] < 50_000
+
+
+def test_a_chunk_is_kept_in_arrays_not_per_tick_python_objects() -> None:
+    """Making a 30 s chunk allocates a few arrays, not two Python lists per tick (thousands of
+    objects, and the garbage collector's passes over them, at every chunk)."""
+    traj = DeckTrajectory(paper_profile(), StewartGeometry(), DT, 10.0, HALF, chunk_s=30.0)
+    traj.body_target(0)
+    before = sys.getallocatedblocks()
+    traj.ensure(len(traj))  # the next chunk: 7200 ticks
+    assert traj.stored_ticks == 2 * 7200
+    assert sys.getallocatedblocks() - before < 1000
+    q, b = traj.body_target(7300)
+    assert isinstance(q, list) and len(q) == 4 and isinstance(b, list) and len(b) == 3
+    assert all(isinstance(x, float) for x in q + b)
 
 
 def test_ticks_out_of_the_window_are_refused() -> None:

@@ -133,14 +133,15 @@ class ToFArray:
             return self._closed(pos, R_wb, cone=True)
         n = self.model.rays
         length = self.config.max_range
-        starts = np.repeat(self._pos_body @ R_wb.T + pos, n, axis=0)
-        dirs_w = np.tile(self._dirs_body @ R_wb.T, (4, 1))
-        ends = starts + dirs_w * length
-        hits = p.rayTestBatch(starts.tolist(), ends.tolist(), physicsClientId=self.client)
-        h = np.array([(o, f, *nrm) for o, _, f, _, nrm in hits], dtype=np.float64)  # id, fraction, normal
-        hit = h[:, 0] >= 0
-        r = np.where(hit, np.maximum(h[:, 1] * length, 1e-4), 1.0)
-        cos_i = np.abs(np.einsum("ij,ij->i", h[:, 2:], dirs_w))
+        origins = self._pos_body @ R_wb.T + pos  # (4, 3) world
+        dirs_w = self._dirs_body @ R_wb.T  # (rays, 3) world, the same for every sensor
+        ends = (origins[:, None, :] + (dirs_w * length)[None]).reshape(-1, 3)
+        starts = [o for o in origins.tolist() for _ in range(n)]
+        hits = p.rayTestBatch(starts, ends.tolist(), physicsClientId=self.client)
+        ids, _, fractions, _, normals = zip(*hits, strict=True)  # id, link, fraction, point, normal
+        hit = np.array(ids) >= 0
+        r = np.where(hit, np.maximum(np.array(fractions) * length, 1e-4), 1.0)
+        cos_i = np.abs(np.einsum("kij,ij->ki", np.array(normals).reshape(4, n, 3), dirs_w)).ravel()
         signal = np.where(hit, self.model.reflectance * cos_i / r**2, 0.0)
         return np.where(hit, r, np.nan).reshape(4, n), signal.reshape(4, n)
 
