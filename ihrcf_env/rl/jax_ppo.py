@@ -37,8 +37,10 @@ import numpy as np  # noqa: E402
 from ihrcf_env.control.mlp_policy import MlpPolicy, mlp_from_arrays  # noqa: E402
 
 __all__ = [
+    "CURVE_FIELDS",
     "PPOSettings",
     "Run",
+    "curve_csv",
     "export_policy",
     "load_checkpoint",
     "load_policy",
@@ -419,16 +421,19 @@ def _train(
     # the checkpoint's own count: a run stopped mid-chunk saved steps the curve has no row for
     done_steps = int(ts.global_step)
     wall0 = curve[-1]["wall_s"] if curve else 0.0
-    t_call = time.monotonic()
+    # the curve's wall time: from the command's start for a new run (setup and compilation
+    # included), from this call on top of the folder's last row for a resumed one
+    t_call = time.monotonic() if curve else started
     key = jax.random.fold_in(jax.random.PRNGKey(seed), 1_000_003 + done_steps // per_iteration)
     rng = np.random.default_rng([seed, done_steps])
 
     def scales() -> Any:
         return jax.device_put(jnp.asarray(start_scales(settings, done_steps, rng)), compiled.rows)
 
+    t_compile = time.monotonic()
     run = _reset(compiled, ts, n, jax.device_put(key, compiled.whole), scales())
     jax.block_until_ready(run.obs)
-    log(f"the batched step compiled and the envs reset in {time.monotonic() - t_call:.0f} s")
+    log(f"the batched step compiled and the envs reset in {time.monotonic() - t_compile:.0f} s")
     force = jax.device_put(jnp.zeros(n, bool), compiled.rows)
     sample = jax.device_put(jnp.asarray(False), compiled.whole)
     iteration = done_steps // per_iteration
@@ -445,8 +450,8 @@ def _train(
         while done_steps < total_timesteps and not stop:
             chunk_end = min(done_steps + chunk, total_timesteps)
             while done_steps < chunk_end:
-                # leave the time of one more iteration, an evaluation and the export (a margin of 5 s)
-                if left() < iteration_s + eval_s + 5.0 and done_steps > 0:
+                # leave the time of one more iteration, an evaluation and the export (a margin of 10 s)
+                if left() < iteration_s + eval_s + 10.0 and done_steps > 0:
                     stop = True
                     break
                 t0 = time.monotonic()
@@ -515,9 +520,26 @@ def _save(ts: Any, curve: list[dict[str, float]], folder: Path, best: Path | Non
     for path, payload in (
         (folder / "checkpoint.msgpack", data),
         (folder / "curve.json", json.dumps(curve, indent=1).encode()),
+        (folder / "curve.csv", curve_csv(curve).encode()),
         *(((best, data),) if best is not None else ()),
     ):
         _write_whole(path, payload)
+
+
+#: The columns of ``curve.csv`` (env steps, wall s from the command's start, evaluated success
+#: rate, mean return and length of the evaluation's episodes, the training episodes' success rate).
+CURVE_FIELDS = ("steps", "wall_s", "success", "return", "length", "train_success")
+
+
+def curve_csv(curve: list[dict[str, float]]) -> str:
+    """The learning curve as CSV text (:data:`CURVE_FIELDS`, one row per evaluated chunk)."""
+    lines = [",".join(CURVE_FIELDS)]
+    for row in curve:
+        lines.append(
+            f"{row['steps']:.0f},{row['wall_s']:.1f},{row['success']:.4f},{row['return']:.3f},"
+            f"{row['length']:.1f},{row.get('train_success', float('nan')):.4f}"
+        )
+    return "\n".join(lines) + "\n"
 
 
 def _write_whole(path: Path, payload: bytes) -> None:

@@ -37,6 +37,9 @@ def test_train_runs_resumes_and_exports(tmp_path: Path) -> None:
     assert [r["steps"] for r in curve] == [2048, 4096, 6144]
     assert all(np.isfinite(r["return"]) and 0.0 <= r["train_success"] <= 1.0 for r in curve)
     assert int(ts.global_step) == 6144
+    table = (tmp_path / "curve.csv").read_text().splitlines()
+    assert table[0] == "steps,wall_s,success,return,length,train_success"
+    assert [int(line.split(",")[0]) for line in table[1:]] == [2048, 4096, 6144]
     # a second call resumes from the folder and trains on
     _, ts2, curve2 = train(fenv, tmp_path, 8192, 40, SETTINGS, chunk_timesteps=2048, log=lines.append)
     assert len(curve2) == 4 and any("resumed" in line for line in lines)
