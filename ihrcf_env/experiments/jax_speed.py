@@ -318,8 +318,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ihrcf_env.vector.jax_make import JAX_DEFAULTS, make_functional
 
     options = {"level": args.level, **JAX_DEFAULTS}
-    os.sched_setaffinity(0, sorted(os.sched_getaffinity(0))[:1])  # the reference on one core
-    reference = pybullet_rate(args.env_id, options, args.pybullet_steps)
+    usable = os.sched_getaffinity(0)
+    os.sched_setaffinity(0, sorted(usable)[:1])  # the reference on one core
+    try:
+        reference = pybullet_rate(args.env_id, options, args.pybullet_steps)
+    finally:
+        os.sched_setaffinity(0, usable)  # the measurements' processes may use every core again
     print(f"single PyBullet env ({args.env_id}, {options}): {reference:,.0f} env-steps/s", flush=True)
     rows: list[SpeedRow] = []
     costs: dict[str, tuple[float, float]] = {}

@@ -76,3 +76,29 @@ def test_a_step_limit_ends_episodes() -> None:
 
     total, ended, _ = rollout_fn(Hover(), 2, 25, max_steps=10)(jax.random.PRNGKey(0))
     assert int(ended) == 4  # two episodes of each env ended at 10 and 20 steps
+
+
+def test_the_measurements_may_use_every_core_after_the_reference(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The PyBullet reference runs pinned to one core; the processes measuring the JAX step
+    are started with the cores the command was given (a 2-core row would refuse otherwise)."""
+    import os
+
+    from ihrcf_env.experiments import jax_speed
+
+    usable = os.sched_getaffinity(0)
+    seen: dict[str, set[int]] = {}
+
+    def reference(*args: object) -> float:
+        seen["reference"] = os.sched_getaffinity(0)
+        return 100.0
+
+    def measure(env_id: str, level: str, n: int, steps: int, dtype: str, cores: int, cache: str) -> object:
+        seen["measure"] = os.sched_getaffinity(0)
+        raise SystemExit(0)  # stop before anything compiles
+
+    monkeypatch.setattr(jax_speed, "pybullet_rate", reference)
+    monkeypatch.setattr(jax_speed, "measure_in_process", measure)
+    with pytest.raises(SystemExit):
+        jax_speed.main(["--nums", "32", "--cores", "1", "--dtypes", "float32", "--no-front"])
+    assert len(seen["reference"]) == 1
+    assert seen["measure"] == usable == os.sched_getaffinity(0)
