@@ -238,3 +238,19 @@ def test_the_shipped_rough_policy_lands_without_jax(capsys: pytest.CaptureFixtur
     # it lands all 4 on this machine, some close to the tilt and offset limits: allow two
     # episodes to go the other way on another CPU, not a policy that no longer lands
     assert re.fullmatch(r"success [234]/4", out.strip().splitlines()[-1]), out[-2000:]
+
+
+MLP_JAX_V2_10MIN = MLP_JAX_V2.with_name("ppo_jax_landing_v2_10min.npz")
+
+
+def test_the_shipped_ten_minute_policy_lands_without_jax(capsys: pytest.CaptureFixture[str]) -> None:
+    """The MLP trained from scratch by `rl.jax_ppo` in a 600 s budget, through the protocol CLI:
+    the moderate level's first 4 test seeds, projected camera; its curve ships beside it."""
+    assert MLP_JAX_V2_10MIN.is_file(), f"the shipped policy {MLP_JAX_V2_10MIN} is missing"
+    curve = MLP_JAX_V2_10MIN.with_name("ppo_jax_landing_v2_10min_train.csv").read_text().splitlines()
+    assert curve[0].startswith("steps,wall_s,success") and len(curve) > 2
+    argv = ["--level", "moderate", "--policy", str(MLP_JAX_V2_10MIN), "--episodes", "4"]
+    assert main([*argv, "--camera-model", "projected", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    # it lands these 4 on this machine: allow one unlucky episode on another CPU
+    assert re.fullmatch(r"success [34]/4", out.strip().splitlines()[-1]), out[-2000:]
