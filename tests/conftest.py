@@ -4,6 +4,7 @@ helpers several test files use (import them with ``from conftest import ...``)."
 from __future__ import annotations
 
 import importlib.util
+import signal
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -18,6 +19,13 @@ import pytest
 import ihrcf_env  # noqa: F401  (registers the envs)
 from ihrcf_env.core.calibration import Calibration
 from ihrcf_env.sim.world import World
+
+# The Ctrl-C tests send SIGINT to the commands they start. A process started with SIGINT ignored
+# (a background job of a non-interactive shell, nohup) passes that on to every child, which would
+# then never see the signal: the suite makes its own SIGINT the default again, so the children
+# start with the default disposition (a handler, unlike an ignore, is reset by exec).
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 #: Highest PyBullet client id probed when counting connected clients.
 _MAX_CLIENTS = 256
