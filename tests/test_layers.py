@@ -24,6 +24,8 @@ PKG = Path(ihrcf_env.__file__).resolve().parent
 
 # layer -> top-level modules / ihrcf_env sub-packages it must not import
 _LEARNING = ("ihrcf_env.rl", "torch", "stable_baselines3", "ray")
+#: The command lines and the pieces they share.
+_COMMANDS = ("ihrcf_env.cmdline", "ihrcf_env.cli")
 #: Layers above the configuration: nothing below them may import these.
 _ABOVE_CONFIG = (
     "ihrcf_env.sim",
@@ -34,6 +36,7 @@ _ABOVE_CONFIG = (
     "ihrcf_env.mavlink",
     "ihrcf_env.control",
     "ihrcf_env.experiments",
+    "ihrcf_env.cmdline",
     "ihrcf_env.cli",
 )
 FORBIDDEN: dict[str, tuple[str, ...]] = {
@@ -54,6 +57,7 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
         "ihrcf_env.envs",
         "ihrcf_env.wrappers",
         "ihrcf_env.experiments",
+        "ihrcf_env.cmdline",
         "ihrcf_env.cli",
         "ihrcf_env.mavlink",
         *_LEARNING,
@@ -64,27 +68,41 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
         "ihrcf_env.envs",
         "ihrcf_env.wrappers",
         "ihrcf_env.experiments",
+        "ihrcf_env.cmdline",
         "ihrcf_env.cli",
         *_LEARNING,
     ),
-    "envs": ("ihrcf_env.wrappers", "ihrcf_env.experiments", "ihrcf_env.cli", "ihrcf_env.mavlink", *_LEARNING),
-    "wrappers": ("ihrcf_env.experiments", "ihrcf_env.cli", "ihrcf_env.mavlink", *_LEARNING),
+    "envs": ("ihrcf_env.wrappers", "ihrcf_env.experiments", *_COMMANDS, "ihrcf_env.mavlink", *_LEARNING),
+    "wrappers": ("ihrcf_env.experiments", *_COMMANDS, "ihrcf_env.mavlink", *_LEARNING),
     # the vector envs sit at the wrappers' level: envs by id, stepped together
-    "vector": ("ihrcf_env.experiments", "ihrcf_env.cli", "ihrcf_env.mavlink", *_LEARNING),
-    "experiments": ("ihrcf_env.cli", "ihrcf_env.mavlink", *_LEARNING),
-    # recordings sit on the Gymnasium API and the wrappers' public accessors, never the simulator
-    "record": ("pybullet", "ihrcf_env.sim", "ihrcf_env.mavlink", *_LEARNING),
-    # the MAVLink vehicle (a face that runs an env, beside record/): envs, wrappers and core;
-    # cli/ imports it, it never imports cli/ (but for its ``python -m`` launcher: see LAUNCHERS)
+    "vector": ("ihrcf_env.experiments", *_COMMANDS, "ihrcf_env.mavlink", *_LEARNING),
+    "experiments": (*_COMMANDS, "ihrcf_env.mavlink", *_LEARNING),
+    # the pieces the command lines share (parser, env and policy arguments, the launcher): below
+    # record/ and mavlink/, whose commands build on them, and below cli/
+    "cmdline": (
+        "pybullet",
+        "ihrcf_env.sim",
+        "ihrcf_env.cli",
+        "ihrcf_env.record",
+        "ihrcf_env.mavlink",
+        *_LEARNING,
+    ),
+    # recordings sit on the Gymnasium API and the wrappers' public accessors, never the simulator;
+    # its command (record/command.py) builds on cmdline/, never on cli/
+    "record": ("pybullet", "ihrcf_env.sim", "ihrcf_env.mavlink", "ihrcf_env.cli", *_LEARNING),
+    # the MAVLink vehicle (a face that runs an env, beside record/): envs, wrappers and core; its
+    # command (mavlink/command.py) builds on cmdline/'s env arguments, never on cli/
     "mavlink": (
         "pybullet",
         "ihrcf_env.sim",
         "ihrcf_env.experiments",
         "ihrcf_env.record",
+        "ihrcf_env.cmdline.episode_args",
+        "ihrcf_env.cli",
         *_LEARNING,
     ),
     # learning glue (SB3 / RLlib) sits on the Gymnasium API: envs by id, never the simulator
-    "rl": ("pybullet", "ihrcf_env.sim", "ihrcf_env.experiments", "ihrcf_env.cli", "ihrcf_env.mavlink"),
+    "rl": ("pybullet", "ihrcf_env.sim", "ihrcf_env.experiments", *_COMMANDS, "ihrcf_env.mavlink"),
     # the array layers (checked when their folders exist): pure rules, and the compiled backend
     "tasks": ("pybullet", "gymnasium", "ihrcf_env.fast", *_ABOVE_CONFIG, *_LEARNING),
     "fast": ("pybullet", "gymnasium", *_ABOVE_CONFIG, *_LEARNING),
@@ -273,57 +291,98 @@ def test_leaf_modules_import_nothing_of_the_package() -> None:
         assert [n for n in names if _matches(n, ("ihrcf_env",))] == [], name
 
 
-#: The ``python -m`` launchers outside cli/: each runs :func:`ihrcf_env.cli.launch.launch` under
-#: ``if __name__ == "__main__"`` and nothing else. Python runs them only for ``python -m``; no module
-#: imports them (``import ihrcf_env.record`` does not load ``record/__main__.py``).
-LAUNCHERS = (
-    "benchmark.py",
-    "calibrate.py",
-    "evaluate.py",
-    "fit_detector.py",
-    "mavlink/__main__.py",
-    "record/__main__.py",
-)
+#: The package root's ``python -m`` launchers (``python -m ihrcf_env.evaluate``, ...): the
+#: ``python -m`` names of the commands in cli/, at the root (above every layer). Each runs
+#: :func:`ihrcf_env.cli.launch.launch` under ``if __name__ == "__main__"`` and nothing else; no module
+#: imports them. They are the only modules outside cli/ that import it.
+ROOT_LAUNCHERS = ("benchmark.py", "calibrate.py", "evaluate.py", "fit_detector.py")
+#: Packages whose command lives in the package (``<pkg>/command.py``), run by ``python -m
+#: ihrcf_env.<pkg>`` through ``<pkg>/__main__.py`` without cli/.
+PACKAGE_COMMANDS = ("mavlink", "record")
 
 
 def _library_files() -> list[Path]:
-    return sorted(f for f in PKG.rglob("*.py") if f.relative_to(PKG).parts[0] != "cli")
+    return sorted(
+        f
+        for f in PKG.rglob("*.py")
+        if f.relative_to(PKG).parts[0] != "cli" and f.relative_to(PKG).as_posix() not in ROOT_LAUNCHERS
+    )
 
 
 def test_no_library_module_imports_the_command_lines() -> None:
     """The command lines import the library, never the reverse: no module outside cli/ imports
-    ``ihrcf_env.cli`` (lazily or by name through importlib), except the ``python -m`` launchers."""
+    ``ihrcf_env.cli`` (at the top, lazily, or by name through importlib), but the package root's
+    ``python -m`` launchers; the ``python -m`` launchers of record/ and mavlink/ included."""
     bad = []
     for f in _library_files():
         rel = f.relative_to(PKG).as_posix()
-        if rel in LAUNCHERS:
-            continue
         names = _imports(f) | _dynamic_imports(f)
         bad += [f"{rel} imports {n}" for n in sorted(names) if _matches(n, ("ihrcf_env.cli",))]
     assert bad == []
+    assert {f"{p}/__main__.py" for p in PACKAGE_COMMANDS} <= {
+        f.relative_to(PKG).as_posix() for f in _library_files()
+    }
 
 
-@pytest.mark.parametrize("launcher", LAUNCHERS)
-def test_launchers_are_only_launchers(launcher: str) -> None:
-    """A launcher imports only :mod:`ihrcf_env.cli.launch` and calls it under ``__main__``; no
-    module imports a launcher."""
-    tree = ast.parse((PKG / launcher).read_text())
-    body = [n for n in tree.body if not (isinstance(n, ast.Expr) and isinstance(n.value, ast.Constant))]
-    assert [ast.unparse(n) for n in body[:-1]] == ["from ihrcf_env.cli.launch import launch"]
-    assert isinstance(body[-1], ast.If) and ast.unparse(body[-1].test) == "__name__ == '__main__'"
-    module = "ihrcf_env." + launcher.removesuffix(".py").replace("/", ".")
-    importers = [
+def test_the_check_sees_an_import_of_the_command_lines(tmp_path: Path) -> None:
+    """What :func:`test_no_library_module_imports_the_command_lines` reads: a launcher of the old
+    form (``from ihrcf_env.cli.launch import launch``) and a lazy import by name are both seen."""
+    f = tmp_path / "__main__.py"
+    f.write_text(
+        "from ihrcf_env.cli.launch import launch\n"
+        "def g():\n    import importlib\n    return importlib.import_module('ihrcf_env.cli.record')\n"
+    )
+    names = _imports(f) | _dynamic_imports(f)
+    assert {"ihrcf_env.cli.launch", "ihrcf_env.cli.record"} <= names
+
+
+def _launcher_body(path: Path) -> list[ast.stmt]:
+    tree = ast.parse(path.read_text())
+    return [n for n in tree.body if not (isinstance(n, ast.Expr) and isinstance(n.value, ast.Constant))]
+
+
+def _importers(module: str) -> list[str]:
+    return [
         f.relative_to(PKG).as_posix()
         for f in PKG.rglob("*.py")
         if module in _imports(f) or (module.endswith(".__main__") and module in _dynamic_imports(f))
     ]
-    assert importers == []
+
+
+@pytest.mark.parametrize("launcher", ROOT_LAUNCHERS)
+def test_root_launchers_are_only_launchers(launcher: str) -> None:
+    """A root launcher imports only :mod:`ihrcf_env.cli.launch` and calls it under ``__main__``; no
+    module imports a launcher."""
+    body = _launcher_body(PKG / launcher)
+    assert [ast.unparse(n) for n in body[:-1]] == ["from ihrcf_env.cli.launch import launch"]
+    assert isinstance(body[-1], ast.If) and ast.unparse(body[-1].test) == "__name__ == '__main__'"
+    assert _importers("ihrcf_env." + launcher.removesuffix(".py")) == []
+
+
+@pytest.mark.parametrize("package", PACKAGE_COMMANDS)
+def test_package_launchers_run_their_own_command(package: str) -> None:
+    """``<pkg>/__main__.py`` imports only :func:`ihrcf_env.cmdline.launch.run_command` and runs
+    ``ihrcf_env.<pkg>.command`` with it under ``__main__``; the console script runs the same module;
+    nothing imports the launcher, and the package does not import its command."""
+    from ihrcf_env.cli import COMMANDS
+
+    body = _launcher_body(PKG / package / "__main__.py")
+    assert [ast.unparse(n) for n in body[:-1]] == ["from ihrcf_env.cmdline.launch import run_command"]
+    assert isinstance(body[-1], ast.If) and ast.unparse(body[-1].test) == "__name__ == '__main__'"
+    call = ast.unparse(body[-1].body[0])
+    assert call == f"raise SystemExit(run_command({package!r}, 'ihrcf_env.{package}.command'))"
+    assert COMMANDS[package] == f"ihrcf_env.{package}.command"
+    assert _importers(f"ihrcf_env.{package}.__main__") == []
+    assert not any(
+        _matches(n, (f"ihrcf_env.{package}.command",)) for n in _imports(PKG / package / "__init__.py")
+    )
 
 
 def test_command_modules_form_no_cycle() -> None:
-    """cli/record builds on cli/evaluate's episode arguments; cli/evaluate does not import
-    cli/record (its ``--record`` uses the library's :func:`ihrcf_env.record.record_failures`)."""
-    assert not any(_matches(n, ("ihrcf_env.cli.record",)) for n in _imports(PKG / "cli" / "evaluate.py"))
+    """record's command builds on the shared episode arguments (:mod:`ihrcf_env.cmdline`);
+    cli/evaluate does not import it (its ``--record`` uses :func:`ihrcf_env.record.record_failures`),
+    and cmdline/ imports no command."""
+    assert not any(_matches(n, ("ihrcf_env.record.command",)) for n in _imports(PKG / "cli" / "evaluate.py"))
 
 
 def test_contract_catches_a_lazy_upward_import_of_config(tmp_path: Path) -> None:

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import ihrcf_env  # noqa: F401  (registers the envs)
-from ihrcf_env.cli.common import check_output, command_main, int_in, make_parser, write_whole
+from ihrcf_env.cmdline.common import check_output, command_main, int_in, make_parser, write_whole
 from ihrcf_env.core.metrics import table2_markdown
 from ihrcf_env.core.threads import limit_blas_threads
 from ihrcf_env.experiments.accuracy import accuracy

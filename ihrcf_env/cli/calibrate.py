@@ -17,7 +17,7 @@ import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, TextIO
 
-from ihrcf_env.cli.common import (
+from ihrcf_env.cmdline.common import (
     check_output,
     command_main,
     int_in,

@@ -16,7 +16,7 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from ihrcf_env.cli.common import check_output, command_main, int_in, make_parser, seed_type, write_whole
+from ihrcf_env.cmdline.common import check_output, command_main, int_in, make_parser, seed_type, write_whole
 
 #: Where the model goes without ``--out``: the working directory.
 DEFAULT_OUTPUT = "detector_model.json"

@@ -1,8 +1,9 @@
-"""``python -m ihrcf_env.mavlink`` (the same command as ``ihrcf-mavlink``): see
-:mod:`ihrcf_env.cli.mavlink`. A launcher, run only by ``python -m`` (importing the package
-:mod:`ihrcf_env.mavlink` never loads it), as the ``python -m`` launchers at the package root are."""
+"""``python -m ihrcf_env.mavlink`` (the same command as ``ihrcf-mavlink``): runs
+:mod:`ihrcf_env.mavlink.command` through :func:`ihrcf_env.cmdline.launch.run_command` (a Ctrl-C
+while the command is imported exits with status 130). Importing the package
+:mod:`ihrcf_env.mavlink` never loads this file."""
 
-from ihrcf_env.cli.launch import launch
+from ihrcf_env.cmdline.launch import run_command
 
 if __name__ == "__main__":
-    raise SystemExit(launch("mavlink"))
+    raise SystemExit(run_command("mavlink", "ihrcf_env.mavlink.command"))

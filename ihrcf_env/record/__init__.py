@@ -2,10 +2,10 @@
 
 :class:`RecordEpisode` wraps an env in a user's own loop; :func:`record_failures` wraps one to
 record its failed episodes into a folder. The commands ``ihrcf-record`` and ``ihrcf-evaluate
---record DIR`` (:mod:`ihrcf_env.cli.record`, :mod:`ihrcf_env.cli.evaluate`) use them; this
-package imports nothing of the command lines. The package imports without Rerun; asking for a
-recording without it raises :class:`RerunMissingError` saying how to install it. What a recording
-holds: :mod:`ihrcf_env.record.episode_log`.
+--record DIR`` (:mod:`ihrcf_env.record.command`, :mod:`ihrcf_env.cli.evaluate`) use them; the
+package imports nothing of :mod:`ihrcf_env.cli`, and importing it does not load its command. The
+package imports without Rerun; asking for a recording without it raises :class:`RerunMissingError`
+saying how to install it. What a recording holds: :mod:`ihrcf_env.record.episode_log`.
 """
 
 from ihrcf_env.record._rerun import INSTALL_HINT, RerunMissingError, import_rerun

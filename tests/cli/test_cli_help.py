@@ -20,21 +20,24 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def _parser(module: str) -> argparse.ArgumentParser:
-    return importlib.import_module(f"ihrcf_env.cli.{module}").build_parser()
+    return importlib.import_module(module).build_parser()
 
 
 def test_every_command_is_a_console_script_on_cli() -> None:
     from ihrcf_env.cli import launch
+    from ihrcf_env.cmdline.launch import run_command
 
     scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
-    assert scripts == {f"ihrcf-{name}": f"ihrcf_env.cli.launch:{module}" for name, module in COMMANDS.items()}
-    for module in COMMANDS.values():
-        assert callable(importlib.import_module(f"ihrcf_env.cli.{module}").main)
-        assert callable(getattr(launch, module))
-        launcher = (
-            f"ihrcf_env.{module}.__main__" if module in ("record", "mavlink") else f"ihrcf_env.{module}"
-        )
-        assert importlib.import_module(launcher).launch is launch.launch
+    funcs = {name: name.replace("-", "_") for name in COMMANDS}
+    assert scripts == {f"ihrcf-{name}": f"ihrcf_env.cli.launch:{f}" for name, f in funcs.items()}
+    for name, module in COMMANDS.items():
+        assert callable(importlib.import_module(module).main)
+        assert callable(getattr(launch, funcs[name]))
+        if module.startswith("ihrcf_env.cli."):  # python -m ihrcf_env.<name>: the root's launcher
+            assert importlib.import_module(f"ihrcf_env.{funcs[name]}").launch is launch.launch
+        else:  # python -m ihrcf_env.<package>: the package's own launcher, beside its command
+            package = module.removesuffix(".command")
+            assert importlib.import_module(f"{package}.__main__").run_command is run_command
 
 
 @pytest.mark.parametrize(("name", "module"), sorted(COMMANDS.items()))
@@ -53,10 +56,10 @@ def test_help_is_plain_names_the_program_and_states_every_default(name: str, mod
         assert "default" in shown or action.required, (action.dest, shown)
 
 
-@pytest.mark.parametrize("module", sorted(COMMANDS.values()))
-def test_python_m_help_runs(module: str) -> None:
+@pytest.mark.parametrize("name", sorted(COMMANDS))
+def test_python_m_help_runs(name: str) -> None:
     run = subprocess.run(
-        [sys.executable, "-m", f"ihrcf_env.{module}", "--help"],
+        [sys.executable, "-m", f"ihrcf_env.{name.replace('-', '_')}", "--help"],
         capture_output=True,
         text=True,
         timeout=120,

@@ -12,9 +12,9 @@ import ihrcf_env
 import ihrcf_env.experiments.detector_fit as detector_fit
 import ihrcf_env.sim.calibration_procedure as calibration_procedure
 from ihrcf_env.cli.calibrate import main as calibrate
-from ihrcf_env.cli.common import write_whole
 from ihrcf_env.cli.fit_detector import DEFAULT_OUTPUT, build_parser
 from ihrcf_env.cli.fit_detector import main as fit_detector
+from ihrcf_env.cmdline.common import write_whole
 from ihrcf_env.core.detector_model import DetectorModel, default_detector_model_path
 
 

@@ -19,7 +19,8 @@ import ihrcf_env.cli.benchmark as benchmark_cli
 import ihrcf_env.cli.evaluate as evaluate_cli
 import ihrcf_env.sim.calibration_procedure as calibration_procedure
 from ihrcf_env.cli import COMMANDS
-from ihrcf_env.cli.common import EXIT_INTERRUPTED, write_whole
+from ihrcf_env.cmdline.common import EXIT_INTERRUPTED, write_whole
+from ihrcf_env.cmdline.episode_args import check_episode_args
 from ihrcf_env.experiments.policies import PolicyError, make_policy
 
 
@@ -172,7 +173,7 @@ def test_benchmark_refuses_before_the_tables(
 def test_ctrl_c_ends_a_command_with_a_message_and_status_130(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], module: str
 ) -> None:
-    cli = importlib.import_module(f"ihrcf_env.cli.{module}")
+    cli = importlib.import_module(module)
 
     def interrupted() -> None:
         raise KeyboardInterrupt
@@ -264,7 +265,7 @@ def test_ctrl_c_in_a_running_command(tmp_path: Path) -> None:
 #: KeyboardInterrupt is raised at the next instruction, inside that import).
 _STARTUP_CTRL_C = """
 import os, signal, sys
-target = os.path.join("ihrcf_env", "cli", sys.argv[1])
+target = os.path.join(*sys.argv[1].split("."))
 def hook(event, args):
     if event == "open" and isinstance(args[0], str) and target in args[0].replace("__pycache__" + os.sep, ""):
         os.kill(os.getpid(), signal.SIGINT)
@@ -285,7 +286,7 @@ def test_ctrl_c_during_start_up_exits_130_without_a_traceback(name: str, module:
     root = Path(__file__).resolve().parents[2]
     target = tomllib.loads((root / "pyproject.toml").read_text())["project"]["scripts"][f"ihrcf-{name}"]
     where, _, func = target.partition(":")
-    launcher = "ihrcf_env.record" if module == "record" else f"ihrcf_env.{module}"
+    launcher = f"ihrcf_env.{name.replace('-', '_')}"  # a module at the root, or a package's __main__
     for tail in (
         f"from {where} import {func}\nsys.exit({func}())",
         f"import runpy\nrunpy.run_module({launcher!r}, run_name='__main__', alter_sys=True)",
@@ -321,7 +322,7 @@ def test_ctrl_c_during_start_up_exits_130_without_a_traceback(name: str, module:
 def test_an_option_and_its_flag_with_two_values_are_a_usage_error(
     capsys: pytest.CaptureFixture[str], argv: list[str], names: tuple[str, str]
 ) -> None:
-    from ihrcf_env.cli.record import main as record
+    from ihrcf_env.record.command import main as record
 
     for main, extra in ((evaluate_cli.main, []), (record, ["--out", "never.rrd"])):
         err = _usage_error(capsys, main, ["--policy", "blind:0.3", *argv, *extra])
@@ -336,5 +337,5 @@ def test_an_option_and_its_flag_with_one_value_pass(monkeypatch: pytest.MonkeyPa
     args = ap.parse_args(
         ["--policy", "blind:0.3", "--camera-model", "projected", "--option", "camera_model=projected"]
     )
-    evaluate_cli._check_args(ap, args)
+    check_episode_args(ap, args)
     assert args.options == {"camera_model": "projected"} and isinstance(args, argparse.Namespace)

@@ -13,8 +13,8 @@ import time
 import pytest
 from udp_helpers import free_udp_port
 
-from ihrcf_env.cli import mavlink as cli
-from ihrcf_env.cli.common import EXIT_INTERRUPTED
+from ihrcf_env.cmdline.common import EXIT_INTERRUPTED
+from ihrcf_env.mavlink import command as cli
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*DeckLanding-v1 is out of date")
 FAST = ["--camera-model", "projected"]

@@ -144,7 +144,7 @@ def test_rerun_missing(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: 
     with pytest.raises(RerunMissingError, match=r'pip install "ihrcf-env\[viewer\]"'):
         RecordEpisode(_env(), tmp_path / "x.rrd")
     RecordEpisode(_env(), tmp_path / "x.rrd", enabled=False).close()  # off needs no Rerun
-    from ihrcf_env.cli.record import main
+    from ihrcf_env.record.command import main
 
     with pytest.raises(SystemExit) as e:
         main(["--policy", "blind:0.3", "--out", str(tmp_path / "x.rrd")])
@@ -171,7 +171,7 @@ def test_rerun_missing(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: 
     ],
 )
 def test_record_cli_usage_errors(tmp_path: Path, capsys: Any, argv: list[str], message: str) -> None:
-    from ihrcf_env.cli.record import main
+    from ihrcf_env.record.command import main
 
     with pytest.raises(SystemExit) as e:
         main([a.replace("{dir}", str(tmp_path)) for a in argv])
@@ -181,7 +181,7 @@ def test_record_cli_usage_errors(tmp_path: Path, capsys: Any, argv: list[str], m
 
 
 def test_record_cli_writes_one_episode(tmp_path: Path, capsys: Any) -> None:
-    from ihrcf_env.cli.record import main
+    from ihrcf_env.record.command import main
 
     out = tmp_path / "sub" / "land.rrd"
     argv = ["--policy", "scripted", "--env-id", LANDING_V2_ID, "--camera-model", "projected"]

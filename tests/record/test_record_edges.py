@@ -45,7 +45,7 @@ def _fly(env: gym.Env, seed: int | None = 3) -> dict[str, Any]:
 def test_a_fifo_is_refused_and_left_alone(tmp_path: Path, capsys: Any) -> None:
     """An existing special file (a FIFO here; a device node alike) is refused with exit status 2,
     before anything flies, and stays what it was."""
-    from ihrcf_env.cli.record import main
+    from ihrcf_env.record.command import main
 
     fifo = tmp_path / "pipe.rrd"
     os.mkfifo(fifo)
@@ -85,7 +85,7 @@ def test_only_an_rrd_file_is_replaced(tmp_path: Path) -> None:
 @pytest.mark.parametrize("value", ["", "  "])
 def test_an_empty_path_is_named_as_empty(tmp_path: Path, capsys: Any, value: str) -> None:
     from ihrcf_env.cli.evaluate import main as evaluate
-    from ihrcf_env.cli.record import main
+    from ihrcf_env.record.command import main
 
     with pytest.raises(RecordingPathError, match="empty"):
         check_recording_path(value)
@@ -111,7 +111,7 @@ def test_spawn_without_a_viewer_is_one_line_and_exit_2(
 ) -> None:
     """No ``rerun`` on PATH nor beside the interpreter, none listening: refused before the env
     is made, in one line."""
-    from ihrcf_env.cli.record import main
+    from ihrcf_env.record.command import main
 
     monkeypatch.setenv("PATH", str(tmp_path))
     monkeypatch.setattr(record_wrapper.sys, "executable", str(tmp_path / "python"))

@@ -1,11 +1,12 @@
 """``ihrcf-mavlink`` (``python -m ihrcf_env.mavlink``): run a landing or hover env as a MAVLink 2
 vehicle.
 
-The env is chosen by the arguments of ``ihrcf-evaluate`` (:func:`ihrcf_env.cli.evaluate.add_env_arguments`,
-checked the same way); the vehicle is :class:`ihrcf_env.mavlink.loop.MavlinkVehicle`, its options
-checked once by :class:`~ihrcf_env.mavlink.loop.VehicleOptions`. A port in use, a destination
-that cannot be reached or a missing pymavlink exit with status 2, Ctrl-C with 130 (the sockets and
-the env closed).
+The env is chosen by the arguments of ``ihrcf-evaluate``
+(:func:`ihrcf_env.cmdline.env_args.add_env_arguments`, checked the same way); the vehicle is
+:class:`ihrcf_env.mavlink.loop.MavlinkVehicle`, its options checked once by
+:class:`~ihrcf_env.mavlink.loop.VehicleOptions`. A port in use, a destination that cannot be
+reached or a missing pymavlink exit with status 2, Ctrl-C with 130 (the sockets and the env
+closed).
 """
 
 from __future__ import annotations
@@ -17,8 +18,8 @@ from typing import Any
 
 import gymnasium as gym
 
-from ihrcf_env.cli.common import command_main, int_in, make_parser, real_in
-from ihrcf_env.cli.evaluate import add_env_arguments, check_env_args, env_kwargs
+from ihrcf_env.cmdline.common import command_main, int_in, make_parser, real_in
+from ihrcf_env.cmdline.env_args import add_env_arguments, check_env_args, env_kwargs
 
 DESCRIPTION = """\
 Run a landing (or hover) env as a MAVLink 2 vehicle, PX4-style: heartbeat, arming, the hold /
@@ -181,8 +182,5 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 1
     return 0
 
-
-if __name__ == "__main__":
-    raise SystemExit(main())
 
 __all__ = ["DESCRIPTION", "build_parser", "main"]

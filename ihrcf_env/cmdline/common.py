@@ -1,12 +1,11 @@
-"""What the command lines share: the parser, argument types, output checks, writing a file whole.
+"""What every command line shares: the parser, argument types, output checks, Ctrl-C, writing a
+file whole (standard library only).
 
-Every command is installed as a console script (``ihrcf-<name>``, pointing at
-:mod:`ihrcf_env.cli.launch`, which runs ``ihrcf_env.cli.<name>.main``) and runs as ``python -m
-ihrcf_env.<name>``; its ``--help`` is plain
-text that states every default. Arguments are checked before any simulation starts: seeds,
-counts and output files (the folder exists and is writable, the path is not a folder), so a bad
-argument fails at once with a message naming it (argparse's exit status 2), not after a long
-run.
+Every command is installed as a console script (``ihrcf-<name>``, :mod:`ihrcf_env.cli.launch`) and
+runs as ``python -m ihrcf_env.<name>``; its ``--help`` is plain text that states every default.
+Arguments are checked before any simulation starts: seeds, counts and output files (the folder
+exists and is writable, the path is not a folder), so a bad argument fails at once with a message
+naming it (argparse's exit status 2), not after a long run.
 """
 
 from __future__ import annotations

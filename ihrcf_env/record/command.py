@@ -1,7 +1,7 @@
 """``ihrcf-record`` (``python -m ihrcf_env.record``): fly one episode and write a Rerun recording.
 
 The env and the policy are chosen by the arguments of ``ihrcf-evaluate``
-(:func:`ihrcf_env.cli.evaluate.add_episode_arguments`, checked the same way); the episode runs
+(:func:`ihrcf_env.cmdline.episode_args.add_episode_arguments`, checked the same way); the episode runs
 through :func:`ihrcf_env.experiments.episode.run_episode` inside
 :class:`~ihrcf_env.record.RecordEpisode`. Every check (the output file, the Rerun SDK, the viewer
 for ``--spawn``) runs before the env is made.
@@ -12,8 +12,13 @@ from __future__ import annotations
 import argparse
 from collections.abc import Sequence
 
-from ihrcf_env.cli.common import command_main, make_parser
-from ihrcf_env.cli.evaluate import _check_args, add_episode_arguments, format_episode, make_env_and_policy
+from ihrcf_env.cmdline.common import command_main, make_parser
+from ihrcf_env.cmdline.episode_args import (
+    add_episode_arguments,
+    check_episode_args,
+    format_episode,
+    make_env_and_policy,
+)
 from ihrcf_env.experiments.episode import run_episode
 from ihrcf_env.record import (
     RecordEpisode,
@@ -84,7 +89,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             check_viewer()
         except ViewerMissingError as e:
             ap.error(f"argument --spawn: {e}")
-    _check_args(ap, args)
+    check_episode_args(ap, args)
     env, policy, _ = make_env_and_policy(ap, args)
     try:
         try:
@@ -97,7 +102,3 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(format_episode(result))
     print(f"recording: {args.out}" if args.out is not None else "recording sent to the Rerun viewer")
     return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
