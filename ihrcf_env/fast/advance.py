@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array, lax
@@ -153,7 +154,7 @@ def advance(
     the estimate (None: on the truth). The first contact of the period (if any, and none before)
     is in ``code`` / ``tick``."""
     dt = c.dt
-    deck_rot = jnp.stack([matrix_from_quaternion(deck_quat[j]) for j in range(c.substeps + 1)])
+    deck_rot = jax.vmap(matrix_from_quaternion)(deck_quat)  # (S + 1, 3, 3)
     boxes = (
         jnp.asarray(c.box_centres),
         jnp.asarray(c.box_halves),
