@@ -56,3 +56,39 @@ def test_every_newer_version_runs_the_suite_or_says_it_is_skipped() -> None:
     assert run is not None  # then every installed version runs the default suite
     assert 'wait "${installs[$version]}"' in run.group(1)
     assert '.venv-py$version/bin/pytest"' in run.group(1)
+
+
+def test_the_background_installs_build_from_their_own_copies() -> None:
+    """Every install started in the background builds from its own copy of the tree: pip builds the
+    package in its source folder, and two builds of one folder at once collide. Only the README's
+    install (in the foreground) builds in the checkout itself."""
+    text = CI.read_text()
+    background = [line for line in text.splitlines() if "/bin/pip" in line and "install" in line]
+    in_tree = [line for line in background if '".[' in line]
+    assert len(in_tree) == 1 and "&&" in in_tree[0] and in_tree[0].startswith("python3 -m venv .venv &&")
+    copied = [line for line in background if "_source" in line]
+    assert len(copied) == 2 and all("[" in line for line in copied), copied  # newer Pythons, [rl]
+    function = re.search(r"^private_source\(\) \{.*?^\}", text, re.S | re.M)
+    assert function is not None and "mktemp -d" in function.group(0)
+
+
+def test_a_copy_of_the_tree_leaves_out_environments_and_build_output(tmp_path: Path) -> None:
+    """What ``private_source`` copies: the tree without .git, the virtual environments, build/ and
+    egg-info, into a new folder each call."""
+    text = CI.read_text()
+    function = re.search(r"^private_source\(\) \{.*?^\}", text, re.S | re.M)
+    assert function is not None
+    tree = tmp_path / "tree"
+    for rel in ("pyproject.toml", "ihrcf_env/__init__.py", ".venv/bin/python", ".venv-rl/x", "build/lib/y",
+                "ihrcf_env.egg-info/PKG-INFO", ".git/HEAD"):  # fmt: skip
+        (tree / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tree / rel).write_text("x")
+    bash = shutil.which("bash")
+    assert bash is not None
+    script = f"set -euo pipefail\n{function.group(0)}\nprivate_source\nprivate_source\n"
+    env = {"PATH": "/usr/bin:/bin", "TMPDIR": str(tmp_path)}
+    run = subprocess.run([bash, "-c", script], cwd=tree, capture_output=True, text=True, env=env, check=True)
+    first, second = (Path(line) for line in run.stdout.split())
+    assert first != second
+    copied = sorted(p.relative_to(first).as_posix() for p in first.rglob("*") if p.is_file())
+    assert copied == ["ihrcf_env/__init__.py", "pyproject.toml"]
