@@ -141,4 +141,13 @@ def env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
     return kwargs
 
 
-__all__ = ["FLAG_OPTIONS", "add_env_arguments", "check_env_args", "env_kwargs"]
+def make_env(ap: argparse.ArgumentParser, env_id: str, kwargs: dict[str, Any]) -> gym.Env:
+    """``gym.make(env_id, **kwargs)``, or ``ap.error`` (exit status 2) naming the id and the options
+    if the env refuses them (e.g. an option the env does not have). The caller closes the env."""
+    try:
+        return gym.make(env_id, **kwargs)
+    except (TypeError, ValueError, RuntimeError) as e:
+        ap.error(f"cannot make {env_id} with {kwargs}: {e}")
+
+
+__all__ = ["FLAG_OPTIONS", "add_env_arguments", "check_env_args", "env_kwargs", "make_env"]

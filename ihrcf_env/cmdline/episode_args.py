@@ -15,7 +15,7 @@ from typing import Any
 import gymnasium as gym
 
 from ihrcf_env import LANDING_V1_ID, LANDING_V2_ID
-from ihrcf_env.cmdline.env_args import add_env_arguments, check_env_args, env_kwargs
+from ihrcf_env.cmdline.env_args import add_env_arguments, check_env_args, env_kwargs, make_env
 from ihrcf_env.control.forecast_landing import FORECAST_POLICY_OPTIONS
 from ihrcf_env.control.gru_policy import GruPolicy, PolicyFileError
 from ihrcf_env.control.mlp_policy import MlpPolicy
@@ -126,10 +126,7 @@ def make_env_and_policy(ap: argparse.ArgumentParser, args: argparse.Namespace) -
         kwargs["deck_motion"] = True
     if spec == FORECAST_POLICY and "deck_forecast" not in kwargs:
         kwargs["deck_forecast"] = FORECAST_POLICY_OPTIONS  # the forecast block it flies on
-    try:
-        env = gym.make(args.env_id, **kwargs)
-    except (TypeError, ValueError, RuntimeError) as e:  # e.g. --deck-motion on an env without it
-        ap.error(f"cannot make {args.env_id} with {kwargs}: {e}")
+    env = make_env(ap, args.env_id, kwargs)  # refused e.g. --deck-motion on an env without it
     try:
         try:
             policy = make_policy(spec, env, args.algo)

@@ -14,12 +14,9 @@ from __future__ import annotations
 import argparse
 import math
 from collections.abc import Sequence
-from typing import Any
-
-import gymnasium as gym
 
 from ihrcf_env.cmdline.common import command_main, int_in, make_parser, real_in
-from ihrcf_env.cmdline.env_args import add_env_arguments, check_env_args, env_kwargs
+from ihrcf_env.cmdline.env_args import add_env_arguments, check_env_args, env_kwargs, make_env
 
 DESCRIPTION = """\
 Run a landing (or hover) env as a MAVLink 2 vehicle, PX4-style: heartbeat, arming, the hold /
@@ -95,15 +92,6 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
-def _make_env(ap: argparse.ArgumentParser, args: argparse.Namespace) -> gym.Env:
-    kwargs: dict[str, Any] = env_kwargs(args)
-    kwargs.setdefault("max_episode_steps", -1)  # no step limit: a vehicle waits for its client
-    try:
-        return gym.make(args.env_id, **kwargs)
-    except (TypeError, ValueError, RuntimeError) as e:
-        ap.error(f"cannot make {args.env_id} with {kwargs}: {e}")
-
-
 @command_main("mavlink")
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``ihrcf-mavlink``; returns the process exit code."""
@@ -134,7 +122,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
     except ValueError as e:
         ap.error(f"argument --out: {e}" if str(e).startswith("endpoints") else str(e))
-    env = _make_env(ap, args)
+    kwargs = env_kwargs(args)
+    kwargs.setdefault("max_episode_steps", -1)  # no step limit: a vehicle waits for its client
+    env = make_env(ap, args.env_id, kwargs)
     try:
         try:
             vehicle = loop.MavlinkVehicle(env, options)
